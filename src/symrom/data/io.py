@@ -1,0 +1,130 @@
+"""HDF5 read/write of the dataset file (schema_version 1) and atomic file output."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+
+from symrom.data.dataset import OPTIONAL_KEYS, ROW_KEYS, SCHEMA_VERSION, Dataset, DatasetError, validate
+
+_DTYPES = {"jump": np.int32, "phase": np.int8, "contact": np.uint8}
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success.
+
+    Nothing is left behind on failure, and a reader never sees a half-written file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> None:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
+
+
+def write_with(path: str | os.PathLike, writer: Callable[[Path], None]) -> None:
+    """Call ``writer(tmp)`` and move ``tmp`` onto ``path`` atomically."""
+    with atomic_path(path, suffix=Path(path).suffix) as tmp:
+        writer(tmp)
+
+
+def write_dataset(ds: Dataset, path: str | os.PathLike) -> None:
+    """Validate ``ds`` and write it to ``path`` atomically (HDF5)."""
+    import h5py
+
+    validate(ds)
+
+    def _write(tmp: Path) -> None:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["schema_version"] = SCHEMA_VERSION
+            f.attrs["robot"] = ds.robot
+            f.attrs["motion"] = ds.motion
+            f.attrs["source"] = ds.source
+            f.attrs["dt"] = float(ds.dt)
+            f.attrs["phase_names"] = list(ds.phase_names)
+            f.attrs["generator"] = ds.generator_json()
+            for key in ROW_KEYS:
+                arr = getattr(ds, key)
+                if arr is None:
+                    continue
+                f.create_dataset(key, data=np.asarray(arr, dtype=_DTYPES.get(key, np.float64)),
+                                 compression="gzip", compression_opts=4, shuffle=True)
+            f.create_dataset("split", data=np.asarray(ds.split, dtype=object),
+                             dtype=h5py.string_dtype())
+
+    write_with(path, _write)
+
+
+def _attr_str(f, name: str) -> str:
+    if name not in f.attrs:
+        raise DatasetError(f"attr {name!r}: missing")
+    v = f.attrs[name]
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def read_dataset(path: str | os.PathLike) -> Dataset:
+    """Read and validate a dataset file; raise ``DatasetError`` with one clear message."""
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise DatasetError(f"{path}: not a readable HDF5 file ({e.__class__.__name__})") from None
+    try:
+        with f:
+            if "schema_version" not in f.attrs:
+                raise DatasetError("attr 'schema_version': missing")
+            version = int(f.attrs["schema_version"])
+            if version != SCHEMA_VERSION:
+                raise DatasetError(f"attr 'schema_version': {version} is not supported "
+                                   f"(this symrom reads {SCHEMA_VERSION})")
+            arrays = {}
+            for key in (*ROW_KEYS, "split"):
+                if key not in f:
+                    if key in OPTIONAL_KEYS:
+                        continue
+                    raise DatasetError(f"key {key!r}: missing")
+                try:
+                    arrays[key] = f[key][()]
+                except (OSError, KeyError) as e:
+                    raise DatasetError(f"key {key!r}: unreadable ({e})") from None
+            arrays["split"] = np.array([s.decode() if isinstance(s, bytes) else str(s)
+                                        for s in np.atleast_1d(arrays["split"])], dtype=object)
+            phase_names = [p.decode() if isinstance(p, bytes) else str(p)
+                           for p in np.atleast_1d(f.attrs.get("phase_names", []))]
+            try:
+                generator = json.loads(_attr_str(f, "generator")) if "generator" in f.attrs else {}
+            except json.JSONDecodeError:
+                raise DatasetError("attr 'generator': not valid JSON") from None
+            try:
+                dt = float(f.attrs["dt"]) if "dt" in f.attrs else float("nan")
+            except (TypeError, ValueError):
+                raise DatasetError("attr 'dt': not a number") from None
+            ds = Dataset(robot=_attr_str(f, "robot"), motion=_attr_str(f, "motion"),
+                         source=_attr_str(f, "source"), phase_names=phase_names, dt=dt,
+                         generator=generator, **arrays)
+    except OSError as e:
+        raise DatasetError(f"{path}: corrupt or truncated HDF5 file ({e})") from None
+    validate(ds)
+    return ds

@@ -1,0 +1,123 @@
+"""Preprocessing: accelerations by differentiation, ground-reaction forces, CoM wrench.
+
+The ground-reaction force on foot k in contact is F_k = -(J_k^T)^-1 tau_k, with
+J_k the leg Jacobian at the logged joint angles (from the URDF), rotated from
+the base frame into the world frame. The CoM wrench is [sum F_k,
+sum (p_k - b) x F_k], with b the base position standing for the CoM, and the
+system input is u = [tau, wrench].
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from symrom.data.dataset import Dataset, jump_bounds, validate
+from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
+from symrom.data.phases import label_phases
+from symrom.robots import leg_kinematics
+from symrom.robots.kinematics import rpy_to_matrix
+
+DIFF_METHODS = ("savgol", "central")
+
+
+def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "savgol",
+                  window: int = 9, polyorder: int = 3) -> np.ndarray:
+    """Time derivative of ``x`` (N, d) sampled every ``dt`` s, jump by jump.
+
+    ``savgol``: SciPy's Savitzky-Golay derivative (``window`` samples, ``polyorder``),
+    smooth and robust to sensor noise; ``central``: NumPy's second-order central
+    differences (one-sided at the ends), no smoothing.
+    """
+    if method not in DIFF_METHODS:
+        raise ValueError(f"unknown differentiation method {method!r}; choose from {DIFF_METHODS}")
+    x = np.asarray(x, dtype=float)
+    out = np.empty_like(x)
+    for a, b in jump_bounds(jump):
+        seg = x[a:b]
+        n = b - a
+        if method == "savgol" and n > polyorder + 1:
+            w = min(window, n if n % 2 else n - 1)
+            w = max(w, polyorder + 2 if (polyorder + 2) % 2 else polyorder + 3)
+            out[a:b] = savgol_filter(seg, w, polyorder, deriv=1, delta=dt, axis=0, mode="interp") \
+                if w <= n else np.gradient(seg, dt, axis=0)
+        elif n > 1:
+            out[a:b] = np.gradient(seg, dt, axis=0)
+        else:
+            out[a:b] = 0.0
+    return out
+
+
+def ground_reaction_forces(robot: str, q: np.ndarray, tau: np.ndarray,
+                           contact: np.ndarray) -> np.ndarray:
+    """World-frame GRF per foot: q (N, 18), tau (N, 12) N m, contact (N, 4) -> (N, 4, 3) N.
+
+    Zero for feet not in contact. A singular leg (fully stretched) uses the
+    least-squares inverse instead of failing.
+    """
+    J = leg_kinematics(robot).jacobians(q[:, JOINTS])  # (N, 4, 3, 3), base frame
+    R = rpy_to_matrix(q[:, BASE_RPY])  # (N, 3, 3) base -> world
+    F = np.zeros((q.shape[0], N_LEGS, 3))
+    for k in range(N_LEGS):
+        JT = np.swapaxes(J[:, k], 1, 2)
+        tk = tau[:, leg_slice(k)]
+        try:
+            fb = -np.linalg.solve(JT, tk[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            fb = -np.einsum("nij,nj->ni", np.linalg.pinv(JT), tk)
+        F[:, k] = np.einsum("nij,nj->ni", R, fb) * (np.asarray(contact)[:, k:k + 1] > 0)
+    return F
+
+
+def foot_positions_world(robot: str, q: np.ndarray) -> np.ndarray:
+    """Feet in the world frame from the configuration: q (N, 18) -> (N, 4, 3) m."""
+    pb = leg_kinematics(robot).foot_positions(q[:, JOINTS])
+    R = rpy_to_matrix(q[:, BASE_RPY])
+    return q[:, None, BASE_POS] + np.einsum("nij,nkj->nki", R, pb)
+
+
+def com_wrench(robot: str, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
+               foot_pos: np.ndarray | None = None) -> np.ndarray:
+    """CoM wrench (N, 6): summed GRF (N, world) and its moment about the base (N m).
+
+    q (N, 18), tau (N, 12) N m, contact (N, 4); ``foot_pos`` (N, 4, 3) m world
+    if logged, else computed from the kinematics.
+    """
+    F = ground_reaction_forces(robot, q, tau, contact)
+    p = foot_positions_world(robot, q) if foot_pos is None else foot_pos
+    lever = p - q[:, None, BASE_POS]
+    return np.concatenate([F.sum(axis=1), np.cross(lever, F).sum(axis=1)], axis=1)
+
+
+def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.ndarray,
+             q: np.ndarray, dq: np.ndarray, tau: np.ndarray, contact: np.ndarray,
+             ddq: np.ndarray | None = None, foot_pos: np.ndarray | None = None,
+             split: np.ndarray | None = None, dt: float = 0.002,
+             generator: dict[str, Any] | None = None, diff_method: str = "savgol") -> Dataset:
+    """Build and validate a dataset from raw logs (arrays as in ``Dataset``).
+
+    Missing ``ddq`` is obtained by differentiating ``dq``; phases come from the
+    contact flags with the motion's rule; ``u = [tau, wrench]``. Without
+    ``split`` every jump is ``train``.
+    """
+    jump = np.asarray(jump, dtype=np.int32)
+    contact = np.asarray(contact, dtype=np.uint8)
+    generator = dict(generator or {})
+    if ddq is None:
+        ddq = differentiate(dq, dt, jump, diff_method)
+        generator.setdefault("ddq", f"differentiated dq ({diff_method})")
+    phase, phase_names = label_phases(contact, jump, motion)
+    n_jumps = int(jump.max()) + 1 if jump.size else 0
+    if split is None:
+        split = np.array(["train"] * n_jumps, dtype=object)
+    wrench = com_wrench(robot, q, tau, contact, foot_pos)
+    ds = Dataset(robot=robot, motion=motion, source=source, phase_names=phase_names,
+                 jump=jump, t=np.asarray(t, float), q=np.asarray(q, float),
+                 dq=np.asarray(dq, float), ddq=np.asarray(ddq, float), tau=np.asarray(tau, float),
+                 contact=contact, u=np.concatenate([tau, wrench], axis=1), phase=phase,
+                 split=np.asarray(split, dtype=object), foot_pos=foot_pos, dt=float(dt),
+                 generator=generator)
+    validate(ds)
+    return ds

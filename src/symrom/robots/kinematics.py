@@ -1,0 +1,137 @@
+"""Leg kinematics read from a robot's URDF: foot positions and leg Jacobians.
+
+The URDF is the one source of robot geometry. Each leg is the chain of joints
+from the trunk to the foot link; its three revolute joints are the leg's
+``hx, hy, kn``. Fixed joints along the way are folded into the transforms.
+Everything is vectorised over samples: joint angles (N, 12) in rad give
+foot positions (N, 4, 3) in m and Jacobians (N, 4, 3, 3) in m/rad, both in
+the trunk (base) frame.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from symrom.data.names import N_JOINTS, N_LEGS
+
+
+def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations about unit ``axis`` (3,) by ``angle`` (N,) rad (Rodrigues)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s, c = np.sin(angle)[:, None, None], np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1 - c) * (k @ k)
+
+
+@dataclass(frozen=True)
+class _Link:
+    """One joint of a leg chain: fixed origin transform, then a rotation (if revolute)."""
+    xyz: np.ndarray  # (3,) m, in the parent frame
+    rot: np.ndarray  # (3, 3), origin rotation
+    axis: np.ndarray | None  # (3,) unit axis in the child frame; None for fixed
+
+
+class LegKinematics:
+    """Forward kinematics and Jacobians of the four legs of one URDF.
+
+    joint_names: the 12 URDF joint names in symrom's order (FR FL RR RL x hx hy kn).
+    foot_links: the 4 URDF foot link names. ``foot_offset`` (3,) m is added in
+    the foot link frame (e.g. the contact sphere's centre, usually zero).
+    """
+
+    def __init__(self, urdf: str | Path, base_link: str, joint_names: list[str],
+                 foot_links: list[str]):
+        if len(joint_names) != N_JOINTS or len(foot_links) != N_LEGS:
+            raise ValueError("need 12 joint names and 4 foot links")
+        root = ET.parse(urdf).getroot()
+        by_child = {}
+        for j in root.findall("joint"):  # top level only; <transmission> has <joint> too
+            by_child[j.find("child").get("link")] = j
+        self.chains: list[list[_Link]] = []
+        self.chain_joint_index: list[list[int]] = []  # per chain element: column in q_joints or -1
+        for leg, foot in enumerate(foot_links):
+            elems, cols = [], []
+            link = foot
+            while link != base_link:
+                j = by_child.get(link)
+                if j is None:
+                    raise ValueError(f"{urdf}: no joint chain from {base_link!r} to {foot!r}")
+                origin = j.find("origin")
+                xyz = np.array([float(v) for v in (origin.get("xyz", "0 0 0") if origin is not None
+                                                   else "0 0 0").split()])
+                rpy = np.array([float(v) for v in (origin.get("rpy", "0 0 0") if origin is not None
+                                                   else "0 0 0").split()])
+                axis = None
+                col = -1
+                if j.get("type") in ("revolute", "continuous"):
+                    ax = j.find("axis")
+                    axis = np.array([float(v) for v in (ax.get("xyz") if ax is not None else "1 0 0").split()])
+                    axis = axis / np.linalg.norm(axis)
+                    name = j.get("name")
+                    if name not in joint_names[3 * leg:3 * leg + 3]:
+                        raise ValueError(f"{urdf}: joint {name!r} on the chain to {foot!r} is not one "
+                                         f"of that leg's joints {joint_names[3 * leg:3 * leg + 3]}")
+                    col = joint_names.index(name)
+                elems.append(_Link(xyz, rpy_to_matrix(rpy)[0], axis))
+                cols.append(col)
+                link = j.find("parent").get("link")
+            elems.reverse()
+            cols.reverse()
+            if sorted(c for c in cols if c >= 0) != list(range(3 * leg, 3 * leg + 3)):
+                raise ValueError(f"{urdf}: the chain to {foot!r} does not hold exactly its 3 joints")
+            self.chains.append(elems)
+            self.chain_joint_index.append(cols)
+
+    def _leg(self, leg: int, qj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Foot position (N, 3) and Jacobian (N, 3, 3) of one leg, base frame."""
+        n = qj.shape[0]
+        R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+        p = np.zeros((n, 3))
+        axes, origins = {}, {}
+        for el, col in zip(self.chains[leg], self.chain_joint_index[leg]):
+            p = p + R @ el.xyz
+            R = R @ el.rot
+            if el.axis is not None:
+                axes[col] = R @ el.axis
+                origins[col] = p.copy()
+                R = R @ _axis_angle(el.axis, qj[:, col])
+        J = np.empty((n, 3, 3))
+        for k, col in enumerate(range(3 * leg, 3 * leg + 3)):
+            J[:, :, k] = np.cross(axes[col], p - origins[col])
+        return p, J
+
+    def foot_positions(self, q_joints: np.ndarray) -> np.ndarray:
+        """Feet in the base frame: q_joints (N, 12) rad -> (N, 4, 3) m."""
+        qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
+        return np.stack([self._leg(k, qj)[0] for k in range(N_LEGS)], axis=1)
+
+    def jacobians(self, q_joints: np.ndarray) -> np.ndarray:
+        """Leg Jacobians d p_foot / d q_leg in the base frame: (N, 12) -> (N, 4, 3, 3)."""
+        qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
+        return np.stack([self._leg(k, qj)[1] for k in range(N_LEGS)], axis=1)
+
+    def foot_positions_and_jacobians(self, q_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
+        out = [self._leg(k, qj) for k in range(N_LEGS)]
+        return np.stack([o[0] for o in out], axis=1), np.stack([o[1] for o in out], axis=1)
+
+
+def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
+    """Base orientation from ZYX Euler angles: rpy (N, 3) rad -> R (N, 3, 3), base to world."""
+    rpy = np.atleast_2d(rpy)
+    r, p, y = rpy[:, 0], rpy[:, 1], rpy[:, 2]
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    R = np.empty((rpy.shape[0], 3, 3))
+    R[:, 0, 0] = cy * cp
+    R[:, 0, 1] = cy * sp * sr - sy * cr
+    R[:, 0, 2] = cy * sp * cr + sy * sr
+    R[:, 1, 0] = sy * cp
+    R[:, 1, 1] = sy * sp * sr + cy * cr
+    R[:, 1, 2] = sy * sp * cr - cy * sr
+    R[:, 2, 0] = -sp
+    R[:, 2, 1] = cp * sr
+    R[:, 2, 2] = cp * cr
+    return R
