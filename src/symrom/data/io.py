@@ -128,3 +128,43 @@ def read_dataset(path: str | os.PathLike) -> Dataset:
         raise DatasetError(f"{path}: corrupt or truncated HDF5 file ({e})") from None
     validate(ds)
     return ds
+
+
+class OutputExistsError(FileExistsError):
+    """An output already exists and overwriting was not asked for."""
+
+
+@contextmanager
+def atomic_dir(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
+    """Yield a fresh temporary directory that replaces ``path`` on success.
+
+    Raises ``OutputExistsError`` up front if ``path`` exists and not ``force``.
+    On failure the temporary directory is removed and ``path`` is untouched.
+    """
+    import shutil
+
+    path = Path(path)
+    if path.exists() and not force:
+        raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    try:
+        yield tmp
+        if path.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old.", dir=path.parent))
+            os.replace(path, old / "x")
+            os.replace(tmp, path)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def check_output_file(path: str | os.PathLike, force: bool) -> Path:
+    """Refuse an existing output file unless ``force``."""
+    path = Path(path)
+    if path.exists() and not force:
+        raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
+    return path

@@ -1,0 +1,64 @@
+"""Error metrics of rollouts, in the layout of ``metrics.json`` (DESIGN.md).
+
+Per configuration component: ``mean`` and ``std`` of the signed error
+predicted - true over all samples of the split (the paper's Table 2), ``mae``
+and ``rmse``. Diverged jumps are excluded from the statistics and counted in
+``diverged_jumps``; with every jump diverged the components are empty.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.data.names import Q_NAMES
+from symrom.model.hybrid import HybridModel
+from symrom.rollout.integrate import Rollout, RolloutOptions, rollout
+
+
+def horizon_key(reset: float | None) -> str:
+    """``full`` or the reset period as text, e.g. ``0.1``."""
+    return "full" if reset is None else f"{reset:g}"
+
+
+def component_stats(err: np.ndarray, names: tuple[str, ...] | list[str] = Q_NAMES) -> dict:
+    """err (N, C) signed errors -> {name: {mean, std, mae, rmse}}."""
+    if err.shape[0] == 0:
+        return {}
+    return {n: {"mean": float(np.mean(e)), "std": float(np.std(e)),
+                "mae": float(np.mean(np.abs(e))), "rmse": float(np.sqrt(np.mean(e ** 2)))}
+            for n, e in zip(names, err.T)}
+
+
+def rollout_errors(ds: Dataset, ro: Rollout) -> np.ndarray:
+    """Signed errors (N, 18) over the non-diverged jumps of ``ro``."""
+    bounds = ds.jump_bounds()
+    errs = [ro.q_pred[i] - ds.q[slice(*bounds[j])]
+            for i, j in enumerate(ro.jumps) if not ro.diverged[i]]
+    return np.concatenate(errs) if errs else np.zeros((0, ds.q.shape[1]))
+
+
+def horizon_metrics(ds: Dataset, ro: Rollout) -> dict:
+    return {"diverged_jumps": int(ro.diverged.sum()),
+            "components": component_stats(rollout_errors(ds, ro))}
+
+
+def evaluate(model: HybridModel, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
+             options: RolloutOptions = RolloutOptions(), model_name: str = "", data_name: str = "",
+             progress: Callable[[int, int], None] | None = None) -> tuple[dict, dict[str, Rollout]]:
+    """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts."""
+    jumps = ds.jumps_in(split)
+    if jumps.size == 0:
+        raise ValueError(f"the dataset has no {split!r} jumps")
+    horizons, rollouts = {}, {}
+    for reset in resets:
+        key = horizon_key(reset)
+        ro = rollout(model, ds, jumps, replace(options, reset=reset), progress)
+        rollouts[key] = ro
+        horizons[key] = horizon_metrics(ds, ro)
+    metrics = {"model": model_name, "data": data_name, "split": split, "n_jumps": int(jumps.size),
+               "integrator": options.method, "horizons": horizons}
+    return metrics, rollouts

@@ -1,0 +1,77 @@
+"""Plots of true vs predicted joint angles and base pose for one jump (PNG)."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.data.io import write_with
+from symrom.data.names import Q_NAMES, Q_UNITS
+from symrom.rollout.integrate import Rollout
+
+JOINT_PANELS = ("fl_hx", "fl_hy", "fl_kn", "rr_hx", "rr_hy", "rr_kn")
+BASE_PANELS = ("x", "y", "z", "roll", "pitch", "yaw")
+_PHASE_COLOURS = ("#ffffff", "#dde8f6", "#f6e3cf", "#e2f0da")
+
+
+def _shade_phases(ax, t: np.ndarray, phase: np.ndarray, names: list[str], seen: set) -> None:
+    edges = np.flatnonzero(np.r_[True, np.diff(phase) != 0, True])
+    for a, b in zip(edges[:-1], edges[1:]):
+        k = int(phase[a])
+        if k == 0:
+            continue
+        label = names[k] if names[k] not in seen else None
+        seen.add(names[k])
+        ax.axvspan(t[a], t[min(b, len(t) - 1)], color=_PHASE_COLOURS[k % len(_PHASE_COLOURS)],
+                   alpha=0.9, lw=0, label=label, zorder=0)
+
+
+def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | os.PathLike,
+              components: tuple[str, ...] = JOINT_PANELS + BASE_PANELS, title: str = "") -> None:
+    """One panel per component: truth and each rollout (keyed by horizon) for ``jump``.
+
+    Writes a PNG atomically; shaded spans mark the non-default phases.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a, b = ds.jump_bounds()[jump]
+    t, phase = ds.t[a:b], ds.phase[a:b]
+    ncol = 3
+    nrow = int(np.ceil(len(components) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.5 * nrow), sharex=True, squeeze=False)
+    styles = {"full": dict(color="C3", ls="--"), }
+    seen: set = set()
+    for ax, comp in zip(axes.ravel(), components):
+        c = Q_NAMES.index(comp)
+        _shade_phases(ax, t, phase, ds.phase_names, seen)
+        ax.plot(t, ds.q[a:b, c], color="k", lw=1.6, label="true")
+        for i, (key, ro) in enumerate(rollouts.items()):
+            idx = np.flatnonzero(ro.jumps == jump)
+            if idx.size == 0:
+                continue
+            style = styles.get(key, dict(color=f"C{i}", ls="-"))
+            label = "predicted, full horizon" if key == "full" else f"predicted, {key} s resets"
+            ax.plot(t, ro.q_pred[idx[0]][:, c], lw=1.1, label=label, **style)
+        ax.set_title(f"{comp} [{Q_UNITS[comp]}]", fontsize=10)
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    for ax in axes.ravel()[len(components):]:
+        ax.axis("off")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    for ax in axes.ravel()[1:]:
+        for h, l in zip(*ax.get_legend_handles_labels()):
+            if l not in labels:
+                handles.append(h)
+                labels.append(l)
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.05, 1, 0.97 if title else 1))
+    write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)

@@ -1,0 +1,33 @@
+"""Markdown tables in the layout of the paper's Table 2."""
+
+from __future__ import annotations
+
+from symrom.data.names import Q_UNITS, TABLE2_COMPONENTS
+
+
+def _fmt(x: float) -> str:
+    """Two significant digits as in the paper: 1.3e-2, 0.11."""
+    if x == 0:
+        return "0"
+    a = abs(x)
+    return f"{x:.2f}" if 0.1 <= a < 100 else f"{x:.1e}".replace("e-0", "e-").replace("e+0", "e")
+
+
+def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title: str = "") -> str:
+    """Signed mean ± std per component and horizon, then MAE and RMSE rows."""
+    head = "| horizon | stat | " + " | ".join(f"{c} [{Q_UNITS.get(c, '')}]" for c in components) + " |"
+    lines = ([f"**{title}**", ""] if title else []) + [head, "|" + "---|" * (len(components) + 2)]
+    for key, h in metrics["horizons"].items():
+        label = "Full" if key == "full" else f"{key} s"
+        comps = h["components"]
+        if not comps:
+            lines.append(f"| {label} | all jumps diverged ({h['diverged_jumps']}) |"
+                         + " |" * len(components))
+            continue
+        div = f" ({h['diverged_jumps']} diverged)" if h["diverged_jumps"] else ""
+        lines.append(f"| {label}{div} | mean±std | " + " | ".join(
+            f"{_fmt(comps[c]['mean'])}±{_fmt(comps[c]['std'])}" for c in components) + " |")
+        for stat in ("mae", "rmse"):
+            lines.append(f"| {label} | {stat.upper()} | "
+                         + " | ".join(_fmt(comps[c][stat]) for c in components) + " |")
+    return "\n".join(lines) + "\n"
