@@ -14,6 +14,7 @@ mask, hence the few lines below; the linear algebra itself is SciPy's.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,7 +59,11 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     d = np.sqrt(np.clip(np.diag(K), 1e-300, None))
     Ks = K / d[:, None] / d[None, :]
     try:
-        x = scipy.linalg.solve(Ks, rhs / d, assume_a="pos")
+        with warnings.catch_warnings():
+            # Near-collinear features (x and sin x on a small range): fall back to
+            # the minimum-norm least-squares solution instead of trusting a shaky solve.
+            warnings.simplefilter("error", scipy.linalg.LinAlgWarning)
+            x = scipy.linalg.solve(Ks, rhs / d, assume_a="pos")
     except (np.linalg.LinAlgError, scipy.linalg.LinAlgWarning, ValueError):
         x = scipy.linalg.lstsq(Ks, rhs / d)[0]
     x = x / d

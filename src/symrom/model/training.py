@@ -92,24 +92,31 @@ def data_hash(ds: Dataset) -> str:
     return h.hexdigest()
 
 
-def varimax(W: np.ndarray, max_iter: int = 200, tol: float = 1e-10) -> np.ndarray:
+def varimax(W: np.ndarray, max_iter: int = 500, tol: float = 1e-13) -> np.ndarray:
     """Orthogonal rotation of the rows of W (l, n) maximising the varimax criterion.
 
     Kaiser's (1958) iteration, written here because SciPy and NumPy have none:
-    each step is the polar factor of the criterion's gradient.
+    each step is the polar factor of the criterion's gradient. The best rotation
+    seen is kept, since on perfectly symmetric loadings the iteration can cycle.
     """
     L = W.T  # (n, l) loadings
-    l = L.shape[1]
-    R = np.eye(l)
-    crit = 0.0
+
+    def criterion(B):
+        return float(np.sum(np.var(B ** 2, axis=0)))
+
+    R = best = np.eye(L.shape[1])
+    best_val = criterion(L)
     for _ in range(max_iter):
         B = L @ R
-        U, s, Vt = np.linalg.svd(L.T @ (B ** 3 - B @ np.diag(np.mean(B ** 2, axis=0))))
-        R = U @ Vt
-        if s.sum() - crit < tol * max(s.sum(), 1.0):
+        U, _, Vt = np.linalg.svd(L.T @ (B ** 3 - B @ np.diag(np.mean(B ** 2, axis=0))))
+        R_new = U @ Vt
+        val = criterion(L @ R_new)
+        if val > best_val:
+            best, best_val = R_new, val
+        if np.abs(R_new - R).max() < tol ** 0.5 * 1e-1:  # rotation settled
             break
-        crit = s.sum()
-    return (L @ R).T
+        R = R_new
+    return (L @ best).T
 
 
 def principal_encoder(q: np.ndarray, latent_dim: int) -> np.ndarray:

@@ -1,0 +1,53 @@
+"""End to end through the command line: train -> evaluate -> equations."""
+
+import json
+
+from typer.testing import CliRunner
+
+from symrom.cli import app
+from symrom.data.io import write_dataset
+from symrom.data.names import Q_NAMES
+
+runner = CliRunner()
+
+
+def test_train_evaluate_equations(planted_block, tmp_path):
+    ds, _ = planted_block
+    data = tmp_path / "data.h5"
+    write_dataset(ds, data)
+    run = tmp_path / "run"
+    r = runner.invoke(app, ["train", str(data), "--latent-dim", "2", "--poly-order", "1", "--out", str(run)])
+    assert r.exit_code == 0, r.output
+    model = json.loads((run / "model.json").read_text())
+    assert model["latent_dim"] == 2 and len(model["library"]["feature_names"]) == 15
+    ev = tmp_path / "eval"
+    r = runner.invoke(app, ["evaluate", str(run / "model.json"), str(data), "--split", "test",
+                            "--reset", "0.1", "--out", str(ev), "--integrator", "rk4"])
+    assert r.exit_code == 0, r.output
+    metrics = json.loads((ev / "metrics.json").read_text())
+    assert metrics["split"] == "test" and metrics["n_jumps"] == len(ds.jumps_in("test"))
+    assert set(metrics["horizons"]) == {"full", "0.1"}
+    for h in metrics["horizons"].values():
+        assert h["diverged_jumps"] == 0
+        assert list(h["components"]) == list(Q_NAMES)
+        for stats in h["components"].values():
+            assert set(stats) == {"mean", "std", "mae", "rmse"}
+            assert stats["rmse"] >= stats["mae"] >= abs(stats["mean"]) - 1e-15
+    assert (ev / "table.md").read_text().count("mean±std") == 2
+    pngs = list(ev.glob("jump_*.png"))
+    assert pngs and pngs[0].read_bytes()[:4] == b"\x89PNG"
+    r = runner.invoke(app, ["equations", str(run / "model.json")])
+    assert r.exit_code == 0 and "[contact]" in r.output and "ddxi2 =" in r.output
+    r = runner.invoke(app, ["equations", str(run / "model.json"), "--latex"])
+    assert r.exit_code == 0 and r"\ddot{\xi}_{1}" in r.output
+
+
+def test_demo_runs_and_refuses_to_overwrite(tmp_path):
+    out = tmp_path / "demo"
+    r = runner.invoke(app, ["demo", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert (out / "model.json").is_file() and (out / "eval" / "metrics.json").is_file()
+    before = (out / "model.json").read_text()
+    r = runner.invoke(app, ["demo", "--out", str(out)])
+    assert r.exit_code != 0 and "--force" in r.output
+    assert (out / "model.json").read_text() == before
