@@ -64,6 +64,35 @@ def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
     return (None, *sorted(set(reset or [0.1])))
 
 
+@app.command("import")
+@guarded
+def import_cmd(
+    logs: Annotated[list[Path], typer.Argument(help="CSV log file(s); several are concatenated as consecutive jumps.")],
+    robot: Annotated[str, typer.Option("--robot", help="Robot of the logs (go1 or a1); its URDF gives the wrench.")],
+    out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
+    motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy); sets the phase rule.")] = "pronk",
+    source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
+    split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1); default all train.")] = None,
+    diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
+    force: Force = False,
+) -> None:
+    """Import CSV robot logs (Go1 hardware layout or plain layout) into a dataset file."""
+    from symrom.data.importers import import_logs
+    from symrom.data.io import check_output_file, write_dataset
+
+    check_output_file(out, force)
+    resolved = {p.resolve() for p in logs}
+    if out.resolve() in resolved:
+        raise ValueError(f"--out {out} is one of the input logs")
+    with console.status(f"importing {len(logs)} log file(s)"):
+        ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
+                         split=split, diff_method=diff)
+        write_dataset(ds, out)
+    counts = ", ".join(f"{s} {int((ds.split == s).sum())}" for s in ("train", "val", "test"))
+    out_console.print(f"dataset: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, dt {ds.dt:g} s, "
+                      f"phases {', '.join(ds.phase_names)}; {counts})", highlight=False, soft_wrap=True)
+
+
 @app.command("train")
 @guarded
 def train_cmd(

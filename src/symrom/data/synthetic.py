@@ -93,19 +93,25 @@ def embedding_matrix(kind: str, l: int, rng: np.random.Generator) -> tuple[np.nd
 
 def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str = "block",
                          noise: float = 1e-4, seed: int = 0, dt: float = 0.002,
-                         substeps: int = 8) -> tuple[Dataset, PlantedSystem]:
+                         substeps: int = 8, equations: dict[str, list[dict[str, float]]] | None = None,
+                         embedding_seed: int | None = None) -> tuple[Dataset, PlantedSystem]:
     """A planted pronk-like dataset and its truth.
 
-    embedding: ``axis``, ``block`` or ``dense`` (see the module docstring).
+    embedding: ``axis``, ``block`` or ``dense`` (see the module docstring);
+    equations: ``{phase: [{feature: coef}] * 2}`` for l = 2, p = 1 (default
+    ``PLANTED_2D``); embedding_seed: seed of the embedding alone (default
+    ``seed``), so two systems can share one embedding.
     noise: standard deviation of Gaussian noise on q, dq, ddq, relative to each
     component's spread. Splits: 70 % train, 20 % val, 10 % test (at least one).
     """
     rng = np.random.default_rng(seed)
+    equations = equations or PLANTED_2D
     lib = CandidateLibrary(2, 1)
-    phase_names = list(PLANTED_2D)
-    Xi = planted_xi(lib, PLANTED_2D)
+    phase_names = list(equations)
+    Xi = planted_xi(lib, equations)
     l = lib.latent_dim
-    E, c = embedding_matrix(embedding, l, rng)
+    E, c = embedding_matrix(embedding, l, np.random.default_rng(seed if embedding_seed is None
+                                                                else embedding_seed))
     n1, n2 = round(n_samples * 3 / 8), round(n_samples * 5 / 8)
     sched = np.r_[np.zeros(n1), np.ones(n2 - n1), np.zeros(n_samples - n2)].astype(np.int8)
     h = dt / substeps
@@ -150,6 +156,6 @@ def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str
                  phase=phases, split=split, dt=dt,
                  generator={"kind": "planted", "n_jumps": n_jumps, "n_samples": n_samples,
                             "embedding": embedding, "noise": noise, "seed": seed,
-                            "equations": PLANTED_2D})
+                            "equations": equations})
     validate(ds)
     return ds, PlantedSystem(lib, phase_names, Xi, E, c)

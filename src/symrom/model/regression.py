@@ -39,11 +39,12 @@ def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tupl
 
 
 def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
-                  ridge: float = 0.0) -> np.ndarray:
-    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) with Xi zero off ``mask``.
+                  ridge: float = 0.0, prior: np.ndarray | None = None) -> np.ndarray:
+    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2 with Xi zero
+    off ``mask``, r = ridge * mean(diag A).
 
-    A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool.
-    Returns Xi (p, l).
+    A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool,
+    prior (p, l) or None (= 0). Returns Xi (p, l).
     """
     p, l = mask.shape
     idx = np.flatnonzero(mask.T.ravel())  # column-major vec of Xi
@@ -54,7 +55,10 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     K = G[np.ix_(col, col)] * A[np.ix_(feat, feat)]  # rows/cols of G kron A
     rhs = B[feat, col]
     if ridge > 0:
-        K = K + ridge * np.mean(np.diag(A)) * np.eye(idx.size)
+        r = ridge * np.mean(np.diag(A))
+        K = K + r * np.eye(idx.size)
+        if prior is not None:
+            rhs = rhs + r * prior[feat, col]
     # Equilibrate: features differ in scale by orders of magnitude.
     d = np.sqrt(np.clip(np.diag(K), 1e-300, None))
     Ks = K / d[:, None] / d[None, :]
@@ -72,23 +76,26 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
 
 
 def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
-          config: STLSQConfig = STLSQConfig()) -> tuple[np.ndarray, np.ndarray]:
+          config: STLSQConfig = STLSQConfig(), prior: np.ndarray | None = None,
+          mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sparse Xi (p, l) and its mask for one phase.
 
     Theta (N, p) features, ddxi (N, l) latent and ddq (N, 18) configuration
-    accelerations, W_d (18, l) the frozen decoder.
+    accelerations, W_d (18, l) the frozen decoder. With ``prior`` (p, l) and
+    ``config.ridge`` > 0 the coefficients are pulled towards the prior (used for
+    fine-tuning); ``mask`` (p, l) restricts the starting support.
     """
     Zs, G = weighted_targets(ddxi, ddq, W_d)
     A = Theta.T @ Theta
     B = Theta.T @ Zs @ G
-    mask = np.ones((Theta.shape[1], ddxi.shape[1]), dtype=bool)
-    Xi = solve_support(A, B, G, mask, config.ridge)
+    mask = np.ones((Theta.shape[1], ddxi.shape[1]), dtype=bool) if mask is None else mask.copy()
+    Xi = solve_support(A, B, G, mask, config.ridge, prior)
     for _ in range(config.max_iter):
         new_mask = mask & (np.abs(Xi) >= config.threshold)
         if np.array_equal(new_mask, mask):
             break
         mask = new_mask
-        Xi = solve_support(A, B, G, mask, config.ridge)
+        Xi = solve_support(A, B, G, mask, config.ridge, prior)
     return Xi * mask, mask
 
 

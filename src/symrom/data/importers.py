@@ -1,0 +1,446 @@
+"""CSV robot logs -> dataset: the two accepted layouts and the import itself.
+
+A log is a delimited text file with one header line and one sample per line.
+The layout is recognised from the header (the delimiter from the header line:
+``;`` if it holds one, else ``,``; with ``;`` decimal commas such as ``0,002``
+are read as ``0.002``). Columns are matched by name, in any order, ignoring
+surrounding whitespace, runs of inner whitespace and letter case; the set of
+columns is strict: every required column must be there, no unknown column may.
+
+**hardware** - the published Go1 hardware-log layout, 500 Hz::
+
+    Time
+    <leg>.<joint> Position | Velocity | Acceleration | Torque     leg in fr fl rr rl, joint in hx hy kn
+    Body linear Position|Velocity|Acceleration x|y|z             base x, y, z (m, m/s, m/s^2)
+    Body angular Position|Velocity|Acceleration x|y|z            base roll, pitch, yaw (rad, ...)
+    <leg> Foot                                                   contact flag 0/1
+
+A new jump begins wherever ``Time`` decreases (the logger restarts it at each
+jump).
+
+**plain** - comma-separated with the dataset's own names (``names.py``)::
+
+    jump        optional jump id; without it, the Time-restart rule as above
+    t           s
+    fr_hx ... rl_kn, x, y, z, roll, pitch, yaw          q (18)
+    d_<name>    for each q name                          dq (18)
+    dd_<name>   for each q name, optional                ddq (18)
+    tau_<joint> for each of the 12 joints                tau (12), N m
+    c_fr, c_fl, c_rr, c_rl                               contact flags 0/1
+
+In both layouts the acceleration columns are optional as a group: present,
+they are used; absent, ``dq`` is differentiated (``savgol`` or ``central``).
+Several files are concatenated as consecutive jumps; ``t`` is stored relative
+to each jump's first sample and ``dt`` is the median time step. The CoM wrench
+and the phase labels come from ``preprocess.assemble`` for the named robot.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.data.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
+from symrom.data.preprocess import DIFF_METHODS, assemble, differentiate
+from symrom.robots import get_robot
+
+
+class LogError(ValueError):
+    """A log file cannot be imported; the message names the file (and line, column)."""
+
+
+# ----------------------------------------------------------------- layouts
+
+@dataclass(frozen=True)
+class Layout:
+    """Column names of one log layout, per field, in symrom's order.
+
+    ``t`` (1), ``q``/``dq``/``ddq`` (18 each), ``tau`` (12), ``contact`` (4);
+    ``jump`` (0 or 1 names). ``ddq`` and ``jump`` are optional groups.
+    """
+
+    name: str
+    t: tuple[str, ...]
+    q: tuple[str, ...]
+    dq: tuple[str, ...]
+    ddq: tuple[str, ...]
+    tau: tuple[str, ...]
+    contact: tuple[str, ...]
+    jump: tuple[str, ...] = ()
+
+    @property
+    def required(self) -> tuple[str, ...]:
+        return self.t + self.q + self.dq + self.tau + self.contact
+
+    @property
+    def optional_groups(self) -> tuple[tuple[str, ...], ...]:
+        return tuple(g for g in (self.ddq, self.jump) if g)
+
+    @property
+    def all_names(self) -> tuple[str, ...]:
+        return self.required + self.ddq + self.jump
+
+
+def _hw_joint(name: str, quantity: str) -> str:
+    leg, joint = name.split("_")
+    return f"{leg}.{joint} {quantity}"
+
+
+_HW_BASE = {"x": ("linear", "x"), "y": ("linear", "y"), "z": ("linear", "z"),
+            "roll": ("angular", "x"), "pitch": ("angular", "y"), "yaw": ("angular", "z")}
+
+
+def _hw_names(quantity: str) -> tuple[str, ...]:
+    """Hardware column names of the 18 q components for Position/Velocity/Acceleration."""
+    joints = tuple(_hw_joint(n, quantity) for n in JOINT_NAMES)
+    base = tuple(f"Body {_HW_BASE[n][0]} {quantity} {_HW_BASE[n][1]}" for n in BASE_NAMES)
+    return joints + base
+
+
+HARDWARE = Layout(
+    name="hardware", t=("Time",),
+    q=_hw_names("Position"), dq=_hw_names("Velocity"), ddq=_hw_names("Acceleration"),
+    tau=tuple(_hw_joint(n, "Torque") for n in JOINT_NAMES),
+    contact=tuple(f"{leg} Foot" for leg in LEGS))
+
+PLAIN = Layout(
+    name="plain", t=("t",), q=Q_NAMES,
+    dq=tuple(f"d_{n}" for n in Q_NAMES), ddq=tuple(f"dd_{n}" for n in Q_NAMES),
+    tau=tuple(f"tau_{n}" for n in JOINT_NAMES),
+    contact=tuple(f"c_{leg}" for leg in LEGS), jump=("jump",))
+
+LAYOUTS: tuple[Layout, ...] = (HARDWARE, PLAIN)
+
+
+def _norm(name: str) -> str:
+    """Matching key of a column name: inner whitespace collapsed, case folded."""
+    return " ".join(name.replace("\ufeff", "").split()).casefold()
+
+
+def detect_layout(header: list[str]) -> Layout:
+    """The layout whose names best match ``header`` (most known columns)."""
+    keys = {_norm(h) for h in header}
+    scores = [len(keys & {_norm(n) for n in lay.all_names}) for lay in LAYOUTS]
+    return LAYOUTS[int(np.argmax(scores))]
+
+
+def _listing(names: list[str]) -> str:
+    return ", ".join(names)
+
+
+def _column_map(path: Path, header: list[str], layout: Layout) -> dict[str, int]:
+    """Header position of each known column name; one LogError for all problems."""
+    pos: dict[str, int] = {}
+    seen: dict[str, str] = {}
+    dupes, unknown = [], []
+    known = {_norm(n): n for n in layout.all_names}
+    for i, h in enumerate(header):
+        key = _norm(h)
+        if key in seen:
+            dupes.append(h.strip())
+            continue
+        seen[key] = h
+        if key in known:
+            pos[known[key]] = i
+        else:
+            unknown.append(h.strip() or f"<empty name in column {i + 1}>")
+    if not pos:
+        first = ", ".join(repr(h.strip()) for h in header[:4])
+        raise LogError(f"{path}: the header matches neither log layout (hardware: 'Time', "
+                       f"'fr.hx Position', ...; plain: 't', 'fr_hx', ...); it starts {first}")
+    missing = [n for n in layout.required if n not in pos]
+    for group in layout.optional_groups:
+        present = [n for n in group if n in pos]
+        if present and len(present) < len(group):
+            missing += [n for n in group if n not in pos]
+    problems = []
+    if missing:
+        problems.append(f"missing columns: {_listing(missing)}")
+    if unknown:
+        problems.append(f"unknown columns: {_listing(unknown)}")
+    if dupes:
+        problems.append(f"duplicate columns: {_listing(dupes)}")
+    if problems:
+        raise LogError(f"{path}: {layout.name} log layout; " + "; ".join(problems))
+    return pos
+
+
+# ----------------------------------------------------------------- reading
+
+@dataclass
+class RawLog:
+    """One log file's samples (n rows): arrays in symrom's order and SI units.
+
+    ``jump`` (n,) local jump ids 0..k-1; ``t`` (n,) s since the jump's first
+    sample; ``q``, ``dq`` (n, 18); ``ddq`` (n, 18) or None if not logged;
+    ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8.
+    """
+
+    path: Path
+    layout: str
+    sha256: str
+    jump: np.ndarray
+    t: np.ndarray
+    q: np.ndarray
+    dq: np.ndarray
+    ddq: np.ndarray | None
+    tau: np.ndarray
+    contact: np.ndarray
+
+    @property
+    def n_jumps(self) -> int:
+        return int(self.jump[-1]) + 1
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], str]:
+    """Header cells, (line number, cells) of every non-blank line, and the delimiter."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            lines = f.read().splitlines()
+    except FileNotFoundError:
+        raise LogError(f"{path}: no such file") from None
+    except UnicodeDecodeError:
+        raise LogError(f"{path}: not a text (UTF-8) CSV file") from None
+    except OSError as e:
+        raise LogError(f"{path}: cannot read ({e.strerror or e})") from None
+    numbered = [(i + 1, line) for i, line in enumerate(lines) if line.strip()]
+    if not numbered:
+        raise LogError(f"{path}: empty file")
+    delim = ";" if ";" in numbered[0][1] else ","
+    parsed = list(csv.reader([line for _, line in numbered], delimiter=delim))
+    header = parsed[0]
+    while header and not header[-1].strip():  # a trailing delimiter
+        header = header[:-1]
+    rows = [(numbered[k][0], cells) for k, cells in enumerate(parsed) if k > 0]
+    return header, rows, delim
+
+
+def _to_matrix(path: Path, header: list[str], rows: list[tuple[int, list[str]]],
+               delim: str) -> np.ndarray:
+    """(n, len(header)) float array; LogError naming file, line and column on a bad cell."""
+    width = len(header)
+    table = []
+    for line, cells in rows:
+        if len(cells) > width and not any(c.strip() for c in cells[width:]):
+            cells = cells[:width]  # trailing delimiters
+        if len(cells) != width:
+            raise LogError(f"{path}, line {line}: {len(cells)} cells, the header has {width}")
+        table.append([c.replace(",", ".") for c in cells] if delim == ";" else cells)
+    try:
+        out = np.array(table, dtype=float).reshape(len(rows), width)
+        if np.isfinite(out).all():
+            return out
+    except ValueError:
+        pass
+    out = np.empty((len(rows), width))
+    for r, ((line, cells), texts) in enumerate(zip(rows, table)):  # cell by cell, naming the bad one
+        for c, text in enumerate(texts):
+            try:
+                out[r, c] = float(text)
+            except ValueError:
+                out[r, c] = np.nan
+            if not math.isfinite(out[r, c]):
+                raise LogError(f"{path}, line {line}, column {header[c].strip()!r}: "
+                               f"{cells[c]!r} is not a finite number")
+    return out
+
+
+def _jumps_from_time(path: Path, t: np.ndarray, lines: list[int]) -> np.ndarray:
+    """Local jump ids (n,): a new jump wherever time decreases; equal times are an error."""
+    d = np.diff(t)
+    same = np.flatnonzero(d == 0)
+    if same.size:
+        i = int(same[0]) + 1
+        raise LogError(f"{path}, line {lines[i]}: time {t[i]:g} repeats the previous sample's")
+    return np.r_[0, np.cumsum(d < 0)].astype(np.int32)
+
+
+def _jumps_from_column(path: Path, ids: np.ndarray, t: np.ndarray, lines: list[int],
+                       col: str) -> np.ndarray:
+    """Local jump ids (n,) from a jump column: contiguous blocks renumbered 0..k-1."""
+    bad = np.flatnonzero(ids != np.round(ids))
+    if bad.size:
+        i = int(bad[0])
+        raise LogError(f"{path}, line {lines[i]}, column {col!r}: {ids[i]:g} is not a jump number")
+    change = np.r_[False, ids[1:] != ids[:-1]]
+    local = np.cumsum(change).astype(np.int32)
+    first = {}
+    for i in np.flatnonzero(np.r_[True, change[1:]]):
+        if ids[i] in first:
+            raise LogError(f"{path}, line {lines[i]}, column {col!r}: jump {ids[i]:g} "
+                           f"continues after another jump (line {lines[first[ids[i]]]})")
+        first[ids[i]] = i
+    back = np.flatnonzero((np.diff(t) <= 0) & ~change[1:])
+    if back.size:
+        i = int(back[0]) + 1
+        raise LogError(f"{path}, line {lines[i]}: time does not increase within jump {ids[i]:g}")
+    return local
+
+
+def read_log(path: str | os.PathLike) -> RawLog:
+    """Read one CSV log (either layout, see the module docstring) into a ``RawLog``."""
+    path = Path(path)
+    if path.is_dir():
+        raise LogError(f"{path}: is a directory, expected a CSV file")
+    header, rows, delim = _read_rows(path)
+    if not rows:
+        raise LogError(f"{path}: no samples after the header")
+    layout = detect_layout(header)
+    pos = _column_map(path, header, layout)
+    data = _to_matrix(path, header, rows, delim)
+    lines = [line for line, _ in rows]
+
+    def cols(names: tuple[str, ...]) -> np.ndarray:
+        return data[:, [pos[n] for n in names]]
+
+    t = cols(layout.t)[:, 0]
+    if layout.jump and layout.jump[0] in pos:
+        jump = _jumps_from_column(path, cols(layout.jump)[:, 0], t, lines, header[pos["jump"]].strip())
+    else:
+        jump = _jumps_from_time(path, t, lines)
+    contact = cols(layout.contact)
+    bad = np.argwhere((contact != 0) & (contact != 1))
+    if bad.size:
+        r, c = bad[0]
+        raise LogError(f"{path}, line {lines[r]}, column {layout.contact[c]!r}: contact flag "
+                       f"{contact[r, c]:g}, expected 0 or 1")
+    starts = np.flatnonzero(np.r_[True, np.diff(jump) != 0])
+    t0 = np.repeat(t[starts], np.diff(np.r_[starts, len(t)]))
+    has_acc = all(n in pos for n in layout.ddq)
+    return RawLog(path=path, layout=layout.name, sha256=_sha256(path), jump=jump, t=t - t0,
+                  q=cols(layout.q), dq=cols(layout.dq), ddq=cols(layout.ddq) if has_acc else None,
+                  tau=cols(layout.tau), contact=contact.astype(np.uint8))
+
+
+# ----------------------------------------------------------------- splits, dt
+
+def parse_split(spec: str | None, n_jumps: int) -> np.ndarray:
+    """Per-jump split names (n_jumps,) from ``"train,val,test"`` counts or fractions.
+
+    Counts (all whole numbers) must add up to ``n_jumps``; fractions must add
+    up to 1 and are rounded to counts by largest remainder. Jumps are assigned
+    in order: the first ones train, then val, then test. ``None``: all train.
+    """
+    if spec is None:
+        return np.array(["train"] * n_jumps, dtype=object)
+    parts = [p.strip() for p in spec.split(",")]
+    try:
+        vals = [float(p) for p in parts]
+    except ValueError:
+        vals = []
+    if len(parts) != len(SPLITS) or len(vals) != len(SPLITS) or any(
+            not math.isfinite(v) or v < 0 for v in vals):
+        raise ValueError(f"--split {spec!r}: expected three non-negative numbers train,val,test "
+                         f"(counts like 12,2,1 or fractions like 0.8,0.1,0.1)")
+    whole = all(v == int(v) for v in vals)
+    if whole and sum(vals) == n_jumps:
+        counts = [int(v) for v in vals]
+    elif abs(sum(vals) - 1.0) <= 1e-6:
+        exact = [v * n_jumps for v in vals]
+        counts = [math.floor(x) for x in exact]
+        for k in sorted(range(len(SPLITS)), key=lambda k: exact[k] - counts[k], reverse=True):
+            if sum(counts) >= n_jumps:
+                break
+            counts[k] += 1
+    elif whole:
+        raise ValueError(f"--split {spec!r}: the counts add up to {int(sum(vals))} jumps, "
+                         f"the logs hold {n_jumps}")
+    else:
+        raise ValueError(f"--split {spec!r}: fractions must add up to 1 (they add up to {sum(vals):g})")
+    return np.array([s for s, c in zip(SPLITS, counts) for _ in range(c)], dtype=object)
+
+
+def sample_period(t: np.ndarray, jump: np.ndarray) -> float:
+    """Median time step within jumps, s (``DEFAULT_DT`` if no jump has 2 samples)."""
+    same = np.diff(jump) == 0
+    steps = np.diff(t)[same]
+    if steps.size == 0:
+        return DEFAULT_DT
+    return float(f"{np.median(steps):.6g}")
+
+
+# ----------------------------------------------------------------- import
+
+def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk",
+                source: str = "hardware", split: str | None = None,
+                diff_method: str = "savgol") -> Dataset:
+    """Read CSV logs (concatenated as consecutive jumps) into a validated dataset.
+
+    robot: ``go1`` or ``a1`` (the wrench uses its URDF); motion: sets the phase
+    rule (``pronk``, ``froggy``); split: see ``parse_split``; diff_method:
+    ``savgol`` or ``central``, used where a log has no acceleration columns.
+    """
+    get_robot(robot)
+    if diff_method not in DIFF_METHODS:
+        raise ValueError(f"unknown differentiation method {diff_method!r}; choose from {DIFF_METHODS}")
+    if not paths:
+        raise ValueError("no log files given")
+    logs = [read_log(p) for p in paths]
+    offsets = np.cumsum([0] + [lg.n_jumps for lg in logs])
+    jump = np.concatenate([lg.jump + off for lg, off in zip(logs, offsets)]).astype(np.int32)
+    t = np.concatenate([lg.t for lg in logs])
+    q, dq, tau = (np.concatenate([getattr(lg, k) for lg in logs]) for k in ("q", "dq", "tau"))
+    contact = np.concatenate([lg.contact for lg in logs])
+    dt = sample_period(t, jump)
+    n_jumps = int(offsets[-1])
+    splits = parse_split(split, n_jumps)
+    ddq = None
+    if any(lg.ddq is not None for lg in logs):
+        ddq = differentiate(dq, dt, jump, diff_method) if any(lg.ddq is None for lg in logs) \
+            else np.empty_like(dq)
+        row = 0
+        for lg in logs:
+            if lg.ddq is not None:
+                ddq[row:row + len(lg.t)] = lg.ddq
+            row += len(lg.t)
+    generator = {
+        "kind": "import",
+        "files": [{"name": lg.path.name, "path": str(lg.path), "sha256": lg.sha256,
+                   "layout": lg.layout, "rows": int(len(lg.t)), "jumps": lg.n_jumps,
+                   "ddq": "logged" if lg.ddq is not None else f"differentiated dq ({diff_method})"}
+                  for lg in logs],
+        "options": {"robot": robot, "motion": motion, "source": source, "split": split,
+                    "diff": diff_method},
+        "dt": dt,
+    }
+    return assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
+                    tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,
+                    generator=generator, diff_method=diff_method)
+
+
+# ----------------------------------------------------------------- export
+
+def write_plain_csv(ds: Dataset, path: str | os.PathLike, accelerations: bool = True) -> None:
+    """Write ``ds``'s arrays to ``path`` in the plain layout (exact float round trip)."""
+    from symrom.data.io import atomic_path
+
+    cols = [ds.jump[:, None], ds.t[:, None], ds.q, ds.dq]
+    names = [*PLAIN.jump, *PLAIN.t, *PLAIN.q, *PLAIN.dq]
+    if accelerations:
+        cols.append(ds.ddq)
+        names += PLAIN.ddq
+    cols += [ds.tau, ds.contact]
+    names += [*PLAIN.tau, *PLAIN.contact]
+    table = np.concatenate([np.asarray(c, dtype=float) for c in cols], axis=1)
+    n_int = {0, len(names) - 4, len(names) - 3, len(names) - 2, len(names) - 1}
+    with atomic_path(path, suffix=".csv") as tmp:
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(names)
+            for row in table:
+                w.writerow([str(int(v)) if i in n_int else repr(float(v)) for i, v in enumerate(row)])

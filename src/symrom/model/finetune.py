@@ -1,0 +1,75 @@
+"""Fine-tuning a trained model on a few jumps of another source (sim-to-real).
+
+The encoder is kept: the latent coordinates, and so the meaning of every
+learned term, stay those of the source model. On the new jumps:
+- the decoder is refit by least squares pulled towards the source decoder,
+  min ||q - W_d xi - B_d||^2 + r ||[W_d, B_d] - [W_d0, B_d0]||^2;
+- each phase's Xi is refit by sequential thresholding on the paper's SINDy loss
+  pulled towards the source coefficients, + r ||Xi - Xi_0||^2, starting from the
+  source support (terms may drop out, none are added).
+Both are closed form. ``prior_weight`` sets r relative to the data's scale: 0
+refits from the new jumps alone, large values keep the source model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.hybrid import HybridModel
+from symrom.model.regression import STLSQConfig, stlsq
+from symrom.model.training import data_hash
+
+
+@dataclass(frozen=True)
+class FineTuneConfig:
+    """prior_weight: pull towards the source model, relative to mean(diag ThetaᵀTheta)
+    per phase (and to mean(xi²) for the decoder); threshold as in training."""
+
+    prior_weight: float = 0.01
+    threshold: float = 0.01
+    refit_decoder: bool = True
+
+
+def _decoder_towards(xi: np.ndarray, q: np.ndarray, W0: np.ndarray, b0: np.ndarray,
+                     weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """Ridge-to-prior least squares for (W_d (18, l), B_d (18,)) from xi (N, l), q (N, 18)."""
+    X = np.hstack([xi, np.ones((xi.shape[0], 1))])
+    A = X.T @ X
+    r = weight * np.mean(np.diag(A))
+    prior = np.vstack([W0.T, b0[None]])  # (l+1, 18)
+    coef = np.linalg.solve(A + r * np.eye(A.shape[0]), X.T @ q + r * prior)
+    return coef[:-1].T.copy(), coef[-1].copy()
+
+
+def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
+             config: FineTuneConfig = FineTuneConfig()) -> HybridModel:
+    """A new model adapted to the ``train`` rows of ``ds`` (or boolean ``rows`` (N,))."""
+    rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
+    if not rows.any():
+        raise ValueError("no fine-tuning rows (the dataset has no 'train' jumps)")
+    if list(ds.phase_names) != list(model.phase_names):
+        raise ValueError(f"phases differ: model {model.phase_names}, data {ds.phase_names}")
+    ae0 = model.autoencoder
+    xi = ae0.encode(ds.q[rows])
+    W_d, B_d = (_decoder_towards(xi, ds.q[rows], ae0.W_d, ae0.B_d, config.prior_weight)
+                if config.refit_decoder else (ae0.W_d, ae0.B_d))
+    ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
+    Xi, mask = model.Xi.copy(), model.mask.copy()
+    for k in range(len(model.phase_names)):
+        r = rows & (ds.phase == k)
+        if not r.any():
+            continue  # no new evidence: keep the source coefficients
+        theta = model.library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
+                                        ae.encode_input(ds.u[r]))
+        Xi[k], mask[k] = stlsq(theta, ae.encode_derivative(ds.ddq[r]), ds.ddq[r], ae.W_d,
+                               STLSQConfig(config.threshold, config.prior_weight),
+                               prior=model.Xi[k], mask=model.mask[k])
+    info = dict(model.info)
+    info["finetune"] = {"config": asdict(config), "data_sha256": data_hash(ds),
+                        "source": ds.source, "n_rows": int(rows.sum()),
+                        "base_data_sha256": model.info.get("data_sha256")}
+    return replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)

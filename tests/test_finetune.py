@@ -1,0 +1,51 @@
+"""Fine-tuning on a few jumps of a perturbed system (the sim-to-real step)."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from symrom.data.synthetic import PLANTED_2D, make_planted_dataset
+from symrom.evaluate.metrics import evaluate
+from symrom.model.finetune import FineTuneConfig, finetune
+from symrom.model.training import TrainConfig, train
+from symrom.rollout.integrate import RolloutOptions
+
+
+@pytest.fixture(scope="module")
+def source_and_target():
+    source, _ = make_planted_dataset(24, 400, embedding="block", seed=5)
+    shifted = copy.deepcopy(PLANTED_2D)
+    shifted["contact"][0]["xi1"] = -7.0   # a stiffer leg
+    shifted["contact"][1]["nu2"] = 2.0    # weaker actuation
+    shifted["flight"][1]["dxi2"] = -0.6   # more drag
+    target, truth = make_planted_dataset(6, 400, embedding="block", seed=6, equations=shifted,
+                                         embedding_seed=5, noise=3e-3)
+    return train(source, TrainConfig()), target, truth
+
+
+def _full_rmse(model, ds):
+    m, _ = evaluate(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
+    return np.mean([c["rmse"] for c in m["horizons"]["full"]["components"].values()])
+
+
+def test_finetuning_moves_towards_the_new_system(source_and_target):
+    model, target, truth = source_and_target
+    tuned = finetune(model, target)
+    np.testing.assert_array_equal(tuned.autoencoder.W_e, model.autoencoder.W_e)
+    assert _full_rmse(tuned, target) < 0.5 * _full_rmse(model, target)
+    names = tuned.library.feature_names
+    k = tuned.phase_names.index("contact")
+    assert tuned.Xi[k, names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.05)
+    assert tuned.info["finetune"]["source"] == target.source
+
+
+def test_prior_weight_interpolates(source_and_target):
+    model, target, _ = source_and_target
+    stiff = finetune(model, target, config=FineTuneConfig(prior_weight=1e6))
+    np.testing.assert_allclose(stiff.Xi, model.Xi, atol=1e-3)
+    free = finetune(model, target, config=FineTuneConfig(prior_weight=0.0))
+    names = free.library.feature_names
+    assert free.Xi[0, names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.05)
+    with pytest.raises(ValueError, match="no fine-tuning rows"):
+        finetune(model, target, rows=np.zeros(target.n_samples, bool))
