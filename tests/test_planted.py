@@ -33,8 +33,10 @@ def test_exact_solver_reproduces_held_out_rollouts(planted_block, method):
 def test_adam_solver_reproduces_held_out_rollouts(planted_block):
     pytest.importorskip("torch")
     ds, _ = planted_block
-    model = train(ds, TrainConfig(solver="adam", seed=0,
-                                  adam=AdamConfig(epochs=150, refine_epochs=30, threshold_every=50)))
+    # The paper's lr 1e-3 assumes ~1000 mini-batches per epoch; this small set has ~14,
+    # so a larger step reaches the same optimum in a test-sized number of epochs.
+    model = train(ds, TrainConfig(solver="adam", seed=0, adam=AdamConfig(
+        learning_rate=1e-2, epochs=100, refine_epochs=20, threshold_every=34)))
     metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method="rk4"))
     for h, nmae in normalised_mae(metrics, ds).items():
         assert metrics["horizons"][h]["diverged_jumps"] == 0

@@ -1,0 +1,301 @@
+"""Convex single-rigid-body MPC for ground-reaction forces (Di Carlo et al. 2018 style).
+
+The robot is one rigid body of mass ``m`` (kg) and body inertia ``I_b`` (3, 3)
+kg m^2, pushed by the ground-reaction forces ``f_k`` (3,) N of its four feet
+(world frame, the force the ground exerts on the foot). State (13,):
+``[roll, pitch, yaw, p (3) m, omega (3) rad/s world, v (3) m/s, g]``, the
+constant ``g`` (m/s^2) carrying gravity so the model is linear. Linearised
+about the reference yaw (small roll and pitch):
+
+    d(rpy)/dt = Rz(yaw)^T omega,   dp/dt = v,
+    d(omega)/dt = I_w^-1 sum_k r_k x f_k,   dv/dt = sum_k f_k / m - g e_z,
+
+with ``I_w = Rz I_b Rz^T`` and ``r_k`` (3,) m the foot position relative to
+the CoM, held over the horizon. The dynamics are discretised exactly
+(zero-order hold, matrix exponential) and condensed: the states over the
+horizon are ``X = Aqp x0 + Bqp U`` with ``U`` (12 h,) the stacked foot forces.
+The quadratic program
+
+    min_U (X - Xref)^T L (X - Xref) + alpha |U|^2
+    s.t.  |f_x|, |f_y| <= mu f_z,   fz_min c_k <= f_z <= fz_max c_k
+
+(``c_k`` in {0, 1} the planned contact of foot k at each step) is solved with
+OSQP. Its sparsity pattern never changes, so the solver is set up once and
+only the numbers are updated per solve (warm-started).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import osqp
+import scipy.linalg
+import scipy.sparse as sp
+
+N_X = 13  # state size
+N_U = 12  # 4 feet x 3 force components
+
+
+@dataclass
+class MPCConfig:
+    """Horizon, weights and limits of the MPC.
+
+    horizon: number of steps; dt: step length, s; mu: friction coefficient of
+    the pyramid; fz_min / fz_max: normal-force bounds of a foot in contact, N;
+    weights: per-state weights (13,) on [rpy, p, omega, v, g]; alpha: weight on
+    the forces, 1/N^2; eps_abs / eps_rel / max_iter: OSQP's stopping tolerances
+    (forces are tens of N, so 1e-3 changes nothing a robot would feel and keeps a
+    solve at ~50 iterations).
+    """
+
+    horizon: int = 10
+    dt: float = 0.025
+    mu: float = 0.6
+    fz_min: float = 0.0
+    fz_max: float = 250.0
+    weights: tuple[float, ...] = (25.0, 25.0, 10.0, 20.0, 20.0, 50.0,
+                                  0.5, 0.5, 0.2, 1.0, 1.0, 2.0, 0.0)
+    alpha: float = 1e-5
+    eps_abs: float = 1e-3
+    eps_rel: float = 1e-3
+    max_iter: int = 4000
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """(3, 3) cross-product matrix of v (3,)."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def rot_z(yaw: float) -> np.ndarray:
+    """(3, 3) rotation about z by ``yaw`` rad."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def continuous_dynamics(mass: float, inertia_body: np.ndarray, yaw: float,
+                        r_feet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous-time SRB model ``dx/dt = Ac x + Bc u``.
+
+    mass kg; inertia_body (3, 3) kg m^2; yaw rad; r_feet (4, 3) m, feet minus
+    CoM in the world. Returns Ac (13, 13), Bc (13, 12).
+    """
+    Rz = rot_z(yaw)
+    Ac = np.zeros((N_X, N_X))
+    Ac[0:3, 6:9] = Rz.T
+    Ac[3:6, 9:12] = np.eye(3)
+    Ac[11, 12] = -1.0  # dvz/dt = ... - g
+    Iw_inv = np.linalg.inv(Rz @ inertia_body @ Rz.T)
+    Bc = np.zeros((N_X, N_U))
+    for k in range(4):
+        Bc[6:9, 3 * k:3 * k + 3] = Iw_inv @ skew(r_feet[k])
+        Bc[9:12, 3 * k:3 * k + 3] = np.eye(3) / mass
+    return Ac, Bc
+
+
+def discretize(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation: (13, 13), (13, 12) -> A (13, 13), B (13, 12).
+
+    The SRB ``Ac`` is nilpotent (omega -> rpy, v -> p and g -> v -> p are chains
+    of length <= 2, so Ac^3 = 0): the matrix exponential's series ends after
+    three terms and is exact in closed form, with no ``expm`` call.
+    """
+    Ac2 = Ac @ Ac
+    if np.any(Ac2 @ Ac):
+        M = np.zeros((Ac.shape[0] + Bc.shape[1],) * 2)
+        M[:Ac.shape[0], :Ac.shape[0]], M[:Ac.shape[0], Ac.shape[0]:] = Ac, Bc
+        E = scipy.linalg.expm(M * dt)
+        return E[:Ac.shape[0], :Ac.shape[0]], E[:Ac.shape[0], Ac.shape[0]:]
+    eye = np.eye(Ac.shape[0])
+    A = eye + Ac * dt + Ac2 * (dt * dt / 2.0)
+    B = (eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0)) @ Bc
+    return A, B
+
+
+def condense(A: np.ndarray, B: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
+    """Stacked prediction X = Aqp x0 + Bqp U: Aqp (13 h, 13), Bqp (13 h, 12 h)."""
+    Apow = [np.eye(N_X)]
+    for _ in range(horizon):
+        Apow.append(A @ Apow[-1])
+    Aqp = np.vstack(Apow[1:])
+    AB = [Apow[i] @ B for i in range(horizon)]  # A^i B
+    Bqp = np.zeros((N_X * horizon, N_U * horizon))
+    for i in range(horizon):
+        for j in range(i + 1):
+            Bqp[N_X * i:N_X * (i + 1), N_U * j:N_U * (j + 1)] = AB[i - j]
+    return Aqp, Bqp
+
+
+def friction_matrix(mu: float, horizon: int) -> sp.csc_matrix:
+    """Constraint rows per foot and step: f_z (bounded), and the 4 pyramid faces.
+
+    Returns C (5 * 4 h, 12 h); rows per foot: [fz, fx - mu fz, -fx - mu fz,
+    fy - mu fz, -fy - mu fz].
+    """
+    block = np.array([[0, 0, 1], [1, 0, -mu], [-1, 0, -mu], [0, 1, -mu], [0, -1, -mu]], float)
+    return sp.csc_matrix(sp.block_diag([block] * (4 * horizon)))
+
+
+@dataclass
+class MPCResult:
+    """One solve: forces (4, 3) N for the first step (world, ground on foot),
+    the whole plan (h, 4, 3), the solver status and the wall time, s."""
+
+    forces: np.ndarray
+    plan: np.ndarray
+    status: str
+    solve_time: float
+
+
+@dataclass
+class ConvexMPC:
+    """Single-rigid-body MPC solved with OSQP; see the module docstring.
+
+    mass kg, inertia_body (3, 3) kg m^2 (about the CoM, base frame).
+    The QP handed to OSQP is the sparse (non-condensed) form: variables
+    ``z = [x_1 .. x_h, u_0 .. u_{h-1}]`` (25 h,), the dynamics as equality
+    rows. Its cost is constant and only the dynamics' numbers and the bounds
+    change between solves, which keeps each solve cheap (no large dense
+    products). ``condensed_qp`` gives the same problem in the condensed form.
+    """
+
+    mass: float
+    inertia_body: np.ndarray
+    config: MPCConfig = field(default_factory=MPCConfig)
+
+    def __post_init__(self) -> None:
+        cfg, h = self.config, self.config.horizon
+        self.inertia_body = np.asarray(self.inertia_body, dtype=float)
+        self._L = np.tile(np.asarray(cfg.weights, dtype=float), h)  # diagonal of L
+        nx, nu = N_X * h, N_U * h
+        self._nx, self._nu = nx, nu
+        self._P = sp.diags(np.concatenate([2.0 * self._L, np.full(nu, 2.0 * cfg.alpha)]),
+                           format="csc")
+        # Dynamics rows x_{k+1} - A x_k - B u_k = (A x0 if k == 0 else 0); A and B get a
+        # dense block pattern so that every update keeps the sparsity structure.
+        rows, cols, tags = [], [], []  # tag: -1 identity, 0 A-entry, 1 B-entry
+        ia, ja = np.meshgrid(np.arange(N_X), np.arange(N_X), indexing="ij")
+        ib, jb = np.meshgrid(np.arange(N_X), np.arange(N_U), indexing="ij")
+        def block(r, c, tag):
+            rows.append(r)
+            cols.append(c)
+            tags.append(np.full(r.size, tag))
+
+        for k in range(h):
+            r0 = N_X * k
+            block(r0 + np.arange(N_X), r0 + np.arange(N_X), -1)
+            if k > 0:
+                block(r0 + ia.ravel(), N_X * (k - 1) + ja.ravel(), 0)
+            block(r0 + ib.ravel(), nx + N_U * k + jb.ravel(), 1)
+        fric = friction_matrix(cfg.mu, h).tocoo()
+        block(nx + fric.row, nx + fric.col, 2)  # tag 2: friction rows, constant
+        rows, cols, tags = map(np.concatenate, (rows, cols, tags))
+        values = np.zeros(rows.size)
+        values[tags == 2] = fric.data
+        # Build with entry ids as data to learn where each entry lands in CSC order.
+        ids = np.arange(rows.size, dtype=float) + 1.0
+        M = sp.coo_matrix((ids, (rows, cols)), shape=(nx + fric.shape[0], nx + nu)).tocsc()
+        M.sort_indices()
+        order = (M.data - 1).astype(int)
+        self._M_values = values[order]
+        self._tag = tags[order]
+        self._row = rows[order] % N_X  # row inside A or B (dynamics entries)
+        self._col = np.where(self._tag == 1, (cols[order] - nx) % N_U, cols[order] % N_X)
+        self._M_template = M
+        self._is_one, self._is_a, self._is_b = (self._tag == -1), (self._tag == 0), (self._tag == 1)
+        self._a_rc = (self._row[self._is_a], self._col[self._is_a])
+        self._b_rc = (self._row[self._is_b], self._col[self._is_b])
+        self._n_eq = nx
+        self._solver: osqp.OSQP | None = None
+        self.solve_times: list[float] = []
+
+    def _matrix_data(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        """Data array (CSC order) of the constraint matrix for the discrete model A, B."""
+        data = self._M_values.copy()
+        data[self._is_one] = 1.0
+        data[self._is_a] = -A[self._a_rc]
+        data[self._is_b] = -B[self._b_rc]
+        return data
+
+    def _bounds(self, x0: np.ndarray, A: np.ndarray, contact: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of all constraint rows: dynamics, then friction."""
+        cfg = self.config
+        eq = np.zeros(self._n_eq)
+        eq[:N_X] = A @ x0
+        c = np.asarray(contact, dtype=float).reshape(-1)  # (4 h,)
+        lo = np.zeros((c.size, 5))
+        hi = np.zeros((c.size, 5))
+        lo[:, 0] = cfg.fz_min * c
+        hi[:, 0] = cfg.fz_max * c
+        lo[:, 1:] = -np.inf
+        return np.concatenate([eq, lo.ravel()]), np.concatenate([eq, hi.ravel()])
+
+    def model(self, r_feet: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """Discrete model A (13, 13), B (13, 12) for feet r_feet (4, 3) m and yaw rad."""
+        Ac, Bc = continuous_dynamics(self.mass, self.inertia_body, yaw, r_feet)
+        return discretize(Ac, Bc, self.config.dt)
+
+    def condensed_qp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray, yaw: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """The same QP in the forces only: 1/2 U^T H U + g^T U, H (12 h, 12 h), g (12 h,).
+
+        x0 (13,); x_ref (h, 13); r_feet (4, 3) m; yaw rad (linearisation point).
+        """
+        cfg = self.config
+        A, B = self.model(r_feet, yaw)
+        Aqp, Bqp = condense(A, B, cfg.horizon)
+        LB = Bqp * self._L[:, None]
+        H = 2.0 * (Bqp.T @ LB + cfg.alpha * np.eye(N_U * cfg.horizon))
+        g = 2.0 * LB.T @ (Aqp @ x0 - np.asarray(x_ref).reshape(-1))
+        return H, g
+
+    def solve(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray,
+              contact: np.ndarray, yaw: float | None = None) -> MPCResult:
+        """Optimal foot forces.
+
+        x0 (13,) current state (last entry g, m/s^2); x_ref (h, 13) reference
+        states for steps 1..h; r_feet (4, 3) m feet minus CoM (world);
+        contact (h, 4) planned contact flags; yaw: linearisation yaw, rad
+        (default: the first reference yaw).
+        """
+        cfg, h = self.config, self.config.horizon
+        x_ref = np.asarray(x_ref, dtype=float)
+        if x_ref.shape != (h, N_X) or np.shape(contact) != (h, 4) or np.shape(r_feet) != (4, 3):
+            raise ValueError("x_ref must be (h, 13), contact (h, 4), r_feet (4, 3)")
+        t0 = time.perf_counter()
+        A, B = self.model(np.asarray(r_feet, dtype=float),
+                          float(x_ref[0, 2] if yaw is None else yaw))
+        data = self._matrix_data(A, B)
+        lo, hi = self._bounds(np.asarray(x0, dtype=float), A, contact)
+        q = np.concatenate([-2.0 * self._L * x_ref.reshape(-1), np.zeros(self._nu)])
+        if self._solver is None:
+            self._solver = osqp.OSQP()
+            M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
+                              shape=self._M_template.shape)
+            self._solver.setup(self._P, q, M, lo, hi, eps_abs=cfg.eps_abs, eps_rel=cfg.eps_rel,
+                               max_iter=cfg.max_iter, polishing=False, verbose=False,
+                               warm_starting=True)
+        else:
+            self._solver.update(Ax=data, q=q, l=lo, u=hi)
+        res = self._solver.solve(raise_error=False)
+        status = str(res.info.status)
+        z = res.x
+        U = np.zeros(self._nu) if z is None or not np.all(np.isfinite(z)) else z[self._nx:]
+        # OSQP stops at its tolerance: clip to the exact bounds so callers can rely on them.
+        U = U.reshape(h, 4, 3).copy()
+        c = np.asarray(contact, dtype=float)
+        U[..., 2] = np.clip(U[..., 2], cfg.fz_min * c, cfg.fz_max * c)
+        lim = cfg.mu * U[..., 2]
+        U[..., 0] = np.clip(U[..., 0], -lim, lim)
+        U[..., 1] = np.clip(U[..., 1], -lim, lim)
+        dt = time.perf_counter() - t0
+        self.solve_times.append(dt)
+        return MPCResult(forces=U[0].copy(), plan=U, status=status, solve_time=dt)
+
+
+def srb_state(rpy: np.ndarray, p_com: np.ndarray, omega: np.ndarray, v_com: np.ndarray,
+              gravity: float = 9.81) -> np.ndarray:
+    """Pack the MPC state (13,) from rpy (3,) rad, CoM p (3,) m, omega (3,) rad/s, v (3,) m/s."""
+    return np.concatenate([rpy, p_com, omega, v_com, [gravity]])
