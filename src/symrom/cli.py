@@ -198,6 +198,45 @@ def equations_cmd(
     typer.echo(model.equations_text(latex=latex, digits=digits))
 
 
+@app.command("reproduce")
+@guarded
+def reproduce_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Run directory; existing datasets and results are reused.")],
+    quick: Annotated[bool, typer.Option("--quick", help="A reduced run that takes a few minutes.")] = False,
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes for generation and the sweep.")] = 2,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of every dataset and training run.")] = 0,
+    no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML/Markdown report.")] = False,
+) -> None:
+    """Run the paper's experiments end to end into one directory (resumable)."""
+    import shlex
+    from dataclasses import replace
+
+    from symrom.experiments.reproduce import ReproduceConfig, reproduce
+
+    if workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
+    cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=workers, seed=seed)
+    command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+    with console.status("reproduce") as status:
+        def say(msg: str, transient: bool = False) -> None:
+            status.update(f"reproduce: {msg}")
+            if not transient:
+                console.log(msg)
+
+        summary = reproduce(out, cfg, command=command, say=say)
+        if not no_report:
+            from symrom.report.html import build_report
+
+            status.update("reproduce: report")
+            html, _ = build_report(out, out / "report.html")
+    for name, exp in summary["experiments"].items():
+        full = exp["metrics"]["horizons"]["full"]
+        typer.echo(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} candidates, active terms "
+                   f"{exp['active_terms']}, diverged {full['diverged_jumps']}/{exp['metrics']['n_jumps']}")
+    typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
+    typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
+
+
 @app.command("demo")
 @guarded
 def demo_cmd(
@@ -217,6 +256,187 @@ def demo_cmd(
     typer.echo(equations)
     typer.echo(table2(metrics, title="test split"))
     out_console.print(f"results: {out}/ (data.h5, model.json, equations.txt, eval/)")
+
+
+@app.command("aslip")
+@guarded
+def aslip_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (metrics.json, params.json, table.md).")],
+    split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
+    fixed: Annotated[bool, typer.Option("--fixed", help="Use the paper's k_s=250 N/m, l_0=0.32 m, m=12.01 kg (overridable) instead of fitting.")] = False,
+    k_s: Annotated[Optional[float], typer.Option("--k-s", help="Spring constant, N/m (with --fixed).")] = None,
+    l0: Annotated[Optional[float], typer.Option("--l0", help="Rest length, m (with --fixed).")] = None,
+    mass: Annotated[Optional[float], typer.Option("--mass", help="Body mass, kg (default: URDF total; paper's with --fixed).")] = None,
+    reset: Annotated[Optional[list[float]], typer.Option("--reset", help="Reset period(s) in s (repeatable).")] = None,
+    integrator: Annotated[str, typer.Option("--integrator", help="lsoda (the paper's) or rk4 (batch).")] = "lsoda",
+    force: Force = False,
+) -> None:
+    """Fit (train split) or fix the aSLIP baseline and evaluate its CoM prediction on a split."""
+    from dataclasses import asdict
+
+    from symrom.baselines.aslip import PAPER_PARAMS, ASlipParams, evaluate_aslip, fit_aslip, robot_mass
+    from symrom.data.io import atomic_dir, check_output_file, read_dataset
+    from symrom.evaluate.tables import table2
+
+    check_output_file(out, force)
+    if split not in ("train", "val", "test"):
+        raise ValueError(f"--split must be train, val or test, got {split!r}")
+    if integrator not in ("lsoda", "rk4"):
+        raise ValueError(f"--integrator must be lsoda or rk4, got {integrator!r}")
+    if not fixed and (k_s is not None or l0 is not None):
+        raise ValueError("--k-s/--l0 set a fixed model: add --fixed (without it both are fitted)")
+    ds = read_dataset(data)
+    if ds.jumps_in(split).size == 0:
+        raise ValueError(f"{data} has no {split!r} jumps")
+    if fixed:
+        params = ASlipParams(k_s=PAPER_PARAMS.k_s if k_s is None else k_s,
+                             l_0=PAPER_PARAMS.l_0 if l0 is None else l0,
+                             m=PAPER_PARAMS.m if mass is None else mass)
+        how = "fixed"
+    else:
+        m = robot_mass(ds.robot) if mass is None else mass
+        with console.status("fitting k_s, l_0 on the train split"):
+            params = fit_aslip(ds, ds.rows_of("train"), m)
+        how = "fitted on the train split" + ("" if mass is not None else f" (mass from the {ds.robot} URDF)")
+    resets = _parse_resets(reset)
+    with progress_bar() as bar:
+        task = bar.add_task("aSLIP rollouts", total=len(resets) * ds.jumps_in(split).size)
+        done = {"n": 0, "last": 0}
+
+        def tick(i, n):
+            if i < done["last"]:
+                done["n"] += done["last"]
+            done["last"] = i
+            bar.update(task, completed=done["n"] + i)
+
+        metrics = evaluate_aslip(params, ds, split, resets, integrator, data_name=str(data), progress=tick)
+    table = table2(metrics, components=("x", "y", "z"), title=f"aSLIP, {ds.robot} {ds.motion} ({split})")
+    with atomic_dir(out, force) as tmp:
+        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+        (tmp / "params.json").write_text(json.dumps(
+            {**asdict(params), "units": {"k_s": "N/m", "l_0": "m", "m": "kg"}, "source": how}, indent=1) + "\n")
+        (tmp / "table.md").write_text(table)
+    typer.echo(table)
+    out_console.print(f"aSLIP ({how}): k_s {params.k_s:.4g} N/m, l_0 {params.l_0:.4g} m, m {params.m:.4g} kg; "
+                      f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
+
+
+@app.command("report")
+@guarded
+def report_cmd(
+    run_dir: Annotated[Path, typer.Argument(help="Run directory made by `symrom reproduce`.")],
+    out: Annotated[Optional[Path], typer.Option("--out", help="Output HTML file (default DIR/report.html); the Markdown twin and its figures go next to it.")] = None,
+    force: Force = False,
+) -> None:
+    """Build the self-contained HTML report (and its Markdown twin) of a run directory."""
+    from symrom.report.html import build_report
+
+    if not run_dir.is_dir():
+        raise ValueError(f"{run_dir}: no such run directory")
+    out = run_dir / "report.html" if out is None else out
+    if out.suffix.lower() not in (".html", ".htm"):
+        raise ValueError(f"--out {out}: expected an .html file")
+    with console.status("report") as status:
+        html, md = build_report(run_dir, out, force=force,
+                                progress=lambda msg: status.update(f"report: {msg}"))
+    out_console.print(f"report: {html}\nmarkdown: {md}", highlight=False, soft_wrap=True)
+
+
+@app.command("generate")
+@guarded
+def generate_cmd(
+    robot: Annotated[str, typer.Option("--robot", help="go1 or a1.")],
+    motion: Annotated[str, typer.Option("--motion", help="pronk (go1, MPC) or froggy (a1, Cartesian PD).")],
+    jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
+    out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
+    noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
+    proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like Go1 (source=proxy).")] = False,
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
+    seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
+    force: Force = False,
+) -> None:
+    """Simulate jumps in PyBullet, check them and write a dataset file."""
+    from symrom.sim.generate import generate
+
+    if out.exists() and not force:  # fail before drawing the progress bar
+        raise FileExistsError(f"{out} exists; use --force to overwrite it")
+    with progress_bar() as bar:
+        task = bar.add_task(f"{robot} {motion}", total=jumps)
+        retries = [0]
+
+        def _progress(done: int, total: int, info: dict) -> None:
+            retries[0] += int(info.get("retries", 0))
+            note = f" ({info['resumed']} resumed)" if info.get("resumed") else ""
+            bar.update(task, completed=done, total=total,
+                       description=f"{robot} {motion}: jump {done}/{total}, {retries[0]} retries{note}")
+
+        ds = generate(robot, motion, jumps, out, seed=seed, workers=workers, noise=noise,
+                      resume=resume, progress_callback=_progress, proxy=proxy, force=force)
+    counts = {s: int((ds.split == s).sum()) for s in ("train", "val", "test")}
+    out_console.print(f"data: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, "
+                      f"{ds.generator['retries']} retries; split {counts})", highlight=False)
+
+
+@app.command("show")
+@guarded
+def show_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory for the PNG frames.")],
+    jump: Annotated[int, typer.Option("--jump", help="Jump index.")] = 0,
+    frames: Annotated[int, typer.Option("--frames", help="Number of frames.")] = 8,
+    force: Force = False,
+) -> None:
+    """Render frames of one logged jump (replayed in PyBullet) as PNG files."""
+    from symrom.data.io import read_dataset
+    from symrom.sim.render import render_jump
+
+    if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:
+        raise FileExistsError(f"{out} already holds frames of jump {jump}; use --force to overwrite them")
+    ds = read_dataset(data)
+    with console.status(f"rendering jump {jump}"):
+        paths = render_jump(ds, jump, out, n_frames=frames)
+    out_console.print(f"frames: {len(paths)} PNG in {out}", highlight=False)
+
+
+@app.command("sweep")
+@guarded
+def sweep_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (sweep.json, cells/ for resuming).")],
+    latent_dims: Annotated[str, typer.Option("--latent-dims", help="Dimensions: 1-18, 1,2,4 or 1-3,6.")] = "1-18",
+    seeds: Annotated[int, typer.Option("--seeds", help="Seeds per dimension (bootstrap resamples with exact).")] = 5,
+    solver: Annotated[str, typer.Option("--solver", help="exact (closed form) or adam (torch).")] = "exact",
+    poly_order: Annotated[int, typer.Option("--poly-order", help="Polynomial order p of the library.")] = 1,
+    lam: Annotated[float, typer.Option("--lambda", help="Complexity weight of L_mod.")] = 0.001,
+    workers: Annotated[int, typer.Option("--workers", help="Local worker processes.")] = 1,
+    rmse_test: Annotated[bool, typer.Option("--rmse-test/--no-rmse-test", help="Also roll out the test split (rk4) per cell.")] = True,
+    force: Force = False,
+) -> None:
+    """Accuracy vs complexity over latent dimensions and seeds; resumes from OUT/cells."""
+    from symrom.data.io import check_output_file, read_dataset
+    from symrom.experiments.sweep import SweepConfig, parse_latent_dims, run_sweep
+
+    dims = parse_latent_dims(latent_dims)
+    config = SweepConfig(latent_dims=dims, seeds=seeds, poly_order=poly_order, solver=solver,
+                         lam=lam, workers=workers, rmse_test=rmse_test)
+    check_output_file(out / "sweep.json", force)
+    ds = read_dataset(data)
+    with progress_bar() as bar:
+        task = bar.add_task("sweep", total=len(dims) * len(config.seeds))
+
+        def tick(done, total, info):
+            what = "reused" if info["reused"] else "done"
+            bar.update(task, completed=done,
+                       description=f"sweep: l={info['latent_dim']} seed {info['seed']} {what}")
+
+        result = run_sweep(ds, config, out, progress=tick)
+    for d, e, a, lm in zip(result["latent_dims"], result["E_dec_mean"], result["active_terms_mean"],
+                           result["L_mod"]):
+        out_console.print(f"l={d:2d}  E_dec {e:.3e}  |Xi| {a:7.1f}  L_mod {lm:.4e}", highlight=False)
+    out_console.print(f"best latent dimension: {result['best_latent_dim']} (lambda {lam:g}); "
+                      f"results: {out / 'sweep.json'}", highlight=False, soft_wrap=True)
 
 
 def main() -> None:  # pragma: no cover - entry point

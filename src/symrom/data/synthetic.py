@@ -159,3 +159,85 @@ def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str
                             "equations": equations})
     validate(ds)
     return ds, PlantedSystem(lib, phase_names, Xi, E, c)
+
+
+def make_slip_dataset(n_jumps: int = 6, n_samples: int = 300, k_s: float = 3000.0, l_0: float = 0.35,
+                      m: float = 10.0, seed: int = 0, dt: float = 0.002,
+                      substeps: int = 8) -> tuple[Dataset, dict[str, float]]:
+    """Spring-mass hops with a known actuation: data whose truth is the aSLIP model.
+
+    A point mass m (kg) on a massless spring leg (k_s N/m, rest length l_0 m)
+    starts compressed on a fixed pivot, is pushed by a smooth actuation
+    acceleration u(t) (m/s^2) in contact, lifts off when the leg reaches l_0
+    while extending, flies ballistically and lands on a new pivot placed l_0
+    from the CoM. Phase, pivot and u are decided at each sample's start and held
+    over the 2 ms sample (the rollout's zero-order hold); RK4 with ``substeps``
+    steps integrates in between. Stored as an 18-D dataset: q, dq, ddq carry the
+    CoM in the base x, y, z columns (everything else 0); all four feet sit on
+    the pivot and are flagged in contact during stance; the wrench force
+    columns hold the actuation force m u (N) in contact and 0 in flight, so that
+    ``u[:, 12:15] / m`` is the aSLIP's u; ddq is the exact model acceleration.
+    Returns the dataset (robot ``slip``, no URDF) and ``{"k_s", "l_0", "m"}``.
+    """
+    rng = np.random.default_rng(seed)
+    g = np.array([0.0, 0.0, -9.81])
+    n = n_samples
+
+    def acc(b, p, u, c):  # (3,) each, c bool
+        if not c:
+            return g
+        leg = b - p
+        r = np.linalg.norm(leg)
+        return k_s / m * abs(l_0 - r) * leg / r + g + u
+
+    rows = []
+    for _ in range(n_jumps):
+        tilt = rng.uniform(-0.25, 0.25, 2)  # leg inclination about y and x at the start, rad
+        direction = np.array([np.sin(tilt[0]), np.sin(tilt[1]), np.cos(tilt[0]) * np.cos(tilt[1])])
+        p = np.r_[rng.uniform(-0.5, 0.5, 2), 0.0]
+        b = p + rng.uniform(0.7, 0.8) * l_0 * direction / np.linalg.norm(direction)
+        v = np.r_[rng.uniform(-0.5, 0.5, 2), rng.uniform(0.0, 0.4)]
+        amp, freq, phase0 = rng.uniform(0.5, 2.0, 3), rng.uniform(1.0, 4.0, 3), rng.uniform(0, 2 * np.pi, 3)
+        bias = np.array([0.0, 0.0, 3.0])  # some upward push so every hop lifts off
+        contact, high = True, False
+        for i in range(n):
+            t = i * dt
+            leg = b - p
+            if contact and np.linalg.norm(leg) >= l_0 and leg @ v > 0:
+                contact, high = False, False  # lift-off
+            elif not contact:
+                # Foot placed ahead of the CoM by about half a stance of travel (Raibert's
+                # neutral point) so that landings rebound instead of tipping over.
+                d = np.clip(-0.09 * v[:2] / l_0, -0.5, 0.5)
+                td_dir = np.r_[d, np.sqrt(1.0 - d @ d)]
+                high |= b[2] > l_0 * td_dir[2]  # land only after rising above touch-down height
+                if high and b[2] <= l_0 * td_dir[2] and v[2] < 0:
+                    contact, p = True, b - l_0 * td_dir  # touch-down on a fresh pivot
+            u = (bias + amp * np.sin(2 * np.pi * freq * t + phase0)) if contact else np.zeros(3)
+            rows.append((t, b.copy(), v.copy(), acc(b, p, u, contact), p.copy(), u, contact))
+            h = dt / substeps
+            for _ in range(substeps):
+                k1x, k1v = v, acc(b, p, u, contact)
+                k2x, k2v = v + h / 2 * k1v, acc(b + h / 2 * k1x, p, u, contact)
+                k3x, k3v = v + h / 2 * k2v, acc(b + h / 2 * k2x, p, u, contact)
+                k4x, k4v = v + h * k3v, acc(b + h * k3x, p, u, contact)
+                b = b + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+                v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    N = len(rows)
+    t, B, V, A, P, U, C = (np.array(col) for col in zip(*rows))
+    q, dq, ddq, u = (np.zeros((N, N_Q)) for _ in range(4))
+    q[:, N_JOINTS:N_JOINTS + 3], dq[:, N_JOINTS:N_JOINTS + 3], ddq[:, N_JOINTS:N_JOINTS + 3] = B, V, A
+    u[:, N_JOINTS:N_JOINTS + 3] = m * U  # force, N; zero in flight (U is)
+    flight_feet = B - np.array([0.0, 0.0, l_0])
+    foot_pos = np.repeat(np.where(C[:, None], P, flight_feet)[:, None], 4, axis=1)
+    n_test = max(1, round(0.2 * n_jumps))
+    split = np.array(["train"] * (n_jumps - n_test) + ["test"] * n_test, dtype=object)
+    ds = Dataset(robot="slip", motion="pronk", source="synthetic", phase_names=["contact", "flight"],
+                 jump=np.repeat(np.arange(n_jumps, dtype=np.int32), n), t=t,
+                 q=q, dq=dq, ddq=ddq, tau=np.zeros((N, N_JOINTS)),
+                 contact=np.repeat(C[:, None], 4, axis=1).astype(np.uint8), u=u,
+                 phase=(~C).astype(np.int8), split=split, foot_pos=foot_pos, dt=dt,
+                 generator={"kind": "slip", "n_jumps": n_jumps, "n_samples": n_samples, "k_s": k_s,
+                            "l_0": l_0, "m": m, "seed": seed, "substeps": substeps})
+    validate(ds)
+    return ds, {"k_s": k_s, "l_0": l_0, "m": m}

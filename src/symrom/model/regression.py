@@ -14,11 +14,13 @@ mask, hence the few lines below; the linear algebra itself is SciPy's.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+
+
+_JITTER = 1e-10  # relative ridge on the equilibrated normal equations
 
 
 @dataclass(frozen=True)
@@ -59,17 +61,20 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
         K = K + r * np.eye(idx.size)
         if prior is not None:
             rhs = rhs + r * prior[feat, col]
-    # Equilibrate: features differ in scale by orders of magnitude.
+    # Equilibrate (features differ in scale by orders of magnitude), then add a
+    # vanishing ridge: near-collinear features (x and sin x on a small range) make
+    # the system numerically singular, and the jittered Cholesky factorisation
+    # gives the minimum-norm optimum at a fraction of the cost of an SVD.
     d = np.sqrt(np.clip(np.diag(K), 1e-300, None))
     Ks = K / d[:, None] / d[None, :]
+    Ks[np.diag_indices_from(Ks)] += _JITTER
     try:
-        with warnings.catch_warnings():
-            # Near-collinear features (x and sin x on a small range): fall back to
-            # the minimum-norm least-squares solution instead of trusting a shaky solve.
-            warnings.simplefilter("error", scipy.linalg.LinAlgWarning)
-            x = scipy.linalg.solve(Ks, rhs / d, assume_a="pos")
-    except (np.linalg.LinAlgError, scipy.linalg.LinAlgWarning, ValueError):
-        x = scipy.linalg.lstsq(Ks, rhs / d)[0]
+        x = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ks, check_finite=False), rhs / d,
+                                   check_finite=False)
+    except np.linalg.LinAlgError:
+        w, V = np.linalg.eigh(Ks)
+        keep = w > w.max() * 1e-13
+        x = V[:, keep] @ ((V[:, keep].T @ (rhs / d)) / w[keep])
     x = x / d
     Xi.T.flat[idx] = x
     return Xi

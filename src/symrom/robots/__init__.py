@@ -83,3 +83,15 @@ def leg_kinematics(name: str) -> LegKinematics:
 def torque_limits(name: str) -> np.ndarray:
     """(12,) N m."""
     return np.asarray(get_robot(name).torque_limit, dtype=float)
+
+
+@cache
+def total_mass(name: str) -> float:
+    """Total mass of robot ``name``, kg: the sum of every link's ``<inertial><mass>`` in its URDF."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(get_robot(name).urdf_path).getroot()
+    masses = [float(m.get("value")) for m in root.findall("link/inertial/mass") if m.get("value") is not None]
+    if not masses:
+        raise ValueError(f"the URDF of robot {name!r} declares no link masses")
+    return float(sum(masses))

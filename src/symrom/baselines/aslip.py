@@ -1,0 +1,338 @@
+"""The actuated SLIP (aSLIP) baseline: a point mass on a massless spring leg.
+
+CoM acceleration (paper, appendix "Baseline: actuated SLIP Model"), world frame:
+
+    flight:   b'' = g
+    contact:  b'' = k_s |l_0 - |l|| l_hat / m + g + u
+
+with b the CoM (the base position q[12:15], as everywhere in symrom),
+l = b - p the leg from the stance pivot p (mean of the feet in contact) to the
+CoM, l_hat = l / |l|, g = (0, 0, -9.81) m/s^2 and u the summed ground-reaction
+force of the dataset (u[:, 12:15], N) divided by m, i.e. an acceleration.
+
+Rollouts follow the learned model's semantics (``symrom.rollout.integrate``):
+the state (b, b') of each jump is integrated along the logged phase sequence
+(phase ``flight`` is flight, every other phase is contact), with the logged u
+and pivot held over each 2 ms sample; ``lsoda`` (odeint per sample interval
+with a step budget) or ``rk4`` (fixed step, all jumps at once); full horizon or
+periodic resets to the true (b, b'); non-finite or absurd states are flagged as
+diverged.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.integrate import odeint
+from scipy.optimize import least_squares
+
+from symrom.data.dataset import Dataset
+from symrom.data.names import BASE_POS, WRENCH
+from symrom.evaluate.metrics import component_stats, horizon_key
+from symrom.rollout.integrate import METHODS, _reset_mask
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
+COMPONENTS: tuple[str, ...] = ("x", "y", "z")
+FLIGHT_PHASE = "flight"
+
+
+@dataclass(frozen=True)
+class ASlipParams:
+    """k_s: spring constant, N/m; l_0: rest length, m; m: body mass, kg."""
+
+    k_s: float
+    l_0: float
+    m: float
+
+    def __post_init__(self) -> None:
+        for name in ("k_s", "l_0", "m"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0 or (name == "m" and v == 0):
+                raise ValueError(f"aSLIP parameter {name} must be a finite "
+                                 f"{'positive' if name == 'm' else 'non-negative'} number, got {v}")
+
+
+# The authors' values for the Go1 (paper, aSLIP baseline).
+PAPER_PARAMS = ASlipParams(k_s=250.0, l_0=0.32, m=12.01)
+
+
+def robot_mass(robot: str) -> float:
+    """Total mass of ``robot`` from its URDF, kg; a clear error for robots without one."""
+    from symrom.robots import ROBOTS, total_mass
+
+    if robot.lower() not in ROBOTS:
+        raise ValueError(f"robot {robot!r} has no URDF to take the mass from; give the mass "
+                         f"explicitly (--mass)")
+    return total_mass(robot)
+
+
+# ------------------------------------------------------------------ per-row inputs
+def flight_rows(ds: Dataset) -> np.ndarray:
+    """(N,) bool: rows in the phase named ``flight`` (none if the dataset has no such phase)."""
+    if FLIGHT_PHASE not in ds.phase_names:
+        return np.zeros(ds.n_samples, dtype=bool)
+    return ds.phase == ds.phase_names.index(FLIGHT_PHASE)
+
+
+def stance_pivots(ds: Dataset) -> np.ndarray:
+    """(N, 3) m, world: mean of the feet in contact per row.
+
+    Feet from ``ds.foot_pos`` if logged, else from the kinematics of the
+    robot's URDF. A row without any foot flagged in contact (flight, or a
+    contact-phase row whose flags disagree with its label) takes the mean of
+    all four feet, so the pivot is always defined and finite.
+    """
+    if ds.foot_pos is not None:
+        feet = ds.foot_pos
+    else:
+        from symrom.data.preprocess import foot_positions_world
+
+        feet = foot_positions_world(ds.robot, ds.q)
+    w = (np.asarray(ds.contact) > 0).astype(float)  # (N, 4)
+    none = w.sum(axis=1) == 0
+    w[none] = 1.0
+    return np.einsum("nk,nkd->nd", w, feet) / w.sum(axis=1)[:, None]
+
+
+def input_acceleration(ds: Dataset, m: float) -> np.ndarray:
+    """(N, 3) m/s^2: u = summed ground-reaction force (ds.u[:, 12:15], N) / m (kg)."""
+    return ds.u[:, WRENCH][:, :3] / m
+
+
+def aslip_acceleration(params: ASlipParams, b: np.ndarray, pivot: np.ndarray, u: np.ndarray,
+                       contact: np.ndarray) -> np.ndarray:
+    """b'' (n, 3) m/s^2 from CoM b (n, 3) m, pivot (n, 3) m, u (n, 3) m/s^2, contact (n,) bool."""
+    leg = b - pivot
+    r = np.linalg.norm(leg, axis=-1)
+    l_hat = leg / np.maximum(r, 1e-9)[:, None]
+    spring = (params.k_s / params.m) * np.abs(params.l_0 - r)[:, None] * l_hat
+    return GRAVITY + np.asarray(contact, dtype=float)[:, None] * (spring + u)
+
+
+# ----------------------------------------------------------------------- fitting
+def fit_aslip(ds: Dataset, rows: np.ndarray | None = None, m: float | None = None) -> ASlipParams:
+    """Least-squares k_s (N/m) and l_0 (m) on the contact rows among ``rows`` (N,) bool
+    (default: the train split); mass ``m`` (kg, default: the robot's URDF total).
+
+    Residual acceleration a = b'' - g - u (b'' = ddq[:, 12:15]) must equal
+    k_s |l_0 - |l|| l_hat / m. For a compressed leg (|l| < l_0) that is
+    (k_s l_0) l_hat / m - k_s l / m, linear in (k_s l_0, k_s): solved first,
+    then refined on the exact |.| form by ``scipy.optimize.least_squares``
+    with k_s, l_0 >= 0. Where the measured force u already explains b'' (no
+    spring-like residual), k_s goes to 0 and l_0 is then not identifiable.
+    """
+    m = robot_mass(ds.robot) if m is None else float(m)
+    rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
+    sel = rows & ~flight_rows(ds)
+    if not sel.any():
+        raise ValueError("no contact rows to fit the aSLIP model on (is there a 'train' split "
+                         "with contact phases?)")
+    b = ds.q[sel][:, BASE_POS]
+    leg = b - stance_pivots(ds)[sel]
+    r = np.linalg.norm(leg, axis=1)
+    l_hat = leg / np.maximum(r, 1e-9)[:, None]
+    a = ds.ddq[sel][:, BASE_POS] - GRAVITY - input_acceleration(ds, m)[sel]  # (n, 3)
+
+    # Linear stage: m a = (k_s l_0) l_hat - k_s l, three equations per row.
+    A = np.stack([l_hat.ravel(), -leg.ravel()], axis=1)
+    (c0, k0), *_ = np.linalg.lstsq(A, m * a.ravel(), rcond=None)
+    if k0 > 0 and np.isfinite(c0 / k0) and c0 / k0 > 0:
+        x0 = np.array([k0, c0 / k0])
+    else:  # no compressed-spring reading of the data: start from a soft spring at the longest leg
+        x0 = np.array([1.0, float(r.max())])
+
+    def residual(x):
+        return ((x[0] / m) * np.abs(x[1] - r)[:, None] * l_hat - a).ravel()
+
+    scale = np.array([max(abs(x0[0]), 1.0), max(abs(x0[1]), 1e-2)])
+    sol = least_squares(residual, x0, bounds=([0.0, 0.0], [np.inf, np.inf]), x_scale=scale,
+                        xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    return ASlipParams(k_s=float(sol.x[0]), l_0=float(sol.x[1]), m=m)
+
+
+# ---------------------------------------------------------------------- rollouts
+@dataclass
+class ASlipRolloutOptions:
+    """method: ``lsoda`` or ``rk4``; reset: s between resets to the true (b, b')
+    (None = full horizon); substeps: RK4 steps per sample; max_steps: LSODA step
+    budget per sample; bound: divergence bound on every |b| component as a
+    multiple of the jump's largest true |b| component (at least 0.1 m), likewise
+    for b' (at least 0.1 m/s)."""
+
+    method: str = "lsoda"
+    reset: float | None = None
+    substeps: int = 2
+    max_steps: int = 2000
+    bound: float = 50.0
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"unknown integrator {self.method!r}; choose from {METHODS}")
+        if self.reset is not None and not self.reset > 0:
+            raise ValueError(f"reset must be a positive duration in s, got {self.reset}")
+
+
+@dataclass
+class ASlipRollout:
+    """Per jump (lists of J): predicted CoM b (n_j, 3) m and b' (n_j, 3) m/s
+    (NaN from the first diverged sample on); diverged (J,) bool; diverged_at
+    (J,) first bad sample or -1."""
+
+    jumps: np.ndarray
+    b_pred: list[np.ndarray]
+    db_pred: list[np.ndarray]
+    diverged: np.ndarray
+    diverged_at: np.ndarray
+
+
+@dataclass
+class _Jump:
+    b: np.ndarray  # (n, 3) true CoM, m
+    db: np.ndarray  # (n, 3) m/s
+    u: np.ndarray  # (n, 3) m/s^2
+    pivot: np.ndarray  # (n, 3) m
+    contact: np.ndarray  # (n,) bool
+    limit: np.ndarray  # (6,) divergence limit on |[b, b']|
+
+
+def _jumps(ds: Dataset, jumps: np.ndarray, m: float, bound: float) -> list[_Jump]:
+    bounds = ds.jump_bounds()
+    u, pivot, contact = input_acceleration(ds, m), stance_pivots(ds), ~flight_rows(ds)
+    out = []
+    for j in jumps:
+        s = slice(*bounds[j])
+        b, db = ds.q[s][:, BASE_POS], ds.dq[s][:, BASE_POS]
+        # One scale for all positions and one for all velocities: a coordinate that barely
+        # moves in the data (y of a planar jump) must not make a small drift "absurd".
+        scale = np.repeat([max(np.abs(b).max(), 0.1), max(np.abs(db).max(), 0.1)], 3)
+        out.append(_Jump(b, db, u[s], pivot[s], contact[s], bound * scale))
+    return out
+
+
+def _lsoda_jump(params: ASlipParams, jp: _Jump, dt: float,
+                opts: ASlipRolloutOptions) -> tuple[np.ndarray, np.ndarray, int]:
+    n = jp.b.shape[0]
+    resets = _reset_mask(n, opts.reset, dt)
+    B, V = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    y = np.r_[jp.b[0], jp.db[0]]
+    for k in range(n):
+        if resets[k]:
+            y = np.r_[jp.b[k], jp.db[k]]
+        if not (np.isfinite(y).all() and np.all(np.abs(y) <= jp.limit)):
+            return B, V, k
+        B[k], V[k] = y[:3], y[3:]
+        if k == n - 1:
+            break
+        held = (jp.pivot[k][None], jp.u[k][None], jp.contact[k:k + 1])
+
+        def rhs(state, _t, held=held):
+            return np.r_[state[3:], aslip_acceleration(params, state[None, :3], *held)[0]]
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; the message says it
+            sol, info = odeint(rhs, y, [0.0, dt], mxstep=opts.max_steps, full_output=True)
+        if info["message"] != "Integration successful.":
+            return B, V, k + 1
+        y = sol[1]
+    return B, V, -1
+
+
+def _rk4_batch(params: ASlipParams, jps: list[_Jump], dt: float,
+               opts: ASlipRolloutOptions) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    J = len(jps)
+    lens = np.array([jp.b.shape[0] for jp in jps])
+    n_max = int(lens.max())
+
+    def pad(f):  # (J, n_max, ...) with the last sample repeated past each jump's end
+        return np.stack([np.pad(getattr(jp, f), ((0, n_max - len(jp.b)),) + ((0, 0),) * (getattr(jp, f).ndim - 1),
+                                mode="edge") for jp in jps])
+
+    b_t, db_t, u, pivot, contact = pad("b"), pad("db"), pad("u"), pad("pivot"), pad("contact")
+    limit = np.stack([jp.limit for jp in jps])  # (J, 6)
+    resets = _reset_mask(n_max, opts.reset, dt)
+    B, V = np.full((J, n_max, 3), np.nan), np.full((J, n_max, 3), np.nan)
+    alive, div_at = np.ones(J, dtype=bool), np.full(J, -1)
+    x, v = b_t[:, 0].copy(), db_t[:, 0].copy()
+    h = dt / opts.substeps
+    for k in range(n_max):
+        if resets[k]:
+            x, v = b_t[:, k].copy(), db_t[:, k].copy()
+        ok = np.isfinite(np.c_[x, v]).all(1) & np.all(np.abs(np.c_[x, v]) <= limit, axis=1)
+        div_at[alive & ~ok & (k < lens)] = k
+        alive &= ok | (k >= lens)
+        x[~alive], v[~alive] = 0.0, 0.0  # frozen; keeps the arithmetic finite
+        B[alive, k], V[alive, k] = x[alive], v[alive]
+        if k == n_max - 1:
+            break
+        p_k, u_k, c_k = pivot[:, k], u[:, k], contact[:, k]
+
+        def acc(x_):
+            return aslip_acceleration(params, x_, p_k, u_k, c_k)
+
+        for _ in range(opts.substeps):
+            k1x, k1v = v, acc(x)
+            k2x, k2v = v + h / 2 * k1v, acc(x + h / 2 * k1x)
+            k3x, k3v = v + h / 2 * k2v, acc(x + h / 2 * k2x)
+            k4x, k4v = v + h * k3v, acc(x + h * k3x)
+            with np.errstate(over="ignore", invalid="ignore"):
+                x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+                v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+    return [B[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at
+
+
+def rollout_aslip(params: ASlipParams, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
+                  options: ASlipRolloutOptions = ASlipRolloutOptions(),
+                  progress: Callable[[int, int], None] | None = None) -> ASlipRollout:
+    """Roll the aSLIP model out along the logged ``jumps`` of ``ds`` (default: all).
+
+    Returns the predicted CoM x, y, z (m) per jump.
+    """
+    jumps = np.arange(ds.n_jumps) if jumps is None else np.asarray(jumps, dtype=int)
+    jps = _jumps(ds, jumps, params.m, options.bound)
+    if not jps:
+        return ASlipRollout(jumps, [], [], np.zeros(0, bool), np.zeros(0, int))
+    if options.method == "lsoda":
+        Bs, Vs, div = [], [], []
+        for i, jp in enumerate(jps):
+            B, V, d = _lsoda_jump(params, jp, ds.dt, options)
+            Bs.append(B)
+            Vs.append(V)
+            div.append(d)
+            if progress:
+                progress(i + 1, len(jps))
+        div_at = np.array(div, dtype=int)
+    else:
+        Bs, Vs, div_at = _rk4_batch(params, jps, ds.dt, options)
+        if progress:
+            progress(len(jps), len(jps))
+    return ASlipRollout(jumps, Bs, Vs, div_at >= 0, div_at)
+
+
+def rollout_errors(ds: Dataset, ro: ASlipRollout) -> np.ndarray:
+    """Signed CoM errors predicted - true (n, 3) m over the non-diverged jumps of ``ro``."""
+    bounds = ds.jump_bounds()
+    errs = [ro.b_pred[i] - ds.q[slice(*bounds[j])][:, BASE_POS]
+            for i, j in enumerate(ro.jumps) if not ro.diverged[i]]
+    return np.concatenate(errs) if errs else np.zeros((0, 3))
+
+
+def evaluate_aslip(params: ASlipParams, ds: Dataset, split: str = "test",
+                   resets: tuple[float | None, ...] = (None, 0.1), method: str = "lsoda",
+                   options: ASlipRolloutOptions | None = None, model_name: str = "aslip",
+                   data_name: str = "", progress: Callable[[int, int], None] | None = None) -> dict:
+    """Metrics of the aSLIP rollouts on ``split`` at each horizon, in the layout of
+    ``metrics.json`` (DESIGN.md) with components ``x``, ``y``, ``z`` (m)."""
+    jumps = ds.jumps_in(split)
+    if jumps.size == 0:
+        raise ValueError(f"the dataset has no {split!r} jumps")
+    base = replace(options or ASlipRolloutOptions(), method=method)
+    horizons = {}
+    for reset in resets:
+        ro = rollout_aslip(params, ds, jumps, replace(base, reset=reset), progress)
+        horizons[horizon_key(reset)] = {"diverged_jumps": int(ro.diverged.sum()),
+                                        "components": component_stats(rollout_errors(ds, ro), COMPONENTS)}
+    return {"model": model_name, "data": data_name, "split": split, "n_jumps": int(jumps.size),
+            "integrator": method, "horizons": horizons}

@@ -1,0 +1,284 @@
+"""Latent-dimension sweep: accuracy versus complexity (the paper's trade-off analysis).
+
+For every latent dimension l and seed s a model is trained and three numbers
+are kept (one "cell"):
+
+- ``E_dec``: final reconstruction error, the mean squared error of q
+  (rad^2 / m^2 mixed, as in the paper) over the training rows, with the
+  bootstrap the resampled rows, repeats counted
+  (``symrom.model.training.reconstruction_error``);
+- ``active_terms``: |Xi|, nonzero coefficients summed over all phases;
+- ``rmse_test`` (optional): accuracy of the model, the mean over the 12 Table-2
+  components of the test-split full-horizon RMSE (RK4 rollouts), ``None`` if
+  every test jump diverged or there is no test split.
+
+Per dimension the combined loss is computed from the means over seeds,
+    L_mod(l) = 2 mean_s(E_dec) + 2 lambda log(mean_s |Xi|),
+(lambda = 0.001; |Xi| < 1 is counted as 1 so an empty model scores log 1 = 0
+rather than -inf), and ``best_latent_dim`` = argmin_l L_mod.
+
+Seeds: with the ``exact`` solver training is deterministic, so seed s draws a
+bootstrap resample of the training jumps (with replacement, the same draw for
+every l) and the spread over seeds is a real error bar; with ``adam`` the seed
+sets the initialisation on the unchanged training split.
+
+Each cell is written to ``OUT/cells/l{l:02d}_s{s}.json`` as soon as it is done
+and reused on a rerun when its key (data hash and every setting that changes a
+cell) matches, so an interrupted sweep resumes. Cells depend only on (data,
+settings, l, s), so results do not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import multiprocessing
+import re
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.data.io import write_text_atomic
+from symrom.data.names import N_Q, TABLE2_COMPONENTS
+from symrom.model.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
+
+CELL_VERSION = 1
+DEFAULT_LAMBDA = 0.001
+
+# (cells done, cells in total, the finished cell's summary: latent_dim, seed, reused)
+SweepProgress = Callable[[int, int, dict[str, Any]], None]
+
+
+@dataclass
+class SweepConfig:
+    """latent_dims: dimensions to train; seeds: a count n (seeds 0..n-1) or explicit
+    seeds; poly_order: library order p; solver: ``exact`` or ``adam``; lam: the
+    L_mod weight lambda; workers: local processes (1 = in this process);
+    threshold: sparsity threshold; rmse_test: also roll out the test split;
+    adam: settings of the ``adam`` solver."""
+
+    latent_dims: tuple[int, ...] = tuple(range(1, N_Q + 1))
+    seeds: int | tuple[int, ...] = 5
+    poly_order: int = 1
+    solver: str = "exact"
+    lam: float = DEFAULT_LAMBDA
+    workers: int = 1
+    threshold: float = 0.01
+    rmse_test: bool = True
+    adam: AdamConfig = field(default_factory=AdamConfig)
+
+    def __post_init__(self) -> None:
+        self.latent_dims = tuple(int(d) for d in self.latent_dims)
+        if not self.latent_dims or any(not 1 <= d <= N_Q for d in self.latent_dims):
+            raise ValueError(f"latent dimensions must be within 1..{N_Q}, got {list(self.latent_dims)}")
+        if len(set(self.latent_dims)) != len(self.latent_dims):
+            raise ValueError(f"latent dimensions repeat: {list(self.latent_dims)}")
+        if isinstance(self.seeds, (int, np.integer)):
+            if self.seeds < 1:
+                raise ValueError(f"the number of seeds must be >= 1, got {self.seeds}")
+            self.seeds = tuple(range(int(self.seeds)))
+        self.seeds = tuple(int(s) for s in self.seeds)
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"seeds must be distinct and non-empty, got {list(self.seeds)}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"unknown solver {self.solver!r}; choose from {SOLVERS}")
+        if self.poly_order < 0:
+            raise ValueError(f"poly_order must be >= 0, got {self.poly_order}")
+        if not (np.isfinite(self.lam) and self.lam >= 0):
+            raise ValueError(f"lambda must be a non-negative number, got {self.lam}")
+        if self.workers < 1:
+            raise ValueError(f"workers must be >= 1, got {self.workers}")
+        if isinstance(self.adam, dict):
+            self.adam = AdamConfig(**self.adam)
+
+    @property
+    def bootstrap(self) -> bool:
+        """Seeds resample the training jumps (exact solver) rather than the initialisation."""
+        return self.solver == "exact"
+
+
+def parse_latent_dims(text: str) -> tuple[int, ...]:
+    """``"1-18"``, ``"1,2,4"``, ``"2-6"`` or mixes like ``"1-3,6"`` -> sorted distinct dims.
+
+    Raises ValueError with one clear message on bad syntax or out-of-range values.
+    """
+    forms = "use a range like 1-18, a list like 1,2,4, or both (1-3,6)"
+    dims: set[int] = set()
+    for tok in str(text).replace(" ", "").split(","):
+        m = re.fullmatch(r"(\d+)(?:-(\d+))?", tok)
+        if not m:
+            raise ValueError(f"latent dimensions {text!r}: cannot read {tok!r}; {forms}")
+        lo, hi = int(m[1]), int(m[2] or m[1])
+        if lo > hi:
+            raise ValueError(f"latent dimensions {text!r}: range {tok!r} runs backwards")
+        if lo < 1 or hi > N_Q:
+            raise ValueError(f"latent dimensions {text!r}: must lie within 1..{N_Q}")
+        dims.update(range(lo, hi + 1))
+    return tuple(sorted(dims))
+
+
+def bootstrap_jumps(ds: Dataset, seed: int) -> np.ndarray:
+    """Train-split jump indices drawn with replacement (as many as there are), sorted.
+
+    The draw depends on ``seed`` only, so every latent dimension sees the same sample.
+    """
+    train_jumps = ds.jumps_in("train")
+    if train_jumps.size == 0:
+        raise ValueError("no training rows (the dataset has no 'train' jumps)")
+    rng = np.random.default_rng(seed)
+    return np.sort(rng.choice(train_jumps, size=train_jumps.size, replace=True))
+
+
+def l_mod(e_dec: np.ndarray | float, active_terms: np.ndarray | float, lam: float = DEFAULT_LAMBDA) -> np.ndarray:
+    """L_mod = 2 E_dec + 2 lam log(|Xi|), |Xi| clamped to >= 1; elementwise."""
+    return 2.0 * np.asarray(e_dec, float) + 2.0 * lam * np.log(np.maximum(np.asarray(active_terms, float), 1.0))
+
+
+def cell_key(config: SweepConfig, data_sha256: str, latent_dim: int, seed: int) -> str:
+    """Hash of everything a cell's numbers depend on (lambda and workers do not)."""
+    spec = {"version": CELL_VERSION, "data": data_sha256, "latent_dim": latent_dim, "seed": seed,
+            "poly_order": config.poly_order, "solver": config.solver, "threshold": config.threshold,
+            "bootstrap": config.bootstrap, "rmse_test": config.rmse_test,
+            "adam": asdict(config.adam) if config.solver == "adam" else None}
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()
+
+
+def run_cell(ds: Dataset, config: SweepConfig, latent_dim: int, seed: int) -> dict[str, Any]:
+    """Train one (latent_dim, seed) model and measure it; a JSON-ready dict."""
+    from symrom.evaluate.metrics import evaluate
+    from symrom.rollout.integrate import RolloutOptions
+
+    t0 = time.perf_counter()
+    tc = TrainConfig(latent_dim=latent_dim, poly_order=config.poly_order, solver=config.solver,
+                     threshold=config.threshold, seed=seed, adam=config.adam)
+    if config.bootstrap:
+        train_ds = ds.select_jumps(bootstrap_jumps(ds, seed))  # repeated jumps appear repeatedly
+        rows = np.ones(train_ds.n_samples, dtype=bool)
+    else:
+        train_ds, rows = ds, ds.rows_of("train")
+    model = train(train_ds, tc, rows)
+    per_phase = model.active_terms()
+    cell: dict[str, Any] = {"latent_dim": latent_dim, "seed": seed,
+                            "E_dec": reconstruction_error(model, train_ds, rows),
+                            "active_terms": int(sum(per_phase.values())),
+                            "active_terms_per_phase": per_phase,
+                            "rmse_test": None, "test_diverged_jumps": None}
+    if config.rmse_test and ds.jumps_in("test").size:
+        metrics, _ = evaluate(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
+        full = metrics["horizons"]["full"]
+        comps = full["components"]
+        cell["test_diverged_jumps"] = full["diverged_jumps"]
+        if comps:
+            cell["rmse_test"] = float(np.mean([comps[c]["rmse"] for c in TABLE2_COMPONENTS]))
+    cell["seconds"] = round(time.perf_counter() - t0, 3)
+    return cell
+
+
+# Worker-process state: the dataset and configuration, sent once per process.
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(ds: Dataset, config: SweepConfig) -> None:
+    _WORKER["ds"], _WORKER["config"] = ds, config
+
+
+def _worker_cell(latent_dim: int, seed: int) -> dict[str, Any]:
+    return run_cell(_WORKER["ds"], _WORKER["config"], latent_dim, seed)
+
+
+def _cell_path(out: Path, latent_dim: int, seed: int) -> Path:
+    return out / "cells" / f"l{latent_dim:02d}_s{seed}.json"
+
+
+def _load_cell(path: Path, key: str) -> dict[str, Any] | None:
+    """The stored cell if it exists, parses and carries ``key``; else None (recompute)."""
+    try:
+        cell = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return cell if isinstance(cell, dict) and cell.get("key") == key else None
+
+
+def summarise(cells: dict[tuple[int, int], dict[str, Any]], config: SweepConfig,
+              data_sha256: str = "") -> dict[str, Any]:
+    """The sweep result (layout of ``sweep.json``) from all cells ``{(l, s): cell}``.
+
+    Per-cell arrays are (dims x seeds); ``L_mod`` is per dim from the means over seeds.
+    """
+    dims, seeds = list(config.latent_dims), list(config.seeds)
+    grid = lambda k: [[cells[(d, s)][k] for s in seeds] for d in dims]  # noqa: E731
+    e_dec, active = np.array(grid("E_dec"), float), np.array(grid("active_terms"), float)
+    lm = l_mod(e_dec.mean(axis=1), active.mean(axis=1), config.lam)
+    rmse = grid("rmse_test")
+    rmse_mean = [float(np.mean([v for v in row if v is not None])) if any(v is not None for v in row)
+                 else None for row in rmse]
+    return {"latent_dims": dims, "seeds": seeds,
+            "E_dec": e_dec.tolist(), "active_terms": active.astype(int).tolist(),
+            "L_mod": lm.tolist(), "best_latent_dim": int(dims[int(np.argmin(lm))]),
+            "lambda": config.lam, "solver": config.solver, "poly_order": config.poly_order,
+            "E_dec_mean": e_dec.mean(axis=1).tolist(), "E_dec_std": e_dec.std(axis=1).tolist(),
+            "active_terms_mean": active.mean(axis=1).tolist(),
+            "active_terms_std": active.std(axis=1).tolist(),
+            "rmse_test": rmse, "rmse_test_mean": rmse_mean,
+            "seed_meaning": "bootstrap resamples of the training jumps" if config.bootstrap
+            else "initialisation seeds",
+            "L_mod_from": "means over seeds of E_dec and |Xi|",
+            "threshold": config.threshold, "data_sha256": data_sha256}
+
+
+def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
+              progress: SweepProgress | None = None) -> dict[str, Any]:
+    """Run (or resume) the sweep into directory ``out``; write and return ``sweep.json``'s dict.
+
+    Cells already in ``out/cells`` with a matching key are reused; the others
+    are computed in ``config.workers`` local processes and stored as they finish.
+    """
+    out = Path(out)
+    (out / "cells").mkdir(parents=True, exist_ok=True)
+    sha = data_hash(ds)
+    todo, cells = [], {}
+    for d in config.latent_dims:
+        for s in config.seeds:
+            cell = _load_cell(_cell_path(out, d, s), cell_key(config, sha, d, s))
+            if cell is None:
+                todo.append((d, s))
+            else:
+                cells[(d, s)] = cell
+    total = len(config.latent_dims) * len(config.seeds)
+    tell = progress or (lambda done, n, info: None)
+    for (d, s) in cells:
+        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": True})
+
+    def store(d: int, s: int, cell: dict[str, Any]) -> None:
+        cell["key"] = cell_key(config, sha, d, s)
+        write_text_atomic(_cell_path(out, d, s), json.dumps(cell, indent=1) + "\n")
+        cells[(d, s)] = cell
+        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": False})
+
+    # Large dimensions first: they take longest, so the pool stays busy to the end.
+    todo.sort(key=lambda c: (-c[0], c[1]))
+    if config.workers == 1 or len(todo) <= 1:
+        for d, s in todo:
+            store(d, s, run_cell(ds, config, d, s))
+    else:
+        # spawn: a fresh interpreter per worker, safe with threaded BLAS and torch.
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=min(config.workers, len(todo)), mp_context=ctx,
+                                 initializer=_init_worker, initargs=(ds, config)) as pool:
+            futures = {pool.submit(_worker_cell, d, s): (d, s) for d, s in todo}
+            try:
+                for fut in as_completed(futures):
+                    store(*futures[fut], fut.result())
+            except BaseException:
+                for fut in futures:  # finished cells are stored; drop the queue and stop
+                    fut.cancel()
+                raise
+    result = summarise(cells, config, sha)
+    write_text_atomic(out / "sweep.json", json.dumps(result, indent=1) + "\n")
+    return result

@@ -1,0 +1,200 @@
+"""The report's figures, as PNG files written atomically (matplotlib, Agg backend).
+
+- ``encoder_heatmap``: W_e^T (18 x l), the paper's encoder figures (l = 2, 18);
+- ``jump_figure``: truth vs rollouts of one jump (delegates to
+  ``evaluate.plots.plot_jump``), the paper's joint-angle / CoM-pose figures;
+- ``aslip_figure``: CoM x and z of one jump, truth vs learned vs aSLIP;
+- ``tradeoff_figure``: accuracy vs complexity over latent dimensions.
+
+Every function takes plain arrays (or the evaluation objects it plots) and a
+path, and returns the path written.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.data.io import write_with
+from symrom.data.names import Q_NAMES
+from symrom.evaluate.plots import _shade_phases, plot_jump
+from symrom.rollout.integrate import Rollout
+
+DPI = 110
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: str | os.PathLike) -> Path:
+    plt = _pyplot()
+    write_with(path, lambda tmp: fig.savefig(tmp, dpi=DPI, format="png"))
+    plt.close(fig)
+    return Path(path)
+
+
+def encoder_heatmap(W_e: np.ndarray, path: str | os.PathLike, title: str = "",
+                    row_names: tuple[str, ...] = Q_NAMES) -> Path:
+    """Heatmap of W_e^T: rows the 18 configuration components, columns latents 1..l.
+
+    W_e (l, 18), dimensionless for a unit-norm encoder (latent per unit of q).
+    Diverging colormap centred at 0; cell values printed when l <= 6.
+    """
+    plt = _pyplot()
+    W = np.asarray(W_e, dtype=float)
+    l = W.shape[0]
+    if W.shape[1] != len(row_names):
+        raise ValueError(f"W_e has {W.shape[1]} columns, expected {len(row_names)}")
+    vmax = float(np.abs(W).max()) or 1.0
+    fig, ax = plt.subplots(figsize=(max(3.6, 1.6 + 0.42 * l), 6.2))
+    im = ax.imshow(W.T, cmap="RdBu_r", vmin=-vmax, vmax=vmax, aspect="auto")
+    ax.set_yticks(range(len(row_names)), row_names, fontsize=8)
+    ax.set_xticks(range(l), [str(i + 1) for i in range(l)], fontsize=8)
+    ax.set_xlabel("latent dimension")
+    ax.set_ylabel("configuration component")
+    if l <= 6:
+        for i in range(l):
+            for j in range(len(row_names)):
+                v = W[i, j]
+                ax.text(i, j, f"{v:.2f}", ha="center", va="center", fontsize=7,
+                        color="white" if abs(v) > 0.6 * vmax else "black")
+    fig.colorbar(im, ax=ax, label="encoder weight")
+    ax.set_title(title or rf"Encoder weights $W_e^T$ (l = {l})", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def jump_figure(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | os.PathLike,
+                title: str = "") -> Path:
+    """True vs predicted fl/rr joint angles and CoM pose of ``jump`` (index into ``ds``)
+    for each horizon in ``rollouts`` (``full``, ``0.1``), phases shaded."""
+    plot_jump(ds, rollouts, jump, path, title=title)
+    return Path(path)
+
+
+def aslip_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, aslip: np.ndarray | None,
+                 phase: np.ndarray, phase_names: list[str], path: str | os.PathLike,
+                 title: str = "") -> Path:
+    """CoM x and z of one jump: truth, learned model and aSLIP (full horizon).
+
+    t (n,) s; true, learned, aslip (n, 3) CoM x, y, z in m (aslip may be None);
+    phase (n,) indices into ``phase_names``. NaN rows (a diverged rollout) are gaps.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), sharex=True)
+    seen: set = set()
+    for ax, (c, name) in zip(axes, ((0, "x"), (2, "z"))):
+        _shade_phases(ax, t, np.asarray(phase), phase_names, seen)
+        ax.plot(t, true[:, c], color="k", lw=1.8, label="true")
+        ax.plot(t, learned[:, c], color="C3", lw=1.3, label="learned (symbolic)")
+        if aslip is not None:
+            ax.plot(t, aslip[:, c], color="C0", lw=1.3, ls="--", label="aSLIP")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel(f"CoM {name} [m]")
+        ax.grid(alpha=0.3)
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
+    fig.suptitle(title or "CoM position: learned model vs aSLIP (full horizon)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.08, 1, 0.95))
+    return _save(fig, path)
+
+
+def aslip_jump_com(ds: Dataset, jump: int, params: dict, method: str = "lsoda") -> np.ndarray:
+    """Glue to ``symrom.baselines.aslip``: the aSLIP's predicted CoM x, y, z (n, 3), m,
+    of ``jump`` (index into ``ds``), full horizon; ``params`` as in params.json
+    (k_s N/m, l_0 m, m kg; other keys ignored). NaN rows after a divergence."""
+    from symrom.baselines.aslip import ASlipParams, ASlipRolloutOptions, rollout_aslip
+
+    p = ASlipParams(**{k: float(params[k]) for k in ("k_s", "l_0", "m")})
+    return rollout_aslip(p, ds, [int(jump)], ASlipRolloutOptions(method=method)).b_pred[0]
+
+
+def sweep_stats(sweep: dict) -> dict[str, np.ndarray]:
+    """Per latent dimension (D,): mean and std over seeds of E_dec and |Xi|, L_mod.
+
+    ``sweep``: the sweep.json layout, ``E_dec`` and ``active_terms`` (D, S) lists
+    (null for a failed seed). L_mod is taken from the file when given, else
+    computed as 2 E_dec + 2 lambda log|Xi| on the seed means.
+    """
+    dims = np.asarray(sweep["latent_dims"], dtype=int)
+
+    def table(key):
+        rows = [[np.nan if v is None else float(v) for v in np.atleast_1d(r)] for r in sweep[key]]
+        width = max(len(r) for r in rows)
+        return np.array([r + [np.nan] * (width - len(r)) for r in rows])
+
+    E, A = table("E_dec"), table("active_terms")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row (every seed failed) stays NaN
+        out = {"dims": dims, "E_mean": np.nanmean(E, 1), "E_std": np.nanstd(E, 1),
+               "A_mean": np.nanmean(A, 1), "A_std": np.nanstd(A, 1)}
+    if sweep.get("L_mod") is not None:
+        out["L_mod"] = np.array([np.nan if v is None else float(v) for v in sweep["L_mod"]])
+    else:
+        lam = float(sweep.get("lambda", 1e-3))
+        out["L_mod"] = 2 * out["E_mean"] + 2 * lam * np.log(np.maximum(out["A_mean"], 1.0))
+    return out
+
+
+def best_dim(sweep: dict) -> int:
+    """The latent dimension named best by the sweep, else the argmin of L_mod."""
+    if sweep.get("best_latent_dim") is not None:
+        return int(sweep["best_latent_dim"])
+    s = sweep_stats(sweep)
+    return int(s["dims"][int(np.nanargmin(s["L_mod"]))])
+
+
+def tradeoff_figure(sweep: dict, path: str | os.PathLike, title: str = "") -> Path:
+    """Accuracy vs complexity over latent dimensions, as the paper's trade-off figure.
+
+    Left axis: E_dec (mean squared reconstruction error of q, rad^2 and m^2
+    mixed) with error bars over seeds; right axis: active coefficients |Xi|
+    with error bars; offset axis: L_mod (red); the best dimension marked.
+    """
+    plt = _pyplot()
+    s = sweep_stats(sweep)
+    dims, best = s["dims"], best_dim(sweep)
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    ax.errorbar(dims, s["E_mean"], yerr=s["E_std"], color="C0", marker="o", ms=4, capsize=3,
+                label=r"$\mathcal{E}_{dec}$")
+    ax.set_xlabel("latent dimension l")
+    ax.set_ylabel(r"reconstruction error $\mathcal{E}_{dec}$ [mean sq., rad$^2$/m$^2$]", color="C0")
+    ax.tick_params(axis="y", colors="C0")
+    ax2 = ax.twinx()
+    ax2.errorbar(dims, s["A_mean"], yerr=s["A_std"], color="C1", marker="s", ms=4, capsize=3,
+                 label=r"$|\Xi|$")
+    ax2.set_ylabel(r"active coefficients $|\Xi|$", color="C1")
+    ax2.tick_params(axis="y", colors="C1")
+    ax3 = ax.twinx()
+    ax3.spines["right"].set_position(("axes", 1.13))
+    ax3.plot(dims, s["L_mod"], color="C3", lw=1.8, marker="^", ms=4, label=r"$\mathcal{L}_{mod}$")
+    ax3.set_ylabel(r"combined loss $\mathcal{L}_{mod}$", color="C3")
+    ax3.tick_params(axis="y", colors="C3")
+    if best in dims:
+        i = int(np.flatnonzero(dims == best)[0])
+        ax.axvline(best, color="C3", ls=":", lw=1.2)
+        ax3.plot([best], [s["L_mod"][i]], marker="*", ms=14, color="C3", ls="none",
+                 label=f"best l = {best}")
+    ax.set_xticks(dims)
+    ax.grid(alpha=0.3)
+    handles = sum((a.get_legend_handles_labels()[0] for a in (ax, ax2, ax3)), [])
+    labels = sum((a.get_legend_handles_labels()[1] for a in (ax, ax2, ax3)), [])
+    ax.legend(handles, labels, loc="upper center", fontsize=8, ncol=4, frameon=False)
+    ax.set_title(title or "Accuracy vs complexity over latent dimensions", fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)

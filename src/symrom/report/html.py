@@ -1,0 +1,69 @@
+"""``build_report``: one self-contained HTML page and its Markdown twin for a run directory.
+
+The HTML embeds every figure as a base64 PNG and inlines its CSS (no external
+resource); the Markdown file sits next to it and links the same figures as PNG
+files in ``<stem>_files/`` (``report_files/`` for ``report.html``).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from symrom import __version__
+from symrom.data.io import OutputExistsError, atomic_dir, write_text_atomic
+from symrom.report import sections as S
+from symrom.report.document import Para, render_html, render_markdown
+from symrom.report.run import load_run
+
+
+def report_paths(out_html: str | os.PathLike) -> tuple[Path, Path, Path]:
+    """(html, markdown, figure folder) for ``out_html``: report.html -> report.md, report_files/."""
+    html = Path(out_html)
+    return html, html.with_suffix(".md"), html.with_name(f"{html.stem}_files")
+
+
+def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force: bool = True,
+                 progress: Callable[[str], None] | None = None) -> tuple[Path, Path]:
+    """Build the report of ``run_dir`` into ``out_html`` (+ Markdown twin); their paths.
+
+    Existing outputs are replaced atomically; with ``force=False`` (the CLI
+    without --force) ``OutputExistsError`` is raised instead if any exists.
+    Raises ``FileNotFoundError`` if ``run_dir`` is not a directory. Missing parts of
+    the run are noted in the report, never raised.
+    """
+    html_path, md_path, files_dir = report_paths(out_html)
+    if not force:
+        for p in (html_path, md_path, files_dir):
+            if p.exists():
+                raise OutputExistsError(f"{p} exists; pass --force to overwrite it")
+    say = progress or (lambda msg: None)
+    run = load_run(run_dir)
+    title = "symrom report: symbolic reduced-order models of quadruped jumping"
+    with atomic_dir(files_dir, force=True) as fig_dir:
+        jumps = S.JumpCache(run)
+        say("Table 2")
+        secs = [S.table2_section(run)]
+        say("prediction figures")
+        secs.append(S.predictions_section(run, jumps, fig_dir))
+        say("aSLIP comparison")
+        secs.append(S.aslip_section(run, jumps, fig_dir))
+        say("latent dimension trade-off")
+        secs.append(S.tradeoff_section(run, fig_dir))
+        say("equations and data")
+        secs.append(S.equations_section(run))
+        solvers = S.solvers_section(run)
+        if solvers is not None:
+            secs.append(solvers)
+        secs += [S.data_section(run), S.run_section(run)]
+        intro = [Para(f"Run directory: {run.dir.resolve()}. Built {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
+                      f"by symrom {__version__}. Reproduces arXiv 2508.06538 (Buriani, Liu et al.): "
+                      "Table 2, the aSLIP comparison, the latent-dimension trade-off and the learned equations.")]
+        if run.missing:
+            intro.append(Para("Not in this run, skipped: " + ", ".join(run.missing) + ".", note=True))
+        intro += [Para(n, note=True) for n in run.notes]
+        write_text_atomic(md_path, render_markdown(title, intro, secs, files_dir.name))
+        write_text_atomic(html_path, render_html(title, intro, secs))
+    return html_path, md_path

@@ -1,0 +1,194 @@
+"""The aSLIP baseline on spring-mass hops whose truth is the aSLIP model itself."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlipParams, ASlipRolloutOptions,
+                                    aslip_acceleration, evaluate_aslip, fit_aslip, rollout_aslip,
+                                    rollout_errors, stance_pivots)
+from symrom.cli import app
+from symrom.data.io import write_dataset
+from symrom.data.names import BASE_POS
+from symrom.data.synthetic import make_slip_dataset
+from symrom.evaluate.tables import table2
+from symrom.robots import total_mass
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def slip():
+    ds, truth = make_slip_dataset(n_jumps=6, n_samples=300, seed=3)
+    return ds, ASlipParams(**truth)
+
+
+def test_generator_hops(slip):
+    ds, _ = slip
+    flight = ds.phase == ds.phase_names.index("flight")
+    for j in range(ds.n_jumps):  # every jump: launch, flight, landing
+        ph = ds.phase[ds.jump == j]
+        first_flight = int(np.argmax(ph == 1))
+        assert ph[0] == 0 and first_flight > 0 and (ph[first_flight:] == 0).any()
+    # The stored wrench is the actuation force m u, zero in flight.
+    assert np.all(ds.u[flight, 12:15] == 0) and np.abs(ds.u[~flight, 14]).max() > 0
+
+
+def test_fit_recovers_spring(slip):
+    ds, truth = slip
+    p = fit_aslip(ds, ds.rows_of("train"), truth.m)
+    assert p.m == truth.m
+    assert p.k_s == pytest.approx(truth.k_s, rel=0.02)
+    assert p.l_0 == pytest.approx(truth.l_0, rel=0.02)
+
+
+def test_fit_tolerates_noisy_accelerations(slip):
+    ds, truth = slip
+    rng = np.random.default_rng(0)
+    noisy = replace(ds, ddq=ds.ddq + 0.2 * rng.standard_normal(ds.ddq.shape))  # 0.2 m/s^2
+    p = fit_aslip(noisy, m=truth.m)
+    assert p.k_s == pytest.approx(truth.k_s, rel=0.02)
+    assert p.l_0 == pytest.approx(truth.l_0, rel=0.02)
+
+
+def test_mass_must_be_given_for_robots_without_urdf(slip):
+    ds, _ = slip
+    with pytest.raises(ValueError, match="mass"):
+        fit_aslip(ds)
+
+
+def test_urdf_total_mass():
+    assert 10.0 < total_mass("go1") < 16.0  # Go1: about 12-13 kg
+    assert 10.0 < total_mass("a1") < 16.0
+
+
+def test_pivot_is_mean_of_feet_in_contact(slip):
+    ds, _ = slip
+    fp = ds.foot_pos.copy()
+    fp[0] = [[0, 0, 0], [1, 0, 0], [0, 2, 0], [9, 9, 9]]
+    c = ds.contact.copy()
+    c[0] = [1, 1, 1, 0]
+    piv = stance_pivots(replace(ds, foot_pos=fp, contact=c))
+    np.testing.assert_allclose(piv[0], [1 / 3, 2 / 3, 0])
+
+
+def test_acceleration_form():
+    p = ASlipParams(k_s=100.0, l_0=0.5, m=2.0)
+    b = np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.3]])
+    piv = np.zeros((2, 3))
+    u = np.array([[1.0, 2.0, 3.0]] * 2)
+    a = aslip_acceleration(p, b, piv, u, np.array([True, False]))
+    np.testing.assert_allclose(a[0], GRAVITY + [1, 2, 3] + [0, 0, 100 * 0.2 / 2])
+    np.testing.assert_allclose(a[1], GRAVITY)  # flight: gravity only
+
+
+@pytest.mark.parametrize("method", ["lsoda", "rk4"])
+def test_true_params_reproduce_the_trajectory(slip, method):
+    ds, truth = slip
+    ro = rollout_aslip(truth, ds, options=ASlipRolloutOptions(method=method))
+    assert not ro.diverged.any()
+    err = rollout_errors(ds, ro)
+    assert err.shape == (ds.n_samples, 3)
+    assert np.abs(err).max() < 1e-4  # m, over 0.6 s of hopping
+
+
+@pytest.mark.parametrize("method", ["lsoda", "rk4"])
+def test_reset_restarts_from_the_truth(slip, method):
+    ds, truth = slip
+    wrong = replace(truth, k_s=0.5 * truth.k_s)
+    j = int(ds.jumps_in("test")[0])
+    ro = rollout_aslip(wrong, ds, [j], ASlipRolloutOptions(method=method, reset=0.1))
+    b_true = ds.q[ds.jump == j][:, BASE_POS]
+    every = int(round(0.1 / ds.dt))
+    np.testing.assert_allclose(ro.b_pred[0][::every], b_true[::every], atol=1e-12)
+    assert not np.allclose(ro.b_pred[0][1:every], b_true[1:every], atol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["lsoda", "rk4"])
+def test_absurd_model_is_flagged(slip, method):
+    ds, truth = slip
+    crazy = replace(truth, k_s=1e9, l_0=100.0)
+    m = evaluate_aslip(crazy, ds, "test", resets=(None,), method=method,
+                       options=ASlipRolloutOptions(max_steps=200))
+    full = m["horizons"]["full"]
+    assert full["diverged_jumps"] == m["n_jumps"] and full["components"] == {}
+
+
+def test_metrics_layout(slip):
+    ds, truth = slip
+    m = evaluate_aslip(truth, ds, "test", resets=(None, 0.1), method="rk4", data_name="d.h5")
+    assert set(m) == {"model", "data", "split", "n_jumps", "integrator", "horizons"}
+    assert m["split"] == "test" and m["n_jumps"] == len(ds.jumps_in("test")) and m["data"] == "d.h5"
+    assert list(m["horizons"]) == ["full", "0.1"]
+    for h in m["horizons"].values():
+        assert h["diverged_jumps"] == 0
+        assert list(h["components"]) == ["x", "y", "z"]
+        for c in h["components"].values():
+            assert set(c) == {"mean", "std", "mae", "rmse"}
+            assert c["rmse"] < 1e-4
+    json.dumps(m)
+    assert "| Full |" in table2(m, components=("x", "y", "z"))
+
+
+def test_paper_params():
+    assert (PAPER_PARAMS.k_s, PAPER_PARAMS.l_0, PAPER_PARAMS.m) == (250.0, 0.32, 12.01)
+
+
+# ----------------------------------------------------------------------------- CLI
+@pytest.fixture(scope="module")
+def slip_file(slip, tmp_path_factory):
+    path = tmp_path_factory.mktemp("aslip") / "slip.h5"
+    write_dataset(slip[0], path)
+    return path
+
+
+def _one_line_error(result, needle: str) -> None:
+    assert result.exit_code != 0, result.output
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and "Traceback" not in result.output, result.output
+    assert needle in lines[0], lines[0]
+
+
+def test_cli_fits_writes_and_refuses_to_overwrite(slip, slip_file, tmp_path):
+    _, truth = slip
+    out = tmp_path / "aslip"
+    r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--mass", str(truth.m),
+                            "--integrator", "rk4"])
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in out.iterdir()} == {"metrics.json", "params.json", "table.md"}
+    params = json.loads((out / "params.json").read_text())
+    assert params["k_s"] == pytest.approx(truth.k_s, rel=0.02) and params["m"] == truth.m
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert list(metrics["horizons"]) == ["full", "0.1"] and metrics["integrator"] == "rk4"
+    assert "| Full |" in (out / "table.md").read_text()
+
+    before = (out / "params.json").read_text()
+    r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--mass", str(truth.m)])
+    _one_line_error(r, "--force")
+    assert (out / "params.json").read_text() == before
+
+    r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed", "--k-s", "1000",
+                            "--integrator", "rk4", "--force"])
+    assert r.exit_code == 0, r.output
+    params = json.loads((out / "params.json").read_text())
+    assert (params["k_s"], params["l_0"], params["m"]) == (1000.0, PAPER_PARAMS.l_0, PAPER_PARAMS.m)
+    assert params["source"] == "fixed"
+
+
+def test_cli_errors(slip_file, tmp_path):
+    out = tmp_path / "x"
+    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out)]), "--mass")
+    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--k-s", "3"]),
+                    "--fixed")
+    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+                                        "--integrator", "euler"]), "lsoda")
+    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+                                        "--split", "val"]), "'val'")
+    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+                                        "--l0", "-1"]), "l_0")
+    assert not out.exists()
