@@ -1,0 +1,305 @@
+"""Froggy jump of a quadruped (A1) under Cartesian PD control of the feet.
+
+The jump, after the contact-timing idea of Nguyen et al. (2022): the robot
+settles and crouches on four feet, pushes with all four, then lifts the front
+legs while the rear legs keep pushing (a rear-only contact phase), flies with
+all feet off, lands on four feet and settles.
+
+Every foot follows a Cartesian target in the base frame with PD plus a
+feed-forward force, tau_leg = J^T (Kp (p_d - p) + Kd (v_d - v) + f_ff), where
+p (3,) m is the foot in the base frame, v = J dq_leg (3,) m/s, J (3, 3) m/rad
+the leg Jacobian from ``symrom.robots.leg_kinematics`` and f_ff (3,) N the
+force the foot should exert on the ground, in the base frame. f_ff comes from
+a desired body wrench (weight or thrust, plus a roll/pitch-levelling moment)
+shared among the stance feet by least squares. In stance the targets are
+body-fixed; during the push they are the planted feet seen from a desired base
+pose moving along the take-off line; in flight they are level, so the legs
+reach plumb down for the landing. Each leg's torques are scaled together into
+the robot's limits (``World.step`` clips as well).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from symrom.data.names import JOINTS, N_LEGS, leg_slice
+from symrom.robots import RobotSpec, leg_kinematics
+from symrom.sim.world import RobotState
+
+FRONT = (0, 1)  # FR, FL
+REAR = (2, 3)  # RR, RL
+
+
+@dataclass(frozen=True)
+class FroggyParams:
+    """One froggy jump. Heights are base-above-foot-centre distances (m), times s, forces N.
+
+    Stages: settle (t_settle), crouch to crouch_height nose-down by crouch_pitch
+    rad (t_crouch), hold (t_hold), four-leg push (t_push_all), rear-only push
+    (t_push_rear), flight, landing, t_after_land s of standing. During the push
+    the base is driven at push_speed m/s along a line tilted ``angle`` rad from
+    vertical towards +x (at most push_rise m up), with total thrust force_all N
+    (force_rear N with the rear feet only). raibert (s) places the feet ahead
+    by that times the forward speed at touch-down; a run that has not ended
+    by max_time s is cut off (and fails the checks). Gains: kp N/m, kd N s/m;
+    xy_ratio softens stance gains horizontally; k_att N m/rad and d_att
+    N m s/rad level the body.
+    """
+
+    stand_height: float = 0.27
+    crouch_height: float = 0.19
+    crouch_shift: float = 0.02
+    crouch_pitch: float = 0.2
+    push_speed: float = 1.3
+    push_rise: float = 0.20
+    t_settle: float = 0.30
+    t_crouch: float = 0.40
+    t_hold: float = 0.08
+    t_push_all: float = 0.07
+    t_push_rear: float = 0.07
+    force_all: float = 250.0
+    force_rear: float = 150.0
+    angle: float = 0.4
+    raibert: float = 0.04
+    t_after_land: float = 1.10
+    max_time: float = 4.0
+    kp_stance: float = 800.0
+    kd_stance: float = 30.0
+    kp_push: float = 200.0
+    kd_push: float = 10.0
+    kp_swing: float = 400.0
+    kd_swing: float = 10.0
+    kp_land: float = 900.0
+    kd_land: float = 45.0
+    xy_ratio: float = 0.4
+    k_att: float = 150.0
+    d_att: float = 8.0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def sample_params(rng: np.random.Generator) -> FroggyParams:
+    """A random froggy jump: varied crouch, take-off speed and angle, push timing and thrust."""
+    force_all = float(rng.uniform(240.0, 320.0))
+    return FroggyParams(
+        crouch_height=float(rng.uniform(0.18, 0.195)),
+        push_speed=float(rng.uniform(1.2, 1.4)),
+        angle=float(rng.uniform(0.3, 0.45)),
+        t_push_all=float(rng.uniform(0.065, 0.08)),
+        t_push_rear=float(rng.uniform(0.06, 0.08)),
+        force_all=force_all,
+        force_rear=float(0.6 * force_all * rng.uniform(0.9, 1.1)),
+        t_after_land=float(rng.uniform(1.0, 1.2)),
+    )
+
+
+def smooth(s: float) -> float:
+    """Cosine blend 0 -> 1 on s in [0, 1] (clipped), zero slope at both ends."""
+    s = min(max(s, 0.0), 1.0)
+    return 0.5 - 0.5 * np.cos(np.pi * s)
+
+
+def yaw_matrix(yaw: float) -> np.ndarray:
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def nominal_feet(robot: str) -> np.ndarray:
+    """(4, 3) m: feet straight under the hips at zero joint angles, z zeroed (base frame)."""
+    feet = leg_kinematics(robot).foot_positions(np.zeros(12))[0]
+    feet[:, 2] = 0.0
+    return feet
+
+
+def inverse_kinematics(robot: str, targets: np.ndarray, q0: np.ndarray,
+                       iters: int = 50, tol: float = 1e-7) -> np.ndarray:
+    """Joint angles (12,) rad putting the feet at ``targets`` (4, 3) m, base frame.
+
+    Damped Newton iterations from ``q0`` (12,) on the URDF kinematics.
+    """
+    kin = leg_kinematics(robot)
+    q = np.array(q0, dtype=float)
+    for _ in range(iters):
+        pos, J = kin.foot_positions_and_jacobians(q)
+        err = targets - pos[0]
+        if np.abs(err).max() < tol:
+            break
+        for k in range(N_LEGS):
+            Jk = J[0, k]
+            q[leg_slice(k)] += np.linalg.solve(Jk.T @ Jk + 1e-6 * np.eye(3), Jk.T @ err[k])
+    return q
+
+
+def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
+               force: np.ndarray, moment: np.ndarray, mu: float = 0.6) -> np.ndarray:
+    """Ground reactions (4, 3) N, world, of the feet ``legs`` giving a wrench on the body.
+
+    Least-norm solution of sum F_k = force (3,) N and sum (p_k - centre) x F_k =
+    moment (3,) N m, with foot_pos (4, 3) m and centre (3,) m in the world; then
+    pulls are dropped and horizontal parts clipped to the friction cone ``mu``.
+    """
+    A = np.zeros((6, 3 * len(legs)))
+    for i, k in enumerate(legs):
+        r = foot_pos[k] - centre
+        A[:3, 3 * i:3 * i + 3] = np.eye(3)
+        A[3:, 3 * i:3 * i + 3] = [[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]]
+    sol = (np.linalg.pinv(A) @ np.r_[force, moment]).reshape(len(legs), 3)
+    sol[:, 2] = np.maximum(sol[:, 2], 0.0)
+    horiz = np.linalg.norm(sol[:, :2], axis=1)
+    scale = np.minimum(1.0, mu * sol[:, 2] / np.maximum(horiz, 1e-9))
+    sol[:, :2] *= scale[:, None]
+    grf = np.zeros((N_LEGS, 3))
+    grf[list(legs)] = sol
+    return grf
+
+
+class FroggyController:
+    """Finite-state froggy jump controller; one instance per jump.
+
+    ``torque(state)`` -> (12,) N m requested joint torques; ``done(state)`` once
+    the robot has settled after landing. ``phase`` names the controller's
+    current stage (settle, crouch, hold, push_all, push_rear, flight, land).
+    """
+
+    def __init__(self, spec: RobotSpec, params: FroggyParams,
+                 rng: np.random.Generator | None = None):  # rng: unused, params fix the jump
+        self.spec = spec
+        self.params = params
+        self.kin = leg_kinematics(spec.name)
+        self.limit = np.asarray(spec.torque_limit, dtype=float)  # (12,) N m
+        self.feet0 = nominal_feet(spec.name)  # (4, 3) level-frame xy of each foot
+        self.mass = 12.0  # kg, replaced by the world's true mass in initial_q
+        self.phase = "settle"
+        self.t_flight = None  # time the flight stage began
+        self.t_land = None
+        self._p0 = None  # (feet (4, 3), base (3,)) in the world when the push starts, m
+        p = params
+        self._t_push = p.t_settle + p.t_crouch + p.t_hold
+        self._t_rear = self._t_push + p.t_push_all
+        self._t_fly = self._t_rear + p.t_push_rear
+
+    # --------------------------------------------------------------- set-up
+    def initial_q(self, world) -> np.ndarray:
+        """Standing configuration (18,) at ``stand_height`` on ``world``'s ground."""
+        targets = self.feet0 + np.array([0.0, 0.0, -self.params.stand_height])
+        q0 = np.tile([0.0, 0.8, -1.6], 4)  # knee-back stance guess of the Unitree legs
+        qj = inverse_kinematics(self.spec.name, targets, q0)
+        self.mass = world.mass
+        return world.standing_q(qj)
+
+    # -------------------------------------------------------------- control
+    def _stage(self, s: RobotState) -> str:
+        t, p = s.t, self.params
+        if self.phase in ("flight", "land"):
+            if self.phase == "flight" and s.t - self.t_flight > 0.05 and s.contact.any():
+                self.phase, self.t_land = "land", s.t
+            return self.phase
+        if t < p.t_settle:
+            return "settle"
+        if t < p.t_settle + p.t_crouch:
+            return "crouch"
+        if t < self._t_push:
+            return "hold"
+        if t < self._t_rear:
+            return "push_all"
+        if t < self._t_fly:
+            return "push_rear"
+        self.t_flight = t
+        return "flight"
+
+    def torque(self, s: RobotState) -> np.ndarray:
+        """Joint torques (12,) N m for state ``s``."""
+        p = self.params
+        self.phase = self._stage(s)
+        qj, dqj = s.q[JOINTS], s.dq[JOINTS]
+        pos, J = self.kin.foot_positions_and_jacobians(qj)
+        pos, J = pos[0], J[0]
+        vel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))
+        # Stance targets are body-fixed (their offsets give the body its attitude stiffness);
+        # in flight they are level (yaw-only frame), so the legs hang plumb for landing.
+        to_base = s.R.T @ yaw_matrix(s.q[17]) if self.phase == "flight" else np.eye(3)
+        weight = self.mass * 9.81
+        height = p.stand_height
+        shift = 0.0
+        kp = np.full(N_LEGS, p.kp_stance)
+        kd = np.full(N_LEGS, p.kd_stance)
+        grf = np.zeros((N_LEGS, 3))  # desired ground reaction per foot, world
+        z_leg = np.full(N_LEGS, -height)
+        x_off = np.zeros(N_LEGS)
+        v_d = np.zeros((N_LEGS, 3))  # base-frame target velocity, m/s
+        xy = p.xy_ratio
+        base = s.q[12:15]
+        # Roll/pitch regulation moment (world), fed forward through the stance feet.
+        pitch_ref = 0.0
+        if self.phase in ("crouch", "hold", "push_all"):
+            pitch_ref = p.crouch_pitch * smooth((s.t - p.t_settle) / p.t_crouch)
+        level = (-p.k_att * (s.R @ np.array([s.q[15], s.q[16] - pitch_ref, 0.0]))
+                 - p.d_att * s.omega * [1, 1, 0])
+        all_legs = tuple(range(N_LEGS))
+        if self.phase in ("settle", "crouch", "hold"):
+            if self.phase != "settle":
+                a = smooth((s.t - p.t_settle) / p.t_crouch)
+                z_leg[:] = -(p.stand_height + a * (p.crouch_height - p.stand_height))
+                # Nose down (front legs shorter): the push's nose-up rotation then
+                # passes through level near take-off.
+                z_leg += a * p.crouch_pitch * self.feet0[:, 0]
+                shift = a * p.crouch_shift
+            grf = distribute(s.foot_pos, base, all_legs, np.array([0, 0, weight]), level)
+        elif self.phase in ("push_all", "push_rear"):
+            # The base tracks a straight take-off line in the world (up and forward at
+            # push_speed, level attitude) while the stance feet stay where they are: the
+            # foot targets are the planted feet seen from the desired base pose.
+            if self._p0 is None:
+                self._p0 = (s.foot_pos.copy(), base.copy())
+            feet_w, b0 = self._p0
+            yaw = yaw_matrix(s.q[17])
+            direction = yaw @ np.array([np.sin(p.angle), 0.0, np.cos(p.angle)])
+            b_d = b0 + p.push_speed * (s.t - self._t_push) * direction
+            b_d[2] = min(b_d[2], b0[2] + p.push_rise)
+            p_stroke = (feet_w - b_d) @ yaw  # level-frame offsets, rows: yaw^T (f - b_d)
+            v_d[:] = -p.push_speed * np.array([np.sin(p.angle), 0.0, np.cos(p.angle)])
+            # Kept in the desired (level) frame: attitude errors show up as foot errors.
+            thrust = p.force_all * direction
+            kp[:], kd[:] = p.kp_push, p.kd_push
+            xy = 1.0
+            if self.phase == "push_all":
+                grf = distribute(s.foot_pos, base, all_legs, thrust, level)
+            else:
+                grf = distribute(s.foot_pos, base, REAR, p.force_rear / p.force_all * thrust, level)
+                for k in FRONT:  # front feet tuck up and forward
+                    z_leg[k], x_off[k] = -p.crouch_height + 0.04, 0.04
+                    kp[k], kd[k] = p.kp_swing, p.kd_swing
+                    v_d[k] = 0.0
+        elif self.phase == "flight":
+            kp[:], kd[:] = p.kp_swing, p.kd_swing
+            # Raibert-style placement: land the feet ahead by the forward speed.
+            x_off[:] = p.raibert * s.dq[12]
+        else:  # land
+            kp[:], kd[:] = p.kp_land, p.kd_land
+            a = smooth((s.t - self.t_land) / 0.3)  # ramp the weight support in over 0.3 s
+            down = tuple(int(k) for k in np.flatnonzero(s.contact))
+            if down:
+                grf = a * distribute(s.foot_pos, base, down, np.array([0, 0, weight]), level)
+        targets_level = self.feet0 + np.stack([x_off + shift, np.zeros(N_LEGS), z_leg], axis=1)
+        p_d = targets_level @ to_base.T
+        if self.phase in ("push_all", "push_rear"):
+            stroke_legs = list(all_legs) if self.phase == "push_all" else list(REAR)
+            p_d[stroke_legs] = p_stroke[stroke_legs]
+        f_ff = -(grf @ s.R)  # force on the ground, in the base frame: -R^T grf
+        # Softer horizontally in stance: lightly loaded feet would slip under stiff
+        # horizontal springs, and horizontal forces below the CoM pitch the body.
+        axis = np.array([xy, xy, 1.0])
+        f = (kp[:, None] * axis) * (p_d - pos) + (kd[:, None] * axis) * (v_d - vel) + f_ff
+        tau = np.einsum("kji,kj->ki", J, f)  # J^T f per leg
+        # Scale each leg's torques together into the limits: clipping joints one by one
+        # would turn the foot force (e.g. a push down becomes a push backwards).
+        over = np.max(np.abs(tau) / self.limit.reshape(N_LEGS, 3), axis=1, keepdims=True)
+        tau = tau / np.maximum(over, 1.0)
+        return tau.reshape(-1)
+
+    def done(self, s: RobotState) -> bool:
+        """True once the robot has stood for ``t_after_land`` s after touch-down."""
+        return self.t_land is not None and s.t - self.t_land >= self.params.t_after_land

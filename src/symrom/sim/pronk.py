@@ -1,0 +1,535 @@
+"""Go1 forward pronking under convex MPC: crouch, push-off, flight, landing, settle.
+
+How the controller works. A jump is a fixed sequence of phases driven by the
+time since reset and by the contact flags. (1) *Crouch*: from the standing pose
+the base is lowered to ``crouch_height`` along a cosine profile. (2) *Push*:
+the base follows a constant-acceleration reference from rest at the crouch to
+the take-off height, reaching the take-off velocity ``(vx, vz)`` that gives a
+ballistic flight with the commanded apex height and a total forward travel of
+the commanded distance (``plan_jump``); the MPC's contact schedule turns all
+four feet off at the planned take-off time, so the plan already holds the
+ballistic start. In both phases a convex single-rigid-body MPC
+(``symrom.sim.mpc``, OSQP, 10 steps of 25 ms, solved at ``mpc_hz``) computes
+the ground-reaction forces ``f`` of the four feet (world frame); they become
+joint torques ``tau = -J^T R^T f`` (leg Jacobian ``J`` from the URDF
+kinematics in the base frame, ``R`` base -> world), plus the torques that hold
+the legs' own weight (``LegGravity``: the MPC's legs are massless, Go1's are
+not) and a small joint-space PD holding the hip abduction and damping the legs.
+The MPC's body inertia is that of the parts turning with the trunk while the
+feet are planted (``BodyModel.inertia_upper``); with the whole robot's inertia
+the roll loop oscillates. (3) *Flight*: joint PD to a landing posture, feet
+under the hips and shifted forward in proportion to the forward speed so that
+the landing forces brake the body. (4) *Landing*: from the first touchdown the
+MPC tracks a critically damped reference that takes the base from its
+touchdown height and velocity to the standing height at rest, while a
+Cartesian impedance per leg (spring towards the reference leg length, damping
+of the foot velocity relative to the body) softens the impact and holds legs
+that have not touched down yet. (5) *Settle*: ``done`` turns true once the
+landing has lasted ``settle_time`` and the base is nearly at rest.
+
+Use (what the runner does; ``World`` from ``symrom.sim.world``)::
+
+    params = sample_params(rng, proxy=False)      # PronkParams, asdict() is JSON-ready
+    world = World("go1", config)
+    if params.proxy is not None:                  # source = "proxy"
+        world = proxy.ProxyWorld(world, params.proxy)
+    ctrl = PronkController(get_robot("go1"), params)
+    world.reset(initial_state(spec, params))
+    while not ctrl.done(s := world.state()):
+        applied = world.step(ctrl.torque(s))      # one 1 kHz tick
+    np.median(ctrl.mpc_solve_times)               # s, for the benchmark
+
+A jump lasts about 1.4-1.5 s (crouch and push ~0.6 s, flight ~0.25 s,
+landing and settling >= 0.6 s), i.e. ~730 samples at 500 Hz.
+Units: m, s, rad, N, N m. ``RobotState`` as in ``symrom.sim.world``.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+
+from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.robots import RobotSpec, leg_kinematics
+from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
+from symrom.sim.proxy import ProxyConfig, sample_proxy
+
+GRAVITY = 9.81
+
+
+@dataclass
+class PronkParams:
+    """One forward pronking jump.
+
+    distance: commanded forward travel of the base from start to rest, m;
+    apex_height: commanded base height at the top of the flight, m;
+    crouch_height / takeoff_height: base heights at the bottom of the crouch
+    and at lift-off, m; crouch_time: standing -> crouched, s; hold_time: pause
+    in the crouch, s; settle_time: minimum time after touchdown before the
+    jump may be done, s; max_time: the jump is done at the latest then, s;
+    yaw: heading, rad; proxy: hardware-like perturbations (``source = proxy``)
+    or None for the nominal simulator.
+    """
+
+    distance: float = 0.25
+    apex_height: float = 0.43
+    crouch_height: float = 0.21
+    takeoff_height: float = 0.33
+    crouch_time: float = 0.40
+    hold_time: float = 0.05
+    settle_time: float = 0.60
+    max_time: float = 3.0
+    yaw: float = 0.0
+    proxy: ProxyConfig | None = None
+
+
+@dataclass
+class PronkGains:
+    """Controller gains and rates.
+
+    mpc: MPC settings; mpc_hz: MPC solve rate, Hz; kp/kd_flight: joint PD in
+    flight (N m/rad, N m s/rad); kp/kd_hx: stance hip-abduction PD; kd_stance:
+    stance joint damping; k/d_land: landing Cartesian impedance (N/m, N s/m);
+    foot_forward: landing foot placement ahead of the hip per forward speed, s;
+    land_omega: bandwidth of the landing reference, rad/s; brake_time: time
+    constant of the forward braking after touchdown, s; takeoff_boost: factor on
+    the push reference's take-off velocity, making up for the lag of the real
+    (leg-inertia-laden) robot behind the single-rigid-body plan.
+    """
+
+    mpc: MPCConfig = field(default_factory=MPCConfig)
+    mpc_hz: float = 100.0
+    kp_flight: float = 30.0
+    kd_flight: float = 0.5
+    kp_hx: float = 20.0
+    kd_hx: float = 0.4
+    kd_stance: float = 0.15
+    k_land: float = 400.0
+    d_land: float = 6.0
+    foot_forward: float = 0.06
+    land_omega: float = 6.0
+    brake_time: float = 0.12
+    takeoff_boost: float = 1.2
+
+
+def sample_params(rng: np.random.Generator, proxy: bool = False) -> PronkParams:
+    """A random jump: distance 0.1-0.4 m, apex 0.41-0.45 m, small crouch/timing spread.
+
+    With ``proxy`` the hardware-like perturbations are drawn too (see
+    ``symrom.sim.proxy``).
+    """
+    return PronkParams(
+        distance=float(rng.uniform(0.1, 0.4)),
+        apex_height=float(rng.uniform(0.41, 0.45)),
+        crouch_height=float(rng.uniform(0.205, 0.225)),
+        crouch_time=float(rng.uniform(0.35, 0.45)),
+        proxy=sample_proxy(rng) if proxy else None,
+    )
+
+
+@dataclass(frozen=True)
+class BodyModel:
+    """Rigid-body summary of the robot in its standing pose.
+
+    mass kg; com_base (3,) m, CoM in the base frame; inertia (3, 3) kg m^2
+    about the CoM, base frame, of the whole robot; inertia_upper (3, 3) the same
+    for the links that turn with the trunk while the feet are planted (trunk,
+    hips, rotors up to the hip-flexion joints), the inertia the body shows in
+    stance; foot_radius m.
+    """
+
+    mass: float
+    com_base: np.ndarray
+    inertia: np.ndarray
+    inertia_upper: np.ndarray
+    foot_radius: float
+
+
+@cache
+def body_model(spec: RobotSpec) -> BodyModel:
+    """Mass, CoM and composite inertia of ``spec`` standing, from its URDF (via PyBullet)."""
+    import pybullet as p
+
+    cid = p.connect(p.DIRECT)
+    try:
+        rob = p.loadURDF(str(spec.urdf_path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+        names = {p.getJointInfo(rob, i, physicsClientId=cid)[1].decode(): i
+                 for i in range(p.getNumJoints(rob, physicsClientId=cid))}
+        q = _stand_joints(spec)
+        for k, n in enumerate(spec.joint_names):
+            p.resetJointState(rob, names[n], q[k], physicsClientId=cid)
+        p.resetBasePositionAndOrientation(rob, [0, 0, 0], [0, 0, 0, 1], physicsClientId=cid)
+        dyn0 = p.getDynamicsInfo(rob, -1, physicsClientId=cid)
+        base_in = np.asarray(dyn0[3])
+        ms, coms, inertias = [dyn0[0]], [base_in], [
+            (np.asarray(p.getMatrixFromQuaternion(dyn0[4])).reshape(3, 3), np.asarray(dyn0[2]))]
+        # The reset put the base's inertial frame at the origin, so the base link frame sits at
+        # -base_in: shift link CoMs by +base_in to express them in the base link frame.
+        upper = [True]
+        lower_joints = {names[n] for k, n in enumerate(spec.joint_names) if k % 3 != 0}
+        for i in range(p.getNumJoints(rob, physicsClientId=cid)):
+            parent = p.getJointInfo(rob, i, physicsClientId=cid)[16]
+            upper.append(i not in lower_joints and upper[parent + 1])
+            d = p.getDynamicsInfo(rob, i, physicsClientId=cid)
+            ls = p.getLinkState(rob, i, computeForwardKinematics=1, physicsClientId=cid)
+            ms.append(d[0])
+            coms.append(np.asarray(ls[0]) + base_in)
+            inertias.append((np.asarray(p.getMatrixFromQuaternion(ls[1])).reshape(3, 3),
+                             np.asarray(d[2])))
+    finally:
+        p.disconnect(cid)
+    ms_a, coms_a = np.asarray(ms), np.asarray(coms)
+    mass = float(ms_a.sum())
+    com = (ms_a[:, None] * coms_a).sum(0) / mass
+    inertia, inertia_upper = np.zeros((3, 3)), np.zeros((3, 3))
+    for m, c, (Rl, Id), up in zip(ms_a, coms_a, inertias, upper):
+        r = c - com
+        term = Rl @ np.diag(Id) @ Rl.T + m * (r @ r * np.eye(3) - np.outer(r, r))
+        inertia += term
+        if up:
+            inertia_upper += term
+    return BodyModel(mass=mass, com_base=com, inertia=inertia, inertia_upper=inertia_upper,
+                     foot_radius=_foot_radius(spec))
+
+
+class LegGravity:
+    """Joint torques (12,) N m that hold the legs' own weight, for a given base orientation.
+
+    The convex MPC treats the legs as massless, but Go1's thighs and calves carry
+    about a third of its mass; without this term the feet push with less than the
+    planned force. Uses a private fixed-base PyBullet copy of the robot (its
+    inverse dynamics at zero velocity and acceleration, gravity turned into the
+    base frame).
+    """
+
+    def __init__(self, spec: RobotSpec):
+        import pybullet as p
+
+        self._p = p
+        self.cid = p.connect(p.DIRECT)
+        self.rob = p.loadURDF(str(spec.urdf_path), useFixedBase=True,
+                              flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.cid)
+        names = {p.getJointInfo(self.rob, i, physicsClientId=self.cid)[1].decode(): i
+                 for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))}
+        movable = [i for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))
+                   if p.getJointInfo(self.rob, i, physicsClientId=self.cid)[2] != p.JOINT_FIXED]
+        # inverse dynamics orders the movable joints by index; map to symrom's order
+        self._order = [movable.index(names[n]) for n in spec.joint_names]
+        self._inv = np.argsort(self._order)
+        self._zeros = [0.0] * len(movable)
+
+    def torques(self, q_joints: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """(12,) N m for joint angles (12,) rad and base orientation R (3, 3) base -> world."""
+        p = self._p
+        g_base = R.T @ np.array([0.0, 0.0, -GRAVITY])
+        p.setGravity(*g_base, physicsClientId=self.cid)
+        q = np.asarray(q_joints, dtype=float)[self._inv]
+        tau = p.calculateInverseDynamics(self.rob, q.tolist(), self._zeros, self._zeros,
+                                         physicsClientId=self.cid)
+        return np.asarray(tau)[self._order]
+
+    def close(self) -> None:
+        if self.cid >= 0:
+            try:
+                self._p.disconnect(self.cid)
+            except self._p.error:
+                pass
+            self.cid = -1
+
+    def __del__(self) -> None:
+        self.close()
+
+
+def _foot_radius(spec: RobotSpec) -> float:
+    """Radius (m) of the first foot link's collision sphere, read from the URDF."""
+    root = ET.parse(spec.urdf_path).getroot()
+    for link in root.findall("link"):
+        if link.get("name") == spec.foot_links[0]:
+            sphere = link.find("collision/geometry/sphere")
+            if sphere is not None:
+                return float(sphere.get("radius"))
+    return 0.0
+
+
+def leg_ik(spec: RobotSpec, feet_base: np.ndarray, q_guess: np.ndarray | None = None,
+           iters: int = 30) -> np.ndarray:
+    """Joint angles (12,) rad putting the feet at ``feet_base`` (4, 3) m (base frame).
+
+    Damped Newton iterations on the URDF kinematics; angles are kept inside the
+    usual working range of a pronking leg (knee bent backwards).
+    """
+    kin = leg_kinematics(spec.name)
+    q = np.tile([0.0, 0.8, -1.6], N_LEGS) if q_guess is None else np.array(q_guess, dtype=float)
+    for _ in range(iters):
+        p, J = kin.foot_positions_and_jacobians(q[None])
+        err = feet_base - p[0]
+        if np.max(np.abs(err)) < 1e-7:
+            break
+        for k in range(N_LEGS):
+            Jk = J[0, k]
+            q[3 * k:3 * k + 3] += np.linalg.solve(Jk.T @ Jk + 1e-6 * np.eye(3), Jk.T @ err[k])
+        q[2::3] = np.clip(q[2::3], -2.8, -0.3)
+    return q
+
+
+def _nominal_feet(spec: RobotSpec) -> np.ndarray:
+    """(4, 3) m: feet straight below the thigh joints' line (legs at zero angles), base frame."""
+    return leg_kinematics(spec.name).foot_positions(np.zeros((1, N_JOINTS)))[0]
+
+
+def _stand_joints(spec: RobotSpec, height: float | None = None, dx: float = 0.0) -> np.ndarray:
+    """(12,) joint angles for the base at ``height`` (default start height) with level feet.
+
+    dx: m, feet shifted forward of the nominal stance (base frame).
+    """
+    h = spec.start_height if height is None else height
+    feet = _nominal_feet(spec).copy()
+    feet[:, 0] += dx
+    feet[:, 2] = -(h - _foot_radius(spec))
+    return leg_ik(spec, feet)
+
+
+FOOT_PRELOAD = 5e-4  # m the feet start inside the ground, so contact exists from t = 0
+
+
+def initial_state(spec: RobotSpec, params: PronkParams) -> np.ndarray:
+    """q (18,): standing pose at the start height, base at x = y = 0, heading params.yaw.
+
+    The legs reach ``FOOT_PRELOAD`` below the ground (as loaded foot pads would),
+    so a collision pass right after the reset already finds the four contacts.
+    """
+    q = np.zeros(N_Q)
+    q[JOINTS] = _stand_joints(spec, spec.start_height + FOOT_PRELOAD)
+    q[BASE_POS] = (0.0, 0.0, spec.start_height)
+    q[BASE_RPY] = (0.0, 0.0, params.yaw)
+    return q
+
+
+@dataclass(frozen=True)
+class JumpPlan:
+    """Derived jump timing (s) and take-off velocity (m/s) of a ``PronkParams``."""
+
+    t_push: float
+    push_time: float
+    vx: float
+    vz: float
+    flight_time: float
+
+
+def plan_jump(params: PronkParams, brake_time: float, boost: float = 1.0) -> JumpPlan:
+    """Take-off velocity and timing that realise the commanded apex and distance.
+
+    vz from the apex above the take-off height; push at constant acceleration
+    from the crouch; vx so that the base travels the commanded distance over
+    half the push (mean speed vx/2), the flight (landing at take-off height)
+    and the exponential braking after touchdown (vx * brake_time). ``boost``
+    scales the take-off velocity of the reference (not the timing).
+    """
+    dz = params.takeoff_height - params.crouch_height
+    vz = np.sqrt(2.0 * GRAVITY * max(params.apex_height - params.takeoff_height, 1e-3))
+    push_time = 2.0 * dz / vz
+    flight_time = 2.0 * vz / GRAVITY
+    vx = params.distance / (0.5 * push_time + flight_time + brake_time)
+    return JumpPlan(t_push=params.crouch_time + params.hold_time, push_time=push_time,
+                    vx=float(boost * vx), vz=float(boost * vz), flight_time=float(flight_time))
+
+
+class PronkController:
+    """Forward-pronking controller of one jump; see the module docstring.
+
+    ``torque(state)`` -> (12,) N m is called every physics tick; ``done(state)``
+    is true once the robot has settled after landing (or at ``max_time``).
+    ``phase`` is the current phase name; ``mpc_solve_times`` (list, s) are the
+    wall times of all MPC solves so far.
+    """
+
+    def __init__(self, spec: RobotSpec, params: PronkParams, gains: PronkGains | None = None):
+        self.spec, self.params = spec, params
+        self.gains = gains or PronkGains()
+        self.body = body_model(spec)
+        self.kin = leg_kinematics(spec.name)
+        self.mpc = ConvexMPC(self.body.mass, self.body.inertia_upper, self.gains.mpc)
+        self.leg_gravity = LegGravity(spec)
+        self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
+        self.torque_limit = np.asarray(spec.torque_limit, dtype=float)
+        self.phase = "crouch"
+        self._x0: np.ndarray | None = None  # base position at the first call
+        self._forces = np.zeros((N_LEGS, 3))
+        self._last_solve = -np.inf
+        self._t_td: float | None = None
+        self._td_state: tuple[np.ndarray, np.ndarray] | None = None
+        self._q_stand = _stand_joints(spec)
+        self._q_land: np.ndarray | None = None
+
+    @property
+    def mpc_solve_times(self) -> list[float]:
+        return self.mpc.solve_times
+
+    # -------------------------------------------------------------- references
+    def _com_offset(self) -> np.ndarray:
+        """CoM offset from the base origin for a level body at the commanded heading, world (3,)."""
+        return rot_z(self.params.yaw) @ self.body.com_base
+
+    def _heading(self) -> np.ndarray:
+        return np.array([np.cos(self.params.yaw), np.sin(self.params.yaw), 0.0])
+
+    def _ref_base(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """Reference base position (3,), velocity (3,) and planned contact (0/1) at time t."""
+        pr, pl = self.params, self.plan
+        x0, e = self._x0, self._heading()
+        if self.phase == "land" and self._t_td is not None:
+            return self._ref_land(t) + (1.0,)
+        if t < pr.crouch_time:  # cosine from standing height down to the crouch
+            s = 0.5 * (1 - np.cos(np.pi * t / pr.crouch_time))
+            ds = 0.5 * np.pi / pr.crouch_time * np.sin(np.pi * t / pr.crouch_time)
+            h0, h1 = self.spec.start_height, pr.crouch_height
+            return (np.array([x0[0], x0[1], h0 + (h1 - h0) * s]),
+                    np.array([0, 0, (h1 - h0) * ds]), 1.0)
+        if t < pl.t_push:
+            return np.array([x0[0], x0[1], pr.crouch_height]), np.zeros(3), 1.0
+        tau = t - pl.t_push
+        v_to = pl.vx * e + np.array([0.0, 0.0, pl.vz])  # take-off velocity
+        p_crouch = np.array([x0[0], x0[1], pr.crouch_height])
+        if tau < pl.push_time:  # constant acceleration from rest
+            return p_crouch + 0.5 * tau ** 2 / pl.push_time * v_to, tau / pl.push_time * v_to, 1.0
+        tf = tau - pl.push_time  # ballistic
+        p_to = p_crouch + 0.5 * pl.push_time * v_to
+        pos = p_to + pl.vx * tf * e + np.array([0, 0, pl.vz * tf - 0.5 * GRAVITY * tf ** 2])
+        vel = pl.vx * e + np.array([0, 0, pl.vz - GRAVITY * tf])
+        return pos, vel, 0.0
+
+    def _ref_land(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Critically damped return from the touchdown state to rest at the standing height."""
+        g = self.gains
+        p_td, v_td = self._td_state
+        tau = max(t - self._t_td, 0.0)
+        # horizontal: exponential braking, v = v_td exp(-tau / brake_time)
+        decay = np.exp(-tau / g.brake_time)
+        pos = p_td + v_td * g.brake_time * (1 - decay)
+        vel = v_td * decay
+        # vertical: critically damped from (z_td, vz_td) to the standing height
+        w = g.land_omega
+        z_f = self.spec.start_height - 0.01
+        a0 = p_td[2] - z_f
+        b0 = v_td[2] + w * a0
+        ew = np.exp(-w * tau)
+        pos[2] = z_f + (a0 + b0 * tau) * ew
+        vel[2] = (b0 - w * (a0 + b0 * tau)) * ew
+        return pos, vel
+
+    # ------------------------------------------------------------------ control
+    def _mpc_forces(self, state, contact_now: np.ndarray) -> np.ndarray:
+        """Solve the MPC for the current state; (4, 3) N, world, ground on foot."""
+        cfg = self.gains.mpc
+        off = state.R @ self.body.com_base
+        p_com = state.q[BASE_POS] + off
+        v_com = state.dq[BASE_POS] + np.cross(state.omega, off)
+        x0 = srb_state(state.q[BASE_RPY], p_com, state.omega, v_com, GRAVITY)
+        # keep the yaw reference continuous with the measured yaw
+        yaw_ref = self.params.yaw
+        x_ref = np.empty((cfg.horizon, 13))
+        contact = np.empty((cfg.horizon, N_LEGS))
+        off_ref = self._com_offset()
+        for k in range(cfg.horizon):
+            tk = state.t + (k + 1) * cfg.dt
+            pos, vel, c = self._ref_base(tk)
+            x_ref[k] = srb_state(np.array([0.0, 0.0, yaw_ref]), pos + off_ref, np.zeros(3), vel, GRAVITY)
+            contact[k] = c
+        contact[0] = np.minimum(contact[0], contact_now)
+        if self.phase == "land":
+            contact[:] = np.maximum(contact, contact_now)  # feet already down stay down
+        r_feet = state.foot_pos - p_com
+        return self.mpc.solve(x0, x_ref, r_feet, contact, yaw=yaw_ref).forces
+
+    def _update_phase(self, state) -> None:
+        pl = self.plan
+        t = state.t
+        if self.phase == "crouch" and t >= pl.t_push:
+            self.phase = "push"
+        if self.phase == "push" and t >= pl.t_push + pl.push_time:
+            self.phase = "flight"
+            self._q_land = None
+        if self.phase == "flight":
+            since = t - (pl.t_push + pl.push_time)
+            if (np.any(state.contact) and since > 0.05) or since > pl.flight_time + 0.4:
+                self.phase = "land"
+                self._t_td = t
+                self._td_state = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+                self._last_solve = -np.inf
+
+    def torque(self, state) -> np.ndarray:
+        """Joint torques (12,) N m for ``state`` (a ``RobotState``), within the torque limits."""
+        if self._x0 is None:
+            self._x0 = state.q[BASE_POS].copy()
+        self._update_phase(state)
+        g = self.gains
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        tau = np.zeros(N_JOINTS)
+        if self.phase == "flight":
+            tau = self._flight_pd(state)
+        else:
+            p_b, J = self.kin.foot_positions_and_jacobians(qj[None])
+            p_b, J = p_b[0], J[0]
+            contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
+            if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
+                self._forces = self._mpc_forces(state, contact)
+                self._last_solve = state.t
+            f_base = (state.R.T @ (-self._forces).T).T  # force the foot exerts, base frame
+            for k in range(N_LEGS):
+                s = slice(3 * k, 3 * k + 3)
+                tau[s] = J[k].T @ f_base[k]
+            tau += self.leg_gravity.torques(qj, state.R)
+            if self.phase == "land":
+                tau += self._landing_impedance(state, p_b, J)
+            # small posture terms: hold hip abduction, damp the legs
+            tau[0::3] += g.kp_hx * (self._q_stand[0::3] - qj[0::3]) - g.kd_hx * dqj[0::3]
+            tau[1::3] -= g.kd_stance * dqj[1::3]
+            tau[2::3] -= g.kd_stance * dqj[2::3]
+        return np.clip(tau, -self.torque_limit, self.torque_limit)
+
+    def _flight_pd(self, state) -> np.ndarray:
+        """Joint PD to the landing posture, feet ahead of the hips by foot_forward * vx."""
+        g = self.gains
+        if self._q_land is None:
+            e = self._heading()
+            v_fwd = float(state.dq[BASE_POS] @ e)
+            # landing leg length: the planned take-off height (legs fairly extended)
+            self._q_land = _stand_joints(self.spec, self.params.takeoff_height,
+                                         dx=g.foot_forward * v_fwd)
+            self._p_land = self.kin.foot_positions(self._q_land[None])[0]
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        return g.kp_flight * (self._q_land - qj) - g.kd_flight * dqj
+
+    def _landing_impedance(self, state, p_b: np.ndarray, J: np.ndarray) -> np.ndarray:
+        """Cartesian impedance per leg in the base frame -> joint torques (12,).
+
+        Spring along the base z axis towards the reference leg length, damping of
+        the foot velocity relative to the base; legs still in the air also get a
+        spring holding their landing position in x and y.
+        """
+        g = self.gains
+        pos, _ = self._ref_land(state.t)
+        h_ref = pos[2] - self.body.foot_radius
+        tau = np.zeros(N_JOINTS)
+        dqj = state.dq[JOINTS]
+        p_land = self._p_land if self._q_land is not None else p_b
+        for k in range(N_LEGS):
+            s = slice(3 * k, 3 * k + 3)
+            v_rel = J[k] @ dqj[s]
+            target = p_land[k].copy() if not state.contact[k] else p_b[k].copy()
+            target[2] = -h_ref
+            F = g.k_land * (target - p_b[k]) - g.d_land * v_rel
+            tau[s] = J[k].T @ F
+        return tau
+
+    def done(self, state) -> bool:
+        """True once settled after landing (or when the jump has run ``max_time``)."""
+        if state.t >= self.params.max_time:
+            return True
+        if self.phase != "land" or self._t_td is None:
+            return False
+        settled = (np.linalg.norm(state.dq[BASE_POS]) < 0.15 and np.linalg.norm(state.omega) < 0.6)
+        return state.t - self._t_td >= self.params.settle_time and settled

@@ -1,0 +1,299 @@
+"""A PyBullet world holding one quadruped on a flat plane, in symrom's coordinates.
+
+Each ``World`` owns its own PyBullet client in DIRECT mode (no GUI), so several
+worlds can live in one process and worker processes never share state. The
+robot's base pose is reported for the URDF base link frame (the frame the leg
+kinematics use), not PyBullet's inertial frame. Joint order, foot links and
+torque limits come from ``symrom.robots``.
+
+Coordinates (see ``symrom.data.names``): ``q`` (18,) = 12 joint angles (rad,
+FR FL RR RL x hx hy kn), base x y z (m, world), roll pitch yaw (rad, ZYX);
+``dq`` (18,) = joint rates (rad/s), base linear velocity (m/s, world), Euler
+angle rates (rad/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import pybullet as p
+import pybullet_data
+
+from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.robots import RobotSpec, get_robot
+from symrom.robots.kinematics import rpy_to_matrix
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Physics settings of a world, in one place.
+
+    physics_hz: simulation tick rate (Hz); log_hz: rate at which runs log (Hz,
+    must divide physics_hz); gravity: m/s^2 (downwards). Friction and
+    restitution are the values of the foot/ground contact (Bullet multiplies
+    the two bodies' lateral friction and restitution, so the feet get 1 and the
+    plane these values; rolling/spinning friction is set on the plane only).
+    contact_stiffness / contact_damping (N/m, N s/m): ground contact as a
+    spring-damper; ``None`` keeps Bullet's rigid (ERP-based) contact.
+    """
+
+    physics_hz: int = 1000
+    log_hz: int = 500
+    gravity: float = 9.81
+    lateral_friction: float = 0.8
+    spinning_friction: float = 0.01
+    rolling_friction: float = 0.0
+    restitution: float = 0.0
+    solver_iterations: int = 50
+    contact_stiffness: float | None = None
+    contact_damping: float | None = None
+    self_collision: bool = False
+
+    def __post_init__(self) -> None:
+        if self.physics_hz <= 0 or self.log_hz <= 0 or self.physics_hz % self.log_hz:
+            raise ValueError(f"log_hz ({self.log_hz}) must be a positive divisor of "
+                             f"physics_hz ({self.physics_hz})")
+        if (self.contact_stiffness is None) != (self.contact_damping is None):
+            raise ValueError("give both contact_stiffness and contact_damping, or neither")
+
+    @property
+    def dt(self) -> float:
+        """Physics tick, s."""
+        return 1.0 / self.physics_hz
+
+    @property
+    def log_every(self) -> int:
+        """Physics ticks per logged sample."""
+        return self.physics_hz // self.log_hz
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class RobotState:
+    """What a controller sees; world frame unless said.
+
+    t: s since the last reset; q, dq: (18,) as in the module docstring;
+    omega: (3,) base angular velocity (rad/s, world); R: (3, 3) base -> world;
+    contact: (4,) uint8 foot-ground contact flags FR FL RR RL; foot_pos (4, 3) m
+    and foot_vel (4, 3) m/s: feet (foot link frames) in the world.
+    """
+
+    t: float
+    q: np.ndarray
+    dq: np.ndarray
+    omega: np.ndarray
+    R: np.ndarray
+    contact: np.ndarray
+    foot_pos: np.ndarray
+    foot_vel: np.ndarray
+
+
+def euler_rate_matrix(rpy: np.ndarray) -> np.ndarray:
+    """(3, 3) E with omega_world = E @ d(roll, pitch, yaw)/dt for ZYX Euler angles rpy (3,) rad."""
+    _, pt, y = rpy
+    cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(pt), np.sin(pt)
+    return np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+
+
+def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
+    """ZYX Euler angles (3,) rad of a rotation R (3, 3) (inverse of ``rpy_to_matrix``)."""
+    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
+    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
+
+
+class World:
+    """One robot on a plane in its own DIRECT PyBullet client.
+
+    robot: a name known to ``symrom.robots.get_robot`` (``a1``, ``go1``).
+    The joints' default velocity motors are disabled, so ``step`` drives the
+    robot purely by torque.
+    """
+
+    def __init__(self, robot: str, config: WorldConfig = WorldConfig()):
+        self.spec: RobotSpec = get_robot(robot)
+        self.config = config
+        self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        self.client = p.connect(p.DIRECT)
+        self.t = 0.0
+        self._pending_force: np.ndarray | None = None
+        try:
+            self._build()
+        except Exception:
+            self.close()
+            raise
+
+    # ----------------------------------------------------------------- set-up
+    def _build(self) -> None:
+        c, cfg = self.client, self.config
+        p.setPhysicsEngineParameter(fixedTimeStep=cfg.dt, numSolverIterations=cfg.solver_iterations,
+                                    physicsClientId=c)
+        p.setGravity(0, 0, -cfg.gravity, physicsClientId=c)
+        self.plane = p.loadURDF(str(pybullet_data.getDataPath() + "/plane.urdf"), physicsClientId=c)
+        urdf = self.spec.urdf_path
+        if not urdf.is_file():
+            raise FileNotFoundError(f"robot {self.spec.name!r}: URDF {urdf} not found")
+        flags = p.URDF_USE_INERTIA_FROM_FILE  # Bullet otherwise recomputes inertia from collision shapes
+        if cfg.self_collision:
+            flags |= p.URDF_USE_SELF_COLLISION
+        self.robot = p.loadURDF(str(urdf), [0, 0, self.spec.start_height], flags=flags,
+                                physicsClientId=c)
+        joints, links = {}, {}
+        for i in range(p.getNumJoints(self.robot, physicsClientId=c)):
+            info = p.getJointInfo(self.robot, i, physicsClientId=c)
+            joints[info[1].decode()] = i
+            links[info[12].decode()] = i
+        try:
+            self.joint_ids = [joints[n] for n in self.spec.joint_names]
+            self.foot_ids = [links[n] for n in self.spec.foot_links]
+        except KeyError as e:
+            raise ValueError(f"robot {self.spec.name!r}: URDF {urdf} has no joint/link {e}") from None
+        self._foot_leg = {fid: k for k, fid in enumerate(self.foot_ids)}
+        # Default velocity motors would fight the torques: switch them off.
+        p.setJointMotorControlArray(self.robot, self.joint_ids, p.VELOCITY_CONTROL,
+                                    forces=[0.0] * N_JOINTS, physicsClientId=c)
+        ground = dict(lateralFriction=cfg.lateral_friction, spinningFriction=cfg.spinning_friction,
+                      rollingFriction=cfg.rolling_friction, restitution=cfg.restitution)
+        if cfg.contact_stiffness is not None:
+            ground.update(contactStiffness=cfg.contact_stiffness, contactDamping=cfg.contact_damping)
+        p.changeDynamics(self.plane, -1, physicsClientId=c, **ground)
+        for fid in self.foot_ids:
+            # Bullet combines rolling/spinning friction as roll_A * friction_B + roll_B *
+            # friction_A, so the feet carry none of their own: the plane's values apply.
+            p.changeDynamics(self.robot, fid, lateralFriction=1.0, spinningFriction=0.0,
+                             rollingFriction=0.0, restitution=1.0, physicsClientId=c)
+        # PyBullet reports the base's inertial frame; keep the offset to get the link frame.
+        dyn = p.getDynamicsInfo(self.robot, -1, physicsClientId=c)
+        self._inertial = (tuple(dyn[3]), tuple(dyn[4]))  # link frame -> inertial frame
+        self._inertial_inv = p.invertTransform(*self._inertial)
+        self.mass = sum(p.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
+                        for i in range(-1, p.getNumJoints(self.robot, physicsClientId=c)))  # kg
+        shapes = p.getCollisionShapeData(self.robot, self.foot_ids[0], physicsClientId=c)
+        # Radius of the foot's contact sphere (0 if the foot is not a sphere), m.
+        self.foot_radius = float(shapes[0][3][0]) if shapes and shapes[0][2] == p.GEOM_SPHERE else 0.0
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
+        """Place the robot at configuration ``q`` (18,) with velocity ``dq`` (18,) (default rest)."""
+        q = np.asarray(q, dtype=float)
+        dq = np.zeros(N_Q) if dq is None else np.asarray(dq, dtype=float)
+        if q.shape != (N_Q,) or dq.shape != (N_Q,):
+            raise ValueError(f"q and dq must have shape ({N_Q},), got {q.shape} and {dq.shape}")
+        c = self.client
+        for k, jid in enumerate(self.joint_ids):
+            p.resetJointState(self.robot, jid, q[k], dq[k], physicsClientId=c)
+        rpy = q[BASE_RPY]
+        R = rpy_to_matrix(rpy)[0]
+        orn = p.getQuaternionFromEuler(rpy.tolist())
+        com_pos, com_orn = p.multiplyTransforms(q[BASE_POS].tolist(), orn, *self._inertial)
+        omega = euler_rate_matrix(rpy) @ dq[BASE_RPY]
+        lever = R @ np.asarray(self._inertial[0])
+        v_com = dq[BASE_POS] + np.cross(omega, lever)
+        p.resetBasePositionAndOrientation(self.robot, com_pos, com_orn, physicsClientId=c)
+        p.resetBaseVelocity(self.robot, v_com.tolist(), omega.tolist(), physicsClientId=c)
+        p.performCollisionDetection(physicsClientId=c)  # contact flags valid before the first tick
+        self.t = 0.0
+        self._pending_force = None
+
+    def standing_q(self, q_joints: np.ndarray, xy: tuple[float, float] = (0.0, 0.0),
+                   rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                   penetration: float = 5e-4) -> np.ndarray:
+        """Configuration (18,) with joints ``q_joints`` (12,) rad whose lowest foot touches the ground.
+
+        The base is lowered ``penetration`` m further so the contacts exist from the first tick.
+        """
+        q = np.zeros(N_Q)
+        q[JOINTS] = q_joints
+        q[BASE_RPY] = rpy
+        q[BASE_POS] = (*xy, 0.0)
+        from symrom.data.preprocess import foot_positions_world  # the one kinematics source
+
+        lowest = foot_positions_world(self.spec.name, q[None])[0, :, 2].min()
+        q[BASE_POS.start + 2] = self.foot_radius - lowest - penetration
+        return q
+
+    def state(self) -> RobotState:
+        """The current state of the robot (see ``RobotState``)."""
+        c, rob = self.client, self.robot
+        com_pos, com_orn = p.getBasePositionAndOrientation(rob, physicsClientId=c)
+        v_com, omega = p.getBaseVelocity(rob, physicsClientId=c)
+        pos, orn = p.multiplyTransforms(com_pos, com_orn, *self._inertial_inv)
+        R = np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        rpy = matrix_to_rpy(R)
+        omega = np.asarray(omega)
+        pos = np.asarray(pos)
+        v_base = np.asarray(v_com) + np.cross(omega, pos - np.asarray(com_pos))
+        js = p.getJointStates(rob, self.joint_ids, physicsClientId=c)
+        q = np.empty(N_Q)
+        dq = np.empty(N_Q)
+        q[JOINTS] = [s[0] for s in js]
+        dq[JOINTS] = [s[1] for s in js]
+        q[BASE_POS], q[BASE_RPY] = pos, rpy
+        dq[BASE_POS] = v_base
+        dq[BASE_RPY] = np.linalg.solve(euler_rate_matrix(rpy), omega)
+        ls = p.getLinkStates(rob, self.foot_ids, computeLinkVelocity=1, computeForwardKinematics=1,
+                             physicsClientId=c)
+        foot_pos = np.array([s[4] for s in ls])
+        # Toe links carry their inertial frame at the link origin, so this is the foot velocity.
+        foot_vel = np.array([s[6] for s in ls])
+        return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=self.contact_flags(),
+                          foot_pos=foot_pos, foot_vel=foot_vel)
+
+    def contact_flags(self) -> np.ndarray:
+        """(4,) uint8: 1 where the foot link touches the ground plane (either side of the pair)."""
+        flags = np.zeros(N_LEGS, dtype=np.uint8)
+        for cp in p.getContactPoints(self.robot, self.plane, physicsClientId=self.client):
+            # cp[1], cp[2]: bodies A, B; cp[3], cp[4]: their links.
+            link = cp[3] if cp[1] == self.robot else cp[4] if cp[2] == self.robot else None
+            k = self._foot_leg.get(link)
+            if k is not None:
+                flags[k] = 1
+        return flags
+
+    # ---------------------------------------------------------------- driving
+    def step(self, tau: np.ndarray) -> np.ndarray:
+        """Apply joint torques ``tau`` (12,) N m for one physics tick; return the applied (12,).
+
+        Requests beyond the robot's torque limits are saturated.
+        """
+        tau = np.clip(np.asarray(tau, dtype=float), -self.torque_limit, self.torque_limit)
+        if tau.shape != (N_JOINTS,) or not np.all(np.isfinite(tau)):
+            raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
+        c = self.client
+        p.setJointMotorControlArray(self.robot, self.joint_ids, p.TORQUE_CONTROL,
+                                    forces=tau.tolist(), physicsClientId=c)
+        if self._pending_force is not None:
+            com_pos, _ = p.getBasePositionAndOrientation(self.robot, physicsClientId=c)
+            p.applyExternalForce(self.robot, -1, self._pending_force.tolist(), com_pos,
+                                 p.WORLD_FRAME, physicsClientId=c)
+            self._pending_force = None
+        p.stepSimulation(physicsClientId=c)
+        self.t += self.config.dt
+        return tau
+
+    def apply_base_force(self, force_world: np.ndarray) -> None:
+        """Push the base's centre of mass with ``force_world`` (3,) N during the next tick only."""
+        f = np.asarray(force_world, dtype=float)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"force must be 3 finite numbers, got {force_world!r}")
+        self._pending_force = f
+
+    def close(self) -> None:
+        """Disconnect the client (idempotent)."""
+        if getattr(self, "client", None) is not None and self.client >= 0:
+            try:
+                p.disconnect(physicsClientId=self.client)
+            except p.error:
+                pass
+            self.client = -1
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        self.close()

@@ -1,0 +1,104 @@
+"""A1 froggy jumps under Cartesian PD: every generated jump has the phases the paper needs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from _simdata import N_JUMPS, reference_file
+from symrom.data.io import read_dataset
+from symrom.robots import get_robot
+from symrom.sim import froggy
+from symrom.sim.world import World
+
+pytestmark = pytest.mark.slow
+LIMIT = np.asarray(get_robot("a1").torque_limit)
+
+
+@pytest.fixture(scope="module")
+def ds():
+    return read_dataset(reference_file("froggy"))  # read_dataset validates the file
+
+
+def _per_jump(ds):
+    for j, (a, b) in enumerate(ds.jump_bounds()):
+        yield j, slice(a, b)
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    best, start, run_start = (0, 0), None, None
+    for i, m in enumerate(np.r_[mask, False]):
+        if m and run_start is None:
+            run_start = i
+        elif not m and run_start is not None:
+            if i - run_start > best[1] - best[0]:
+                best = (run_start, i)
+            run_start = None
+    return best
+
+
+def test_file_layout(ds):
+    assert ds.robot == "a1" and ds.motion == "froggy" and ds.source == "sim"
+    assert ds.dt == 0.002 and ds.n_jumps == N_JUMPS["froggy"]
+    assert ds.phase_names == ["contact", "partial", "flight"]
+    for j, s in _per_jump(ds):
+        assert np.allclose(np.diff(ds.t[s]), 0.002)
+        assert 900 <= ds.t[s].size <= 1500  # ~1200 samples per jump, as in the paper
+    gen = ds.generator
+    assert gen["config"]["seed"] == 3 and len(gen["jumps"]) == ds.n_jumps
+    assert "retries" in gen and all("retries" in r for r in gen["jumps"])
+    json.dumps(gen)
+
+
+def test_each_jump_has_rear_only_push_then_a_real_flight(ds):
+    for j, s in _per_jump(ds):
+        c = ds.contact[s]
+        a, b = _longest_run(c.sum(axis=1) == 0)
+        assert (b - a) * ds.dt >= 0.12, f"jump {j}: flight {(b - a) * ds.dt:.3f} s"
+        assert (c[:a].sum(axis=1) > 0).all(), f"jump {j}: feet left the ground before the flight"
+        rear_only = (c[:, :2].sum(axis=1) == 0) & (c[:, 2:].sum(axis=1) > 0)
+        n = 0
+        while rear_only[a - 1 - n]:
+            n += 1
+        assert n * ds.dt >= 0.04, f"jump {j}: rear-only contact {n * ds.dt:.3f} s"
+        assert c[0].tolist() == [1, 1, 1, 1]
+        assert (c[b:].sum(axis=1) == 4).any(), f"jump {j}: never back on four feet"
+        ph = ds.phase[s]
+        assert (ph[a:b] == ds.phase_id("flight")).all()
+        assert (ph[a - n:a] == ds.phase_id("partial")).all()
+
+
+def test_each_jump_rises_travels_and_lands_upright(ds):
+    for j, s in _per_jump(ds):
+        q = ds.q[s]
+        assert q[:, 14].max() - q[0, 14] >= 0.05, f"jump {j}: apex gain"
+        assert q[-1, 12] - q[0, 12] >= 0.1, f"jump {j}: forward travel"
+        assert np.abs(q[:, 15:17]).max() < 0.8, f"jump {j}: tilt"
+        assert q[-1, 14] > 0.15
+        assert np.all(np.abs(ds.tau[s]) <= LIMIT + 1e-9)
+
+
+def test_jumps_differ(ds):
+    travel = [ds.q[s][-1, 12] - ds.q[s][0, 12] for _, s in _per_jump(ds)]
+    assert np.ptp(travel) > 1e-3
+
+
+def test_sample_params_is_deterministic_and_varied():
+    a = froggy.sample_params(np.random.default_rng(1))
+    b = froggy.sample_params(np.random.default_rng(1))
+    c = froggy.sample_params(np.random.default_rng(2))
+    assert a == b and a != c
+
+
+def test_initial_pose_is_standing():
+    spec = get_robot("a1")
+    with World("a1") as w:
+        ctrl = froggy.FroggyController(spec, froggy.FroggyParams())
+        w.reset(ctrl.initial_q(w))
+        s = w.state()
+        assert s.contact.tolist() == [1, 1, 1, 1]
+        tau = ctrl.torque(s)
+        assert tau.shape == (12,) and np.all(np.abs(tau) <= LIMIT + 1e-9)
+        assert not ctrl.done(s)
