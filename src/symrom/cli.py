@@ -60,6 +60,20 @@ def progress_bar() -> Progress:
                     TimeElapsedColumn(), console=console, transient=False)
 
 
+def _horizon_ticker(bar: Progress, task) -> Callable[[int, int], None]:
+    """A progress callback for rollouts repeated per horizon: each horizon counts
+    its jumps from 1 again, the bar keeps adding up."""
+    state = {"before": 0, "last": 0}
+
+    def tick(i: int, n: int) -> None:
+        if i < state["last"]:
+            state["before"] += state["last"]
+        state["last"] = i
+        bar.update(task, completed=state["before"] + i)
+
+    return tick
+
+
 def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
     return (None, *sorted(set(reset or [0.1])))
 
@@ -163,13 +177,7 @@ def evaluate_cmd(
     resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task("rollouts", total=len(resets) * ds.jumps_in(split).size)
-        done = {"n": 0, "last": 0}
-
-        def tick(i, n):
-            if i < done["last"]:
-                done["n"] += done["last"]
-            done["last"] = i
-            bar.update(task, completed=done["n"] + i)
+        tick = _horizon_ticker(bar, task)
 
         metrics, rollouts = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
                                      model_name=str(model_path), data_name=str(data), progress=tick)
@@ -302,13 +310,7 @@ def aslip_cmd(
     resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task("aSLIP rollouts", total=len(resets) * ds.jumps_in(split).size)
-        done = {"n": 0, "last": 0}
-
-        def tick(i, n):
-            if i < done["last"]:
-                done["n"] += done["last"]
-            done["last"] = i
-            bar.update(task, completed=done["n"] + i)
+        tick = _horizon_ticker(bar, task)
 
         metrics = evaluate_aslip(params, ds, split, resets, integrator, data_name=str(data), progress=tick)
     table = table2(metrics, components=("x", "y", "z"), title=f"aSLIP, {ds.robot} {ds.motion} ({split})")

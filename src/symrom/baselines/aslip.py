@@ -21,18 +21,16 @@ diverged.
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.integrate import odeint
 from scipy.optimize import least_squares
 
 from symrom.data.dataset import Dataset
 from symrom.data.names import BASE_POS, WRENCH
 from symrom.evaluate.metrics import component_stats, horizon_key
-from symrom.rollout.integrate import METHODS, _reset_mask
+from symrom.rollout.integrate import RolloutOptions, integrate_lsoda, integrate_rk4, pad_edge, reset_mask
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
 COMPONENTS: tuple[str, ...] = ("x", "y", "z")
@@ -155,24 +153,9 @@ def fit_aslip(ds: Dataset, rows: np.ndarray | None = None, m: float | None = Non
 
 # ---------------------------------------------------------------------- rollouts
 @dataclass
-class ASlipRolloutOptions:
-    """method: ``lsoda`` or ``rk4``; reset: s between resets to the true (b, b')
-    (None = full horizon); substeps: RK4 steps per sample; max_steps: LSODA step
-    budget per sample; bound: divergence bound on every |b| component as a
-    multiple of the jump's largest true |b| component (at least 0.1 m), likewise
-    for b' (at least 0.1 m/s)."""
-
-    method: str = "lsoda"
-    reset: float | None = None
-    substeps: int = 2
-    max_steps: int = 2000
-    bound: float = 50.0
-
-    def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"unknown integrator {self.method!r}; choose from {METHODS}")
-        if self.reset is not None and not self.reset > 0:
-            raise ValueError(f"reset must be a positive duration in s, got {self.reset}")
+class ASlipRolloutOptions(RolloutOptions):
+    """As ``RolloutOptions``, except that ``bound`` scales the jump's own largest true
+    |b| component (at least 0.1 m), and likewise for b' (at least 0.1 m/s)."""
 
 
 @dataclass
@@ -212,75 +195,9 @@ def _jumps(ds: Dataset, jumps: np.ndarray, m: float, bound: float) -> list[_Jump
     return out
 
 
-def _lsoda_jump(params: ASlipParams, jp: _Jump, dt: float,
-                opts: ASlipRolloutOptions) -> tuple[np.ndarray, np.ndarray, int]:
-    n = jp.b.shape[0]
-    resets = _reset_mask(n, opts.reset, dt)
-    B, V = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-    y = np.r_[jp.b[0], jp.db[0]]
-    for k in range(n):
-        if resets[k]:
-            y = np.r_[jp.b[k], jp.db[k]]
-        if not (np.isfinite(y).all() and np.all(np.abs(y) <= jp.limit)):
-            return B, V, k
-        B[k], V[k] = y[:3], y[3:]
-        if k == n - 1:
-            break
-        held = (jp.pivot[k][None], jp.u[k][None], jp.contact[k:k + 1])
-
-        def rhs(state, _t, held=held):
-            return np.r_[state[3:], aslip_acceleration(params, state[None, :3], *held)[0]]
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; the message says it
-            sol, info = odeint(rhs, y, [0.0, dt], mxstep=opts.max_steps, full_output=True)
-        if info["message"] != "Integration successful.":
-            return B, V, k + 1
-        y = sol[1]
-    return B, V, -1
-
-
-def _rk4_batch(params: ASlipParams, jps: list[_Jump], dt: float,
-               opts: ASlipRolloutOptions) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
-    J = len(jps)
-    lens = np.array([jp.b.shape[0] for jp in jps])
-    n_max = int(lens.max())
-
-    def pad(f):  # (J, n_max, ...) with the last sample repeated past each jump's end
-        return np.stack([np.pad(getattr(jp, f), ((0, n_max - len(jp.b)),) + ((0, 0),) * (getattr(jp, f).ndim - 1),
-                                mode="edge") for jp in jps])
-
-    b_t, db_t, u, pivot, contact = pad("b"), pad("db"), pad("u"), pad("pivot"), pad("contact")
-    limit = np.stack([jp.limit for jp in jps])  # (J, 6)
-    resets = _reset_mask(n_max, opts.reset, dt)
-    B, V = np.full((J, n_max, 3), np.nan), np.full((J, n_max, 3), np.nan)
-    alive, div_at = np.ones(J, dtype=bool), np.full(J, -1)
-    x, v = b_t[:, 0].copy(), db_t[:, 0].copy()
-    h = dt / opts.substeps
-    for k in range(n_max):
-        if resets[k]:
-            x, v = b_t[:, k].copy(), db_t[:, k].copy()
-        ok = np.isfinite(np.c_[x, v]).all(1) & np.all(np.abs(np.c_[x, v]) <= limit, axis=1)
-        div_at[alive & ~ok & (k < lens)] = k
-        alive &= ok | (k >= lens)
-        x[~alive], v[~alive] = 0.0, 0.0  # frozen; keeps the arithmetic finite
-        B[alive, k], V[alive, k] = x[alive], v[alive]
-        if k == n_max - 1:
-            break
-        p_k, u_k, c_k = pivot[:, k], u[:, k], contact[:, k]
-
-        def acc(x_):
-            return aslip_acceleration(params, x_, p_k, u_k, c_k)
-
-        for _ in range(opts.substeps):
-            k1x, k1v = v, acc(x)
-            k2x, k2v = v + h / 2 * k1v, acc(x + h / 2 * k1x)
-            k3x, k3v = v + h / 2 * k2v, acc(x + h / 2 * k2x)
-            k4x, k4v = v + h * k3v, acc(x + h * k3x)
-            with np.errstate(over="ignore", invalid="ignore"):
-                x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
-                v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-    return [B[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at
+def _aslip_accel(params: ASlipParams, pivot: np.ndarray, u: np.ndarray, contact: np.ndarray):
+    """CoM acceleration with pivot (J, n, 3), u (J, n, 3), contact (J, n) of sample k held."""
+    return lambda k, x, v: aslip_acceleration(params, x, pivot[:, k], u[:, k], contact[:, k])
 
 
 def rollout_aslip(params: ASlipParams, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
@@ -297,7 +214,9 @@ def rollout_aslip(params: ASlipParams, ds: Dataset, jumps: np.ndarray | list[int
     if options.method == "lsoda":
         Bs, Vs, div = [], [], []
         for i, jp in enumerate(jps):
-            B, V, d = _lsoda_jump(params, jp, ds.dt, options)
+            B, V, d = integrate_lsoda(_aslip_accel(params, jp.pivot[None], jp.u[None], jp.contact[None]),
+                                      jp.b, jp.db, reset_mask(len(jp.b), options.reset, ds.dt), jp.limit,
+                                      ds.dt, options.max_steps)
             Bs.append(B)
             Vs.append(V)
             div.append(d)
@@ -305,7 +224,12 @@ def rollout_aslip(params: ASlipParams, ds: Dataset, jumps: np.ndarray | list[int
                 progress(i + 1, len(jps))
         div_at = np.array(div, dtype=int)
     else:
-        Bs, Vs, div_at = _rk4_batch(params, jps, ds.dt, options)
+        lens = np.array([len(jp.b) for jp in jps])
+        acc = _aslip_accel(params, pad_edge([jp.pivot for jp in jps]), pad_edge([jp.u for jp in jps]),
+                           pad_edge([jp.contact for jp in jps]))
+        Bs, Vs, div_at = integrate_rk4(acc, pad_edge([jp.b for jp in jps]), pad_edge([jp.db for jp in jps]),
+                                       lens, reset_mask(int(lens.max()), options.reset, ds.dt),
+                                       np.stack([jp.limit for jp in jps]), ds.dt, options.substeps)
         if progress:
             progress(len(jps), len(jps))
     return ASlipRollout(jumps, Bs, Vs, div_at >= 0, div_at)

@@ -83,8 +83,8 @@ def _encode_jumps(model: HybridModel, ds: Dataset, jumps: np.ndarray) -> list[_J
     return out
 
 
-def _reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
-    """(n,) bool: samples at which the state is set to the encoded truth (0 always)."""
+def reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
+    """(n,) bool: samples at which the state is set to the truth (sample 0 always)."""
     m = np.zeros(n, dtype=bool)
     m[0] = True
     if reset is not None:
@@ -93,78 +93,89 @@ def _reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
     return m
 
 
-def _lsoda_jump(model: HybridModel, inp: _JumpInputs, dt: float, opts: RolloutOptions,
-                limit: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    n, l = inp.xi.shape
-    lib, Xi = model.library, model.Xi
-    resets = _reset_mask(n, opts.reset, dt)
-    X, V = np.full((n, l), np.nan), np.full((n, l), np.nan)
-    y = np.r_[inp.xi[0], inp.dxi[0]]
+def pad_edge(arrays: list[np.ndarray]) -> np.ndarray:
+    """Stack per-jump arrays (n_j, ...) into (J, n_max, ...), repeating each last sample."""
+    n_max = max(a.shape[0] for a in arrays)
+    return np.stack([np.pad(a, ((0, n_max - a.shape[0]),) + ((0, 0),) * (a.ndim - 1), mode="edge")
+                     for a in arrays])
+
+
+# Acceleration of a second-order system with the inputs of sample k held:
+# acc(k, x (J, d), v (J, d)) -> (J, d).
+Accel = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
+
+
+def integrate_lsoda(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, resets: np.ndarray,
+                    limit: np.ndarray, dt: float, max_steps: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """One jump of x'' = acc with LSODA over each sample interval.
+
+    x_true, v_true (n, d) give the start and reset states; resets (n,) bool;
+    limit (2d,) bound on |[x, v]|. Returns X, V (n, d), NaN from the first bad
+    sample on, and that sample's index (-1 if none).
+    """
+    n, d = x_true.shape
+    X, V = np.full((n, d), np.nan), np.full((n, d), np.nan)
+    y = np.r_[x_true[0], v_true[0]]
     for k in range(n):
         if resets[k]:
-            y = np.r_[inp.xi[k], inp.dxi[k]]
-        X[k], V[k] = y[:l], y[l:]
+            y = np.r_[x_true[k], v_true[k]]
         if not (np.isfinite(y).all() and np.all(np.abs(y) <= limit)):
-            X[k], V[k] = np.nan, np.nan
             return X, V, k
+        X[k], V[k] = y[:d], y[d:]
         if k == n - 1:
             break
-        nu_k, xi_k = inp.nu[k][None], Xi[inp.phase[k]]
 
-        def rhs(state, _t, nu_k=nu_k, xi_k=xi_k):
-            a = lib.transform(state[None, :l], state[None, l:], nu_k)[0] @ xi_k
-            return np.concatenate([state[l:], a])
+        def rhs(state, _t, k=k):
+            return np.concatenate([state[d:], acc(k, state[None, :d], state[None, d:])[0]])
 
         with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; we check istate
-            sol, info = odeint(rhs, y, [0.0, dt], mxstep=opts.max_steps, full_output=True)
+            warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; we check its message
+            sol, info = odeint(rhs, y, [0.0, dt], mxstep=max_steps, full_output=True)
         if info["message"] != "Integration successful.":
             return X, V, k + 1
         y = sol[1]
     return X, V, -1
 
 
-def _rk4_batch(model: HybridModel, inps: list[_JumpInputs], dt: float, opts: RolloutOptions,
-               limit: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
-    J, l = len(inps), model.latent_dim
-    lens = np.array([i.xi.shape[0] for i in inps])
-    n_max = int(lens.max())
-    pad = lambda f: np.stack([np.pad(getattr(i, f), ((0, n_max - i.xi.shape[0]), (0, 0)), mode="edge")
-                              for i in inps])
-    xi_t, dxi_t, nu = pad("xi"), pad("dxi"), pad("nu")  # (J, n_max, l)
-    phase = np.stack([np.pad(i.phase, (0, n_max - i.phase.shape[0]), mode="edge") for i in inps])
-    resets = _reset_mask(n_max, opts.reset, dt)
-    X, V = np.full((J, n_max, l), np.nan), np.full((J, n_max, l), np.nan)
-    alive = np.ones(J, dtype=bool)
-    div_at = np.full(J, -1)
-    x, v = xi_t[:, 0].copy(), dxi_t[:, 0].copy()
-    h = dt / opts.substeps
-    lib, Xi = model.library, model.Xi
+def integrate_rk4(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, lens: np.ndarray,
+                  resets: np.ndarray, limit: np.ndarray, dt: float,
+                  substeps: int) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """J jumps of x'' = acc at once with fixed-step classical Runge-Kutta.
+
+    x_true, v_true (J, n_max, d) padded start/reset states; lens (J,) true lengths;
+    resets (n_max,) bool; limit (J, 2d) or (2d,). Returns per jump X, V (n_j, d),
+    NaN from the first bad sample on, and the first bad sample per jump (-1 if none).
+    """
+    J, n_max, d = x_true.shape
+    X, V = np.full((J, n_max, d), np.nan), np.full((J, n_max, d), np.nan)
+    alive, div_at = np.ones(J, dtype=bool), np.full(J, -1)
+    x, v = x_true[:, 0].copy(), v_true[:, 0].copy()
+    h = dt / substeps
     for k in range(n_max):
         if resets[k]:
-            x, v = xi_t[:, k].copy(), dxi_t[:, k].copy()
-        ok = np.isfinite(x).all(1) & np.isfinite(v).all(1) & np.all(np.abs(np.c_[x, v]) <= limit, axis=1)
-        newly = alive & ~ok & (k < lens)
-        div_at[newly] = k
+            x, v = x_true[:, k].copy(), v_true[:, k].copy()
+        ok = np.isfinite(np.c_[x, v]).all(1) & np.all(np.abs(np.c_[x, v]) <= limit, axis=1)
+        div_at[alive & ~ok & (k < lens)] = k
         alive &= ok | (k >= lens)
         x[~alive], v[~alive] = 0.0, 0.0  # frozen; keeps the arithmetic finite
         X[alive, k], V[alive, k] = x[alive], v[alive]
         if k == n_max - 1:
             break
-        w, C = nu[:, k], Xi[phase[:, k]]  # (J, l), (J, p, l)
-
-        def acc(x_, v_):
-            return np.einsum("jp,jpl->jl", lib.transform(x_, v_, w), C)
-
-        for _ in range(opts.substeps):
-            k1x, k1v = v, acc(x, v)
-            k2x, k2v = v + h / 2 * k1v, acc(x + h / 2 * k1x, v + h / 2 * k1v)
-            k3x, k3v = v + h / 2 * k2v, acc(x + h / 2 * k2x, v + h / 2 * k2v)
-            k4x, k4v = v + h * k3v, acc(x + h * k3x, v + h * k3v)
+        for _ in range(substeps):
+            k1x, k1v = v, acc(k, x, v)
+            k2x, k2v = v + h / 2 * k1v, acc(k, x + h / 2 * k1x, v + h / 2 * k1v)
+            k3x, k3v = v + h / 2 * k2v, acc(k, x + h / 2 * k2x, v + h / 2 * k2v)
+            k4x, k4v = v + h * k3v, acc(k, x + h * k3x, v + h * k3v)
             with np.errstate(over="ignore", invalid="ignore"):
                 x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
                 v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-    return ([X[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at)
+    return [X[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at
+
+
+def _model_accel(model: HybridModel, nu: np.ndarray, phase: np.ndarray) -> Accel:
+    """Latent acceleration with nu (J, n, l) and phase (J, n) of sample k held."""
+    lib, Xi = model.library, model.Xi
+    return lambda k, x, v: np.einsum("jp,jpl->jl", lib.transform(x, v, nu[:, k]), Xi[phase[:, k]])
 
 
 def rollout(model: HybridModel, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
@@ -179,10 +190,14 @@ def rollout(model: HybridModel, ds: Dataset, jumps: np.ndarray | list[int] | Non
     jumps = np.arange(ds.n_jumps) if jumps is None else np.asarray(jumps, dtype=int)
     inps = _encode_jumps(model, ds, jumps)
     limit = opts_limit(model, options)
+    if not inps:
+        return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int))
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
         for i, inp in enumerate(inps):
-            X, V, d = _lsoda_jump(model, inp, ds.dt, options, limit)
+            n = inp.xi.shape[0]
+            X, V, d = integrate_lsoda(_model_accel(model, inp.nu[None], inp.phase[None]), inp.xi, inp.dxi,
+                                      reset_mask(n, options.reset, ds.dt), limit, ds.dt, options.max_steps)
             Xs.append(X)
             Vs.append(V)
             div.append(d)
@@ -190,7 +205,11 @@ def rollout(model: HybridModel, ds: Dataset, jumps: np.ndarray | list[int] | Non
                 progress(i + 1, len(inps))
         div_at = np.array(div, dtype=int)
     else:
-        Xs, Vs, div_at = _rk4_batch(model, inps, ds.dt, options, limit) if inps else ([], [], np.zeros(0, int))
+        lens = np.array([i.xi.shape[0] for i in inps])
+        acc = _model_accel(model, pad_edge([i.nu for i in inps]), pad_edge([i.phase for i in inps]))
+        Xs, Vs, div_at = integrate_rk4(acc, pad_edge([i.xi for i in inps]), pad_edge([i.dxi for i in inps]),
+                                       lens, reset_mask(int(lens.max()), options.reset, ds.dt), limit,
+                                       ds.dt, options.substeps)
         if progress:
             progress(len(inps), len(inps))
     q_pred = [model.autoencoder.decode(X) for X in Xs]
