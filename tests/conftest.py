@@ -25,3 +25,16 @@ def normalised_mae(metrics: dict, ds, split: str = "test") -> dict[str, np.ndarr
     spread = np.ptp(ds.q[ds.rows_of(split)], axis=0)
     return {h: np.array([v["components"][n]["mae"] for n in v["components"]]) / spread
             for h, v in metrics["horizons"].items()}
+
+
+def one_line_error(result, *needles: str) -> str:
+    """Assert a CLI run failed with exactly one line of output, no traceback, naming
+    every ``needle``; return that line."""
+    out = result.output
+    assert result.exit_code != 0, out
+    assert "Traceback" not in out
+    lines = [line for line in out.splitlines() if line.strip()]
+    assert len(lines) == 1, out
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]

@@ -18,6 +18,7 @@ from symrom.data.names import BASE_POS
 from symrom.data.synthetic import make_slip_dataset
 from symrom.evaluate.tables import table2
 from symrom.robots import total_mass
+from conftest import one_line_error
 
 runner = CliRunner()
 
@@ -147,13 +148,6 @@ def slip_file(slip, tmp_path_factory):
     return path
 
 
-def _one_line_error(result, needle: str) -> None:
-    assert result.exit_code != 0, result.output
-    lines = [x for x in result.output.splitlines() if x.strip()]
-    assert len(lines) == 1 and "Traceback" not in result.output, result.output
-    assert needle in lines[0], lines[0]
-
-
 def test_cli_fits_writes_and_refuses_to_overwrite(slip, slip_file, tmp_path):
     _, truth = slip
     out = tmp_path / "aslip"
@@ -169,7 +163,7 @@ def test_cli_fits_writes_and_refuses_to_overwrite(slip, slip_file, tmp_path):
 
     before = (out / "params.json").read_text()
     r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--mass", str(truth.m)])
-    _one_line_error(r, "--force")
+    one_line_error(r, "--force")
     assert (out / "params.json").read_text() == before
 
     r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed", "--k-s", "1000",
@@ -182,13 +176,13 @@ def test_cli_fits_writes_and_refuses_to_overwrite(slip, slip_file, tmp_path):
 
 def test_cli_errors(slip_file, tmp_path):
     out = tmp_path / "x"
-    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out)]), "--mass")
-    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--k-s", "3"]),
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out)]), "--mass")
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--k-s", "3"]),
                     "--fixed")
-    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
                                         "--integrator", "euler"]), "lsoda")
-    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
                                         "--split", "val"]), "'val'")
-    _one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
                                         "--l0", "-1"]), "l_0")
     assert not out.exists()

@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.data.synthetic import make_planted_dataset
+from conftest import one_line_error
 
 N_PER_JUMP = 80
 runner = CliRunner()
@@ -20,17 +21,6 @@ runner = CliRunner()
 
 def _run(*args: str):
     return runner.invoke(app, [str(a) for a in args])
-
-
-def _one_line_error(result, *needles: str) -> str:
-    out = result.output
-    assert result.exit_code != 0, out
-    assert "Traceback" not in out
-    lines = [line for line in out.splitlines() if line.strip()]
-    assert len(lines) == 1, out
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +90,7 @@ def test_train_on_corrupt_data(kind, good, tmp_path):
         with h5py.File(bad, "r+") as f:
             edit(f)
     out = tmp_path / "run"
-    _one_line_error(_run("train", bad, "--out", out), *needles)
+    one_line_error(_run("train", bad, "--out", out), *needles)
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == [bad.name]
 
@@ -109,7 +99,7 @@ def test_train_does_not_overwrite_without_force(good, tmp_path):
     out = tmp_path / "run"
     out.mkdir()
     (out / "keep.txt").write_text("precious")
-    _one_line_error(_run("train", good, "--out", out), str(out), "--force")
+    one_line_error(_run("train", good, "--out", out), str(out), "--force")
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     assert (out / "keep.txt").read_text() == "precious"
     r = _run("train", good, "--out", out, "--force")
@@ -141,7 +131,7 @@ def test_evaluate_bad_model(kind, model, good, tmp_path):
         path.write_text("{not json")
         needles = ["model.json", "JSON"]
     out = tmp_path / "eval"
-    _one_line_error(_run("evaluate", path, good, "--out", out), *needles)
+    one_line_error(_run("evaluate", path, good, "--out", out), *needles)
     assert not out.exists()
 
 
@@ -149,7 +139,7 @@ def test_evaluate_does_not_overwrite_without_force(model, good, tmp_path):
     out = tmp_path / "eval"
     out.mkdir()
     (out / "keep.txt").write_text("precious")
-    _one_line_error(_run("evaluate", model, good, "--out", out), "--force")
+    one_line_error(_run("evaluate", model, good, "--out", out), "--force")
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     assert (out / "keep.txt").read_text() == "precious"
 
@@ -160,7 +150,7 @@ def test_evaluate_on_corrupt_data(model, good, tmp_path):
     with h5py.File(bad, "r+") as f:
         _set("contact", 9, 1, 3)(f)
     out = tmp_path / "eval"
-    _one_line_error(_run("evaluate", model, bad, "--out", out), "'contact'", "flag 3")
+    one_line_error(_run("evaluate", model, bad, "--out", out), "'contact'", "flag 3")
     assert not out.exists()
 
 
@@ -179,7 +169,7 @@ def _plain_log(path, drop=()):
 def test_import_missing_column(tmp_path):
     log = _plain_log(tmp_path / "log.csv", drop=("pitch", "tau_rr_kn"))
     out = tmp_path / "real.h5"
-    _one_line_error(_run("import", log, "--robot", "go1", "--out", out),
+    one_line_error(_run("import", log, "--robot", "go1", "--out", out),
                     "log.csv", "missing columns", "pitch", "tau_rr_kn")
     assert not out.exists()
 
@@ -192,7 +182,7 @@ def test_import_bad_cell(tmp_path):
     lines[5] = ",".join(cells)
     log.write_text("\n".join(lines) + "\n")
     out = tmp_path / "real.h5"
-    _one_line_error(_run("import", log, "--robot", "go1", "--out", out),
+    one_line_error(_run("import", log, "--robot", "go1", "--out", out),
                     "log.csv", "line 6", "'fr_hy'", "1.2.3")
     assert not out.exists()
 
@@ -205,12 +195,12 @@ def test_import_bad_cell(tmp_path):
 def test_import_bad_options(tmp_path, args, needles):
     log = _plain_log(tmp_path / "log.csv")
     out = tmp_path / "real.h5"
-    _one_line_error(_run("import", log, *args, "--out", out), *needles)
+    one_line_error(_run("import", log, *args, "--out", out), *needles)
     assert not out.exists()
 
 
 def test_import_missing_file(tmp_path):
     out = tmp_path / "real.h5"
-    _one_line_error(_run("import", tmp_path / "nope.csv", "--robot", "go1", "--out", out),
+    one_line_error(_run("import", tmp_path / "nope.csv", "--robot", "go1", "--out", out),
                     "nope.csv", "no such file")
     assert not out.exists()

@@ -18,7 +18,7 @@ from symrom.data.names import BASE_POS, TABLE2_COMPONENTS
 from symrom.data.synthetic import make_planted_dataset
 from symrom.evaluate.metrics import component_stats, evaluate
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
-from symrom.evaluate.tables import _fmt
+from symrom.evaluate.tables import fmt_value
 from symrom.model.persistence import save_model
 from symrom.model.training import TrainConfig, reconstruction_error, train
 from symrom.report import figures
@@ -154,11 +154,11 @@ def test_table2_numbers_equal_metrics_json(built, run_dir):
             for c in TABLE2_COMPONENTS:
                 s = h["components"][c]
                 for text in (html, md):
-                    assert f"{_fmt(s['mean'])}±{_fmt(s['std'])}" in text
-                    assert _fmt(s["rmse"]) in text
+                    assert f"{fmt_value(s['mean'])}±{fmt_value(s['std'])}" in text
+                    assert fmt_value(s["rmse"]) in text
             paper = PAPER_TABLE2[name][key]
-            assert f"{_fmt(paper['x'][0])}±{_fmt(paper['x'][1])}" in html
-            assert _fmt(implied_rmse(*paper["z"])) in html
+            assert f"{fmt_value(paper['x'][0])}±{fmt_value(paper['x'][1])}" in html
+            assert fmt_value(implied_rmse(*paper["z"])) in html
 
 
 def test_go1_only_run_builds_with_notes(run_dir, tmp_path):

@@ -9,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from _simdata import have, reference_file
-from symrom.experiments.reproduce import DatasetSpec, ReproduceConfig, reproduce
+from symrom.experiments.reproduce import ReproduceConfig, reproduce
 from symrom.model.training import AdamConfig
 
 pytestmark = pytest.mark.skipif(not (have("pronk") and have("froggy")), reason="controllers missing")

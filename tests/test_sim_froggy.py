@@ -28,7 +28,7 @@ def _per_jump(ds):
 
 
 def _longest_run(mask: np.ndarray) -> tuple[int, int]:
-    best, start, run_start = (0, 0), None, None
+    best, run_start = (0, 0), None
     for i, m in enumerate(np.r_[mask, False]):
         if m and run_start is None:
             run_start = i

@@ -15,6 +15,8 @@ from symrom.data.synthetic import make_planted_dataset
 from symrom.experiments.sweep import (SweepConfig, bootstrap_jumps, l_mod, parse_latent_dims, run_sweep,
                                       summarise)
 
+from conftest import one_line_error
+
 DIMS = (1, 2, 3, 4)
 SEEDS = (0, 1, 2)
 runner = CliRunner()
@@ -145,13 +147,6 @@ def planted_file(planted, tmp_path_factory):
     return path
 
 
-def _one_line_error(result, needle: str) -> None:
-    assert result.exit_code != 0, result.output
-    lines = [x for x in result.output.splitlines() if x.strip()]
-    assert len(lines) == 1 and "Traceback" not in result.output, result.output
-    assert needle in lines[0], lines[0]
-
-
 def test_cli(planted_file, tmp_path):
     out = tmp_path / "sweep"
     args = ["sweep", str(planted_file), "--latent-dims", "1-2", "--seeds", "2", "--out", str(out),
@@ -161,7 +156,7 @@ def test_cli(planted_file, tmp_path):
     result = json.loads((out / "sweep.json").read_text())
     assert result["latent_dims"] == [1, 2] and result["best_latent_dim"] == 2
     assert "best latent dimension: 2" in r.output
-    _one_line_error(runner.invoke(app, args), "--force")
+    one_line_error(runner.invoke(app, args), "--force")
     r = runner.invoke(app, [*args, "--force"])
     assert r.exit_code == 0, r.output
     assert json.loads((out / "sweep.json").read_text()) == result
@@ -170,11 +165,11 @@ def test_cli(planted_file, tmp_path):
 @pytest.mark.parametrize("dims", ["1-", "x", "4-2", "0-3", "1-19", "1;2"])
 def test_cli_bad_latent_dims(planted_file, tmp_path, dims):
     out = tmp_path / "bad"
-    _one_line_error(runner.invoke(app, ["sweep", str(planted_file), "--latent-dims", dims,
+    one_line_error(runner.invoke(app, ["sweep", str(planted_file), "--latent-dims", dims,
                                         "--out", str(out)]), "latent dimensions")
     assert not out.exists()
 
 
 def test_cli_bad_solver(planted_file, tmp_path):
-    _one_line_error(runner.invoke(app, ["sweep", str(planted_file), "--solver", "sgd",
+    one_line_error(runner.invoke(app, ["sweep", str(planted_file), "--solver", "sgd",
                                         "--out", str(tmp_path / "o")]), "solver")

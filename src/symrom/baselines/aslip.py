@@ -29,7 +29,7 @@ from scipy.optimize import least_squares
 
 from symrom.data.dataset import Dataset
 from symrom.data.names import BASE_POS, WRENCH
-from symrom.evaluate.metrics import component_stats, horizon_key
+from symrom.evaluate.metrics import component_stats, horizon_key, prediction_errors
 from symrom.rollout.integrate import RolloutOptions, integrate_lsoda, integrate_rk4, pad_edge, reset_mask
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
@@ -237,10 +237,7 @@ def rollout_aslip(params: ASlipParams, ds: Dataset, jumps: np.ndarray | list[int
 
 def rollout_errors(ds: Dataset, ro: ASlipRollout) -> np.ndarray:
     """Signed CoM errors predicted - true (n, 3) m over the non-diverged jumps of ``ro``."""
-    bounds = ds.jump_bounds()
-    errs = [ro.b_pred[i] - ds.q[slice(*bounds[j])][:, BASE_POS]
-            for i, j in enumerate(ro.jumps) if not ro.diverged[i]]
-    return np.concatenate(errs) if errs else np.zeros((0, 3))
+    return prediction_errors(ds, ro.jumps, ro.b_pred, ro.diverged, BASE_POS)
 
 
 def evaluate_aslip(params: ASlipParams, ds: Dataset, split: str = "test",

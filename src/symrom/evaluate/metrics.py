@@ -33,12 +33,21 @@ def component_stats(err: np.ndarray, names: tuple[str, ...] | list[str] = Q_NAME
             for n, e in zip(names, err.T)}
 
 
+def prediction_errors(ds: Dataset, jumps: np.ndarray, predictions: list[np.ndarray],
+                      diverged: np.ndarray, columns: slice = slice(None)) -> np.ndarray:
+    """Signed errors predicted - true (N, C) over the non-diverged ``jumps``.
+
+    predictions: per jump (n_j, C), compared with ``ds.q[:, columns]`` of that jump.
+    """
+    bounds = ds.jump_bounds()
+    errs = [predictions[i] - ds.q[slice(*bounds[j])][:, columns]
+            for i, j in enumerate(jumps) if not diverged[i]]
+    return np.concatenate(errs) if errs else np.zeros((0, ds.q[:1, columns].shape[1]))
+
+
 def rollout_errors(ds: Dataset, ro: Rollout) -> np.ndarray:
     """Signed errors (N, 18) over the non-diverged jumps of ``ro``."""
-    bounds = ds.jump_bounds()
-    errs = [ro.q_pred[i] - ds.q[slice(*bounds[j])]
-            for i, j in enumerate(ro.jumps) if not ro.diverged[i]]
-    return np.concatenate(errs) if errs else np.zeros((0, ds.q.shape[1]))
+    return prediction_errors(ds, ro.jumps, ro.q_pred, ro.diverged)
 
 
 def horizon_metrics(ds: Dataset, ro: Rollout) -> dict:

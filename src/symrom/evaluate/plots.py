@@ -16,7 +16,7 @@ BASE_PANELS = ("x", "y", "z", "roll", "pitch", "yaw")
 _PHASE_COLOURS = ("#ffffff", "#dde8f6", "#f6e3cf", "#e2f0da")
 
 
-def _shade_phases(ax, t: np.ndarray, phase: np.ndarray, names: list[str], seen: set) -> None:
+def shade_phases(ax, t: np.ndarray, phase: np.ndarray, names: list[str], seen: set) -> None:
     edges = np.flatnonzero(np.r_[True, np.diff(phase) != 0, True])
     for a, b in zip(edges[:-1], edges[1:]):
         k = int(phase[a])
@@ -48,7 +48,7 @@ def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | 
     seen: set = set()
     for ax, comp in zip(axes.ravel(), components):
         c = Q_NAMES.index(comp)
-        _shade_phases(ax, t, phase, ds.phase_names, seen)
+        shade_phases(ax, t, phase, ds.phase_names, seen)
         ax.plot(t, ds.q[a:b, c], color="k", lw=1.6, label="true")
         for i, (key, ro) in enumerate(rollouts.items()):
             idx = np.flatnonzero(ro.jumps == jump)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from symrom.data.names import Q_UNITS, TABLE2_COMPONENTS
 
 
-def _fmt(x: float) -> str:
+def fmt_value(x: float) -> str:
     """Two significant digits as in the paper: 1.3e-2, 0.11."""
     if x == 0:
         return "0"
@@ -26,8 +26,8 @@ def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title
             continue
         div = f" ({h['diverged_jumps']} diverged)" if h["diverged_jumps"] else ""
         lines.append(f"| {label}{div} | mean±std | " + " | ".join(
-            f"{_fmt(comps[c]['mean'])}±{_fmt(comps[c]['std'])}" for c in components) + " |")
+            f"{fmt_value(comps[c]['mean'])}±{fmt_value(comps[c]['std'])}" for c in components) + " |")
         for stat in ("mae", "rmse"):
             lines.append(f"| {label} | {stat.upper()} | "
-                         + " | ".join(_fmt(comps[c][stat]) for c in components) + " |")
+                         + " | ".join(fmt_value(comps[c][stat]) for c in components) + " |")
     return "\n".join(lines) + "\n"

@@ -248,12 +248,11 @@ def _versions() -> dict:
 
     v = {"symrom": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
          "scipy": scipy.__version__}
-    try:
-        import pybullet  # noqa: F401
-        from importlib.metadata import version
+    from importlib.metadata import PackageNotFoundError, version
 
+    try:
         v["pybullet"] = version("pybullet")
-    except Exception:  # noqa: BLE001 - optional in a run that reuses datasets
+    except PackageNotFoundError:  # optional in a run that reuses datasets
         pass
     return v
 

@@ -142,7 +142,7 @@ def fit_decoder(xi: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return coef[:-1].T.copy(), coef[-1].copy()
 
 
-def _contact_rows(ds: Dataset, rows: np.ndarray, contact_phase: str) -> np.ndarray:
+def contact_rows(ds: Dataset, rows: np.ndarray, contact_phase: str) -> np.ndarray:
     pid = ds.phase_names.index(contact_phase) if contact_phase in ds.phase_names else 0
     sel = rows & (ds.phase == pid)
     return sel if sel.sum() > 0 else rows
@@ -159,7 +159,7 @@ def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | N
         raise ValueError("no training rows (the dataset has no 'train' jumps)")
     progress = progress or (lambda stage, frac: None)
     lib = CandidateLibrary(config.latent_dim, config.poly_order, config.trig, config.inputs)
-    contact = _contact_rows(ds, rows, config.contact_phase)
+    contact = contact_rows(ds, rows, config.contact_phase)
     if config.solver == "exact":
         progress("encoder (contact phase)", 0.0)
         W_e = principal_encoder(ds.q[contact], config.latent_dim)

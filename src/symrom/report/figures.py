@@ -21,7 +21,7 @@ import numpy as np
 from symrom.data.dataset import Dataset
 from symrom.data.io import write_with
 from symrom.data.names import Q_NAMES
-from symrom.evaluate.plots import _shade_phases, plot_jump
+from symrom.evaluate.plots import shade_phases, plot_jump
 from symrom.rollout.integrate import Rollout
 
 DPI = 110
@@ -94,7 +94,7 @@ def aslip_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, aslip: np
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), sharex=True)
     seen: set = set()
     for ax, (c, name) in zip(axes, ((0, "x"), (2, "z"))):
-        _shade_phases(ax, t, np.asarray(phase), phase_names, seen)
+        shade_phases(ax, t, np.asarray(phase), phase_names, seen)
         ax.plot(t, true[:, c], color="k", lw=1.8, label="true")
         ax.plot(t, learned[:, c], color="C3", lw=1.3, label="learned (symbolic)")
         if aslip is not None:

@@ -14,7 +14,7 @@ import numpy as np
 from symrom.data.names import BASE_POS, Q_UNITS, TABLE2_COMPONENTS
 from symrom.evaluate.paper import (PAPER_ASLIP, PAPER_BEST_DIMS, PAPER_LABELS, PAPER_LAMBDA,
                                    implied_rmse, paper_row)
-from symrom.evaluate.tables import _fmt as fmt
+from symrom.evaluate.tables import fmt_value as fmt
 from symrom.report import figures
 from symrom.report.document import Figure, Para, Pre, Section, Table
 from symrom.report.run import EXPERIMENTS, Experiment, Run
@@ -255,10 +255,10 @@ def encoder_weights(run: Run, l: int) -> tuple[np.ndarray, str] | None:
             return m.autoencoder.W_e, "go1_sim/model.json"
     if exp.data_path is None:
         return None
-    from symrom.model.training import _contact_rows, principal_encoder
+    from symrom.model.training import contact_rows, principal_encoder
 
     ds = run.dataset(exp.data_path)
-    rows = _contact_rows(ds, ds.rows_of("train"), "contact")
+    rows = contact_rows(ds, ds.rows_of("train"), "contact")
     return principal_encoder(ds.q[rows], l), "exact solver step (a) on go1_sim training data"
 
 
