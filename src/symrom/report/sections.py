@@ -150,16 +150,22 @@ class JumpCache:
         return self._cache[exp.name]
 
 
+def _present_experiments(run: Run, sec: Section):
+    """(name, experiment) of each experiment in the run; a note in ``sec`` for each missing one."""
+    for name in EXPERIMENTS:
+        exp = run.experiments.get(name)
+        if exp is None:
+            sec.add(Para(f"{name}: not in this run; skipped.", note=True))
+        else:
+            yield name, exp
+
+
 def predictions_section(run: Run, jumps: JumpCache, fig_dir: Path) -> Section:
     sec = Section("predictions", "Predictions of a test jump")
     sec.add(Para("Truth (black) and the learned model's prediction of the front-left and rear-right "
                  "joint angles and the CoM pose, full horizon (dashed) and with 0.1 s resets; shaded "
                  "spans mark the phases other than the first."))
-    for name in EXPERIMENTS:
-        exp = run.experiments.get(name)
-        if exp is None:
-            sec.add(Para(f"{name}: not in this run; skipped.", note=True))
-            continue
+    for name, exp in _present_experiments(run, sec):
         try:
             ds, j, ros, _ = jumps.get(exp)
             path = figures.jump_figure(ds, ros, j, fig_dir / f"jump_{name}.png",
@@ -322,11 +328,7 @@ def equations_section(run: Run) -> Section:
     sec = Section("equations", "Learned equations per phase")
     sec.add(Para("Latent accelerations ddxi_j as sparse combinations of the library Θ(ξ, dξ, ν) "
                  "(xi: latent position, dxi: latent velocity, nu: latent input)."))
-    for name in EXPERIMENTS:
-        exp = run.experiments.get(name)
-        if exp is None:
-            sec.add(Para(f"{name}: not in this run; skipped.", note=True))
-            continue
+    for name, exp in _present_experiments(run, sec):
         try:
             eqs = _equations(exp)
         except Exception as e:  # noqa: BLE001
