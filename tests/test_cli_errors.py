@@ -204,3 +204,10 @@ def test_import_missing_file(tmp_path):
     one_line_error(_run("import", tmp_path / "nope.csv", "--robot", "go1", "--out", out),
                     "nope.csv", "no such file")
     assert not out.exists()
+
+
+def test_train_with_an_unknown_encoder_component(good, tmp_path):
+    out = tmp_path / "run"
+    one_line_error(_run("train", good, "--out", out, "--encoder-components", "x,heave"),
+                   "encoder_components", "heave")
+    assert not out.exists()

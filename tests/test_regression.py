@@ -48,3 +48,17 @@ def test_stlsq_recovers_sparse_coefficients():
     np.testing.assert_allclose(Xi, true, atol=1e-10)
     Xi, mask = stlsq(theta, ddxi, ddxi @ W_d.T, W_d, STLSQConfig(threshold=0.1))
     assert not mask[5, 0] and mask[3, 0]  # the 0.05 term falls below a 0.1 threshold
+
+
+def test_a_feature_that_is_zero_up_to_rounding_gets_no_coefficient():
+    # e.g. the latent ground force during flight: exactly zero in physics, 1e-17 after
+    # the input map; it must not absorb a huge coefficient from the equilibration.
+    rng = np.random.default_rng(2)
+    theta = rng.normal(size=(500, 4))
+    theta[:, 3] = 1e-17 * rng.normal(size=500)
+    true = np.array([[1.0, 0.0], [0.0, -2.0], [0.5, 0.3], [0.0, 0.0]])
+    ddxi = theta @ true + 1e-6 * rng.normal(size=(500, 2))
+    W_d = rng.normal(size=(18, 2))
+    Xi, mask = stlsq(theta, ddxi, ddxi @ W_d.T, W_d, STLSQConfig(threshold=0.01))
+    assert np.all(Xi[3] == 0) and not mask[3].any()
+    np.testing.assert_allclose(Xi, true, atol=1e-5)

@@ -118,6 +118,12 @@ def train_cmd(
     threshold: Annotated[float, typer.Option("--threshold", help="Sparsity threshold on |Xi|.")] = 0.01,
     epochs: Annotated[Optional[int], typer.Option("--epochs", help="adam: epochs (default 501).")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed (adam initialisation).")] = 0,
+    encoder_components: Annotated[Optional[str], typer.Option(
+        "--encoder-components", help="Comma-separated q components the encoder reads, e.g. x,y,z "
+                                     "(default: all 18).")] = None,
+    decoded_weight: Annotated[float, typer.Option(
+        "--decoded-weight", help="Weight of the decoded-acceleration term of the SINDy loss "
+                                 "(1 = the paper; 0 = latent accelerations only).")] = 1.0,
     force: Force = False,
 ) -> None:
     """Train a hybrid symbolic model on the dataset's train split."""
@@ -127,8 +133,11 @@ def train_cmd(
 
     check_output_file(out, force)
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
+    comps = None if encoder_components is None else tuple(
+        c.strip() for c in encoder_components.split(",") if c.strip())
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, solver=solver,
-                         threshold=threshold, seed=seed, adam=adam)
+                         threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
+                         decoded_weight=decoded_weight)
     ds = read_dataset(data)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)

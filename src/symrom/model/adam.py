@@ -62,11 +62,12 @@ def train_adam(ds: Dataset, rows: np.ndarray, contact_rows: np.ndarray, lib: Can
         W_d = ((torch.rand((n, l), generator=gen, **f64) * 2 - 1) / np.sqrt(l)).requires_grad_()
         B_d = torch.zeros(n, **f64, requires_grad=True)
         opt = torch.optim.Adam([W_e, B_e, W_d, B_d], lr=ac.learning_rate)
+        emask = torch.as_tensor(config.encoder_mask(), **f64)  # components the encoder reads
 
         def recon_step(q):
             def step(idx):
                 qb = q[idx]
-                loss = ((qb - ((qb @ W_e.T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean()
+                loss = ((qb - ((qb @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean()
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
@@ -82,7 +83,7 @@ def train_adam(ds: Dataset, rows: np.ndarray, contact_rows: np.ndarray, lib: Can
         opt = torch.optim.Adam([W_d, B_d], lr=ac.learning_rate)
         _epochs(qa.shape[0], ac.batch_size, ae_epochs, gen, torch, recon_step(qa),
                 lambda e: progress("decoder (all phases)", 0.3 + 0.2 * (e + 1) / ae_epochs))
-        ae = LinearAutoencoder(W_e.detach().numpy().copy(), B_e.detach().numpy().copy(),
+        ae = LinearAutoencoder((W_e * emask).detach().numpy().copy(), B_e.detach().numpy().copy(),
                                W_d.detach().numpy().copy(), B_d.detach().numpy().copy())
 
         # (c) one Xi per phase, autoencoder frozen.
@@ -107,7 +108,8 @@ def train_adam(ds: Dataset, rows: np.ndarray, contact_rows: np.ndarray, lib: Can
 
             def sindy_step(idx):
                 z = theta[idx] @ (Xi * mask)
-                loss = (((ddxi[idx] - z) ** 2).sum(1).mean() + ((ddq[idx] - z @ Wd.T) ** 2).sum(1).mean()
+                loss = (((ddxi[idx] - z) ** 2).sum(1).mean()
+                        + config.decoded_weight * ((ddq[idx] - z @ Wd.T) ** 2).sum(1).mean()
                         + l1["w"] * (Xi * mask).abs().sum())
                 opt.zero_grad()
                 loss.backward()

@@ -4,8 +4,8 @@ The encoder is kept: the latent coordinates, and so the meaning of every
 learned term, stay those of the source model. On the new jumps:
 - the decoder is refit by least squares pulled towards the source decoder,
   min ||q - W_d xi - B_d||^2 + r ||[W_d, B_d] - [W_d0, B_d0]||^2;
-- each phase's Xi is refit by sequential thresholding on the paper's SINDy loss
-  pulled towards the source coefficients, + r ||Xi - Xi_0||^2, starting from the
+- each phase's Xi is refit by sequential thresholding on the SINDy loss the
+  source model was trained with (its ``decoded_weight``) pulled towards the source coefficients, + r ||Xi - Xi_0||^2, starting from the
   source support (terms may drop out, none are added).
 Both are closed form. ``prior_weight`` sets r relative to the data's scale: 0
 refits from the new jumps alone, large values keep the source model.
@@ -59,13 +59,14 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
                 if config.refit_decoder else (ae0.W_d, ae0.B_d))
     ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
     Xi, mask = model.Xi.copy(), model.mask.copy()
+    sw = np.sqrt(float(model.info.get("training", {}).get("decoded_weight", 1.0)))
     for k in range(len(model.phase_names)):
         r = rows & (ds.phase == k)
         if not r.any():
             continue  # no new evidence: keep the source coefficients
         theta = model.library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
                                         ae.encode_input(ds.u[r]))
-        Xi[k], mask[k] = stlsq(theta, ae.encode_derivative(ds.ddq[r]), ds.ddq[r], ae.W_d,
+        Xi[k], mask[k] = stlsq(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d,
                                STLSQConfig(config.threshold, config.prior_weight),
                                prior=model.Xi[k], mask=model.mask[k])
     info = dict(model.info)

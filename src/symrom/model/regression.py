@@ -21,6 +21,7 @@ import scipy.linalg
 
 
 _JITTER = 1e-10  # relative ridge on the equilibrated normal equations
+_NULL_FEATURE = 1e-10  # a column this small relative to the largest carries rounding only
 
 
 @dataclass(frozen=True)
@@ -49,6 +50,11 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     prior (p, l) or None (= 0). Returns Xi (p, l).
     """
     p, l = mask.shape
+    # A feature that is identically zero on this phase's rows up to rounding
+    # (e.g. the latent ground force in flight) is not identifiable: its
+    # equilibrated coefficient would be rounding noise divided by ~0.
+    norms = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    mask = mask & (norms > _NULL_FEATURE * norms.max())[:, None]
     idx = np.flatnonzero(mask.T.ravel())  # column-major vec of Xi
     Xi = np.zeros((p, l))
     if idx.size == 0:

@@ -22,6 +22,12 @@
     solved exactly; sequential thresholding (threshold 0.01) gives the support
     (see ``regression``).
 ``adam`` is the paper's gradient training (``adam.py``, needs torch).
+
+Two options generalise the paper's losses (defaults reproduce them):
+``encoder_components`` lets the encoder read only the named configuration
+components (step (a) then minimises their reconstruction, the decoder still
+maps to all 18), and ``decoded_weight`` scales the decoded-acceleration term
+||ddq - W_d Theta Xi||^2 of step (c).
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.data.names import Q_NAMES
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import CandidateLibrary
@@ -61,6 +68,9 @@ class TrainConfig:
     """latent_dim l, polynomial order p, library options, solver and its settings.
 
     ``contact_phase`` names the phase that trains the encoder in step (a).
+    ``encoder_components``: names of the q components the encoder reads (None =
+    all 18, the paper); ``decoded_weight``: weight of the decoded-acceleration
+    term of the SINDy loss (1 = the paper).
     """
 
     latent_dim: int = 2
@@ -72,6 +82,8 @@ class TrainConfig:
     ridge: float = 0.0
     seed: int = 0
     contact_phase: str = "contact"
+    encoder_components: tuple[str, ...] | None = None
+    decoded_weight: float = 1.0
     adam: AdamConfig = field(default_factory=AdamConfig)
 
     def __post_init__(self) -> None:
@@ -81,6 +93,26 @@ class TrainConfig:
             raise ValueError(f"latent_dim must be within 1..18, got {self.latent_dim}")
         if isinstance(self.adam, dict):
             self.adam = AdamConfig(**self.adam)
+        if self.encoder_components is not None:
+            comps = tuple(self.encoder_components)
+            bad = [c for c in comps if c not in Q_NAMES]
+            if bad:
+                raise ValueError(f"encoder_components: unknown component(s) {', '.join(bad)}; "
+                                 f"choose from {', '.join(Q_NAMES)}")
+            if len(set(comps)) != len(comps):
+                raise ValueError("encoder_components: a component is named twice")
+            if len(comps) < self.latent_dim:
+                raise ValueError(f"encoder_components: {len(comps)} component(s) cannot span "
+                                 f"latent_dim {self.latent_dim}")
+            self.encoder_components = comps
+        if not self.decoded_weight >= 0:
+            raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
+
+    def encoder_mask(self) -> np.ndarray:
+        """(18,) bool: the configuration components the encoder reads."""
+        if self.encoder_components is None:
+            return np.ones(len(Q_NAMES), dtype=bool)
+        return np.isin(np.array(Q_NAMES), self.encoder_components)
 
 
 def data_hash(ds: Dataset) -> str:
@@ -119,9 +151,17 @@ def varimax(W: np.ndarray, max_iter: int = 500, tol: float = 1e-13) -> np.ndarra
     return (L @ best).T
 
 
-def principal_encoder(q: np.ndarray, latent_dim: int) -> np.ndarray:
+def principal_encoder(q: np.ndarray, latent_dim: int, components: np.ndarray | None = None) -> np.ndarray:
     """Step (a), exact: W_e (l, 18), an orthonormal basis of the top-l principal
-    subspace of q (N, 18), varimax-rotated, ordered by variance, signs fixed."""
+    subspace of q (N, 18), varimax-rotated, ordered by variance, signs fixed.
+
+    With ``components`` (18,) bool the encoder reads only those columns (zero
+    weight elsewhere): the optimum of their reconstruction loss.
+    """
+    if components is not None and not np.all(components):
+        W = np.zeros((latent_dim, q.shape[1]))
+        W[:, components] = principal_encoder(q[:, components], latent_dim)
+        return W
     qc = q - q.mean(axis=0)
     _, _, Vt = np.linalg.svd(qc, full_matrices=False)
     W = Vt[:latent_dim].copy()
@@ -162,11 +202,12 @@ def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | N
     contact = contact_rows(ds, rows, config.contact_phase)
     if config.solver == "exact":
         progress("encoder (contact phase)", 0.0)
-        W_e = principal_encoder(ds.q[contact], config.latent_dim)
+        W_e = principal_encoder(ds.q[contact], config.latent_dim, config.encoder_mask())
         B_e = np.zeros(config.latent_dim)
         progress("decoder (all phases)", 0.3)
         W_d, B_d = fit_decoder(ds.q[rows] @ W_e.T, ds.q[rows])
         ae = LinearAutoencoder(W_e, B_e, W_d, B_d)
+        sw = np.sqrt(config.decoded_weight)
         Xi, mask = [], []
         for k, _ in enumerate(ds.phase_names):
             progress(f"dynamics ({ds.phase_names[k]})", 0.6 + 0.4 * k / len(ds.phase_names))
@@ -177,7 +218,7 @@ def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | N
                 continue
             theta = lib.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
                                   ae.encode_input(ds.u[r]))
-            x, m = stlsq(theta, ae.encode_derivative(ds.ddq[r]), ds.ddq[r], ae.W_d,
+            x, m = stlsq(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d,
                          STLSQConfig(config.threshold, config.ridge))
             Xi.append(x)
             mask.append(m)

@@ -106,12 +106,26 @@ def table2_section(run: Run) -> Section:
                          note=True))
             continue
         split, n = exp.metrics.get("split", "test"), exp.metrics.get("n_jumps", "?")
+        cfg = exp.summary.get("config")
+        if isinstance(cfg, dict):
+            comps = cfg.get("encoder_components")
+            sec.add(Para("Training options: encoder reads "
+                         + (", ".join(comps) if comps else "all 18 components")
+                         + f"; decoded-acceleration weight {cfg.get('decoded_weight', 1.0):g}."))
         sec.add(Table(header, rows, caption=f"{name}, {split} jumps: {n}"))
         sec.add(Para(f"Diverged test jumps — {diverged_text(exp.metrics)}.",
                      note=any(h.get("diverged_jumps", 0) for h in exp.metrics.get("horizons", {}).values())))
         if wins:
             sec.add(Para("Ours ≤ paper RMSE in " + ", ".join(
                 f"{w} of {len(TABLE2_COMPONENTS)} components ({horizon_label(k)})" for k, w in wins.items()) + "."))
+        pd = exp.summary.get("paper_defaults")
+        if isinstance(pd, dict) and isinstance(pd.get("metrics"), dict) and pd["metrics"].get("horizons"):
+            prow, _ = table2_rows(name, pd["metrics"])
+            sec.add(Table(header, [r for r in prow if r[1].startswith("ours")],
+                          caption=f"{name} with the paper's defaults (encoder over all 18 components, "
+                                  f"decoded-acceleration weight 1)"))
+            sec.add(Para(f"Paper defaults, diverged test jumps — {diverged_text(pd['metrics'])}.",
+                         note=any(h.get("diverged_jumps", 0) for h in pd["metrics"]["horizons"].values())))
         before = exp.summary.get("before_finetune")
         if isinstance(before, dict) and before.get("horizons"):
             brows, _ = table2_rows(name, before)
