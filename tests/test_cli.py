@@ -42,12 +42,17 @@ def test_train_evaluate_equations(planted_block, tmp_path):
     assert r.exit_code == 0 and r"\ddot{\xi}_{1}" in r.output
 
 
-def test_demo_runs_and_refuses_to_overwrite(tmp_path):
+def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     out = tmp_path / "demo"
-    r = runner.invoke(app, ["demo", "--out", str(out)])
+    r = runner.invoke(app, ["demo", "--out", str(out), "--jumps", "4", "--workers", "1"])
     assert r.exit_code == 0, r.output
-    assert (out / "model.json").is_file() and (out / "eval" / "metrics.json").is_file()
-    before = (out / "model.json").read_text()
+    assert f"report: {out / 'report.html'}" in r.output.replace("\n", "")
+    summary = json.loads((out / "summary.json").read_text())
+    assert set(summary["experiments"]) == {"go1_sim"}
+    assert summary["experiments"]["go1_sim"]["aslip"]["horizons"]["full"]["components"]
+    assert (out / "go1_sim" / "equations.txt").read_text().startswith("[contact]")
+    assert "Table 2" in (out / "report.md").read_text()
+    before = (out / "go1_sim" / "model.json").read_text()
     r = runner.invoke(app, ["demo", "--out", str(out)])
     assert r.exit_code != 0 and "--force" in r.output
-    assert (out / "model.json").read_text() == before
+    assert (out / "go1_sim" / "model.json").read_text() == before

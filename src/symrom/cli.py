@@ -258,21 +258,40 @@ def reproduce_cmd(
 @guarded
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("symrom-demo"),
+    jumps: Annotated[int, typer.Option("--jumps", help="Go1 pronking jumps to simulate.")] = 12,
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes for the simulation.")] = 2,
     force: Force = False,
 ) -> None:
-    """Run the whole pipeline on a small default and print where the results are."""
-    from symrom.data.io import atomic_dir
-    from symrom.evaluate.tables import table2
-    from symrom.experiments.demo import run_demo
+    """Simulate a dozen Go1 jumps, train, evaluate, fit the aSLIP and write the report."""
+    import shlex
 
+    from symrom.data.io import atomic_dir, check_output_file
+    from symrom.evaluate.tables import table2
+    from symrom.experiments.demo import demo_config
+    from symrom.experiments.reproduce import reproduce
+    from symrom.model.persistence import load_model
+    from symrom.report.html import build_report
+
+    check_output_file(out, force)
+    cfg = demo_config(jumps, workers=workers)
+    command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with atomic_dir(out, force) as tmp:
         with console.status("demo") as status:
-            paths = run_demo(tmp, progress=lambda msg: status.update(f"demo: {msg}"))
-        metrics = json.loads(paths["metrics"].read_text())
-        equations = paths["equations"].read_text()
-    typer.echo(equations)
-    typer.echo(table2(metrics, title="test split"))
-    out_console.print(f"results: {out}/ (data.h5, model.json, equations.txt, eval/)")
+            def say(msg: str, transient: bool = False) -> None:
+                status.update(f"demo: {msg}")
+                if not transient:
+                    console.log(msg)
+
+            summary = reproduce(tmp, cfg, command=command, say=say)
+            status.update("demo: report")
+            build_report(tmp, tmp / "report.html")
+        go1 = summary["experiments"]["go1_sim"]
+        text = load_model(tmp / "go1_sim" / "model.json").equations_text()
+        (tmp / "go1_sim" / "equations.txt").write_text(text + "\n")
+    typer.echo(text)
+    typer.echo(table2(go1["metrics"], title="SIM Go1, test split"))
+    typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
+    out_console.print(f"report: {out / 'report.html'}")
 
 
 @app.command("aslip")

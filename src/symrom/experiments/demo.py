@@ -1,45 +1,27 @@
-"""The demo pipeline: data -> train -> evaluate -> equations, on a small default.
+"""The demo: the paper's Go1 pipeline end to end on a small default.
 
-It makes a planted dataset (known sparse latent dynamics embedded in 18-D),
-trains with the exact solver, evaluates on the test split at both horizons and
-writes everything under one directory.
+A dozen Go1 pronking jumps are simulated (PyBullet, convex MPC), a 2-D model
+is trained with the exact solver and evaluated on the test split at the full
+horizon and with 0.1 s resets, the aSLIP baseline is fitted and evaluated on
+the same jumps, a short latent-dimension sweep runs, and the report is
+written. It is ``reproduce`` restricted to SIM Go1, so the layout of the
+output directory is that of a reproduction run.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import replace
 
-from symrom.data.io import write_dataset
-from symrom.data.synthetic import make_planted_dataset
-from symrom.evaluate.metrics import evaluate
-from symrom.evaluate.outputs import write_evaluation
-from symrom.model.persistence import save_model
-from symrom.model.training import TrainConfig, train
+from symrom.experiments.reproduce import DatasetSpec, ReproduceConfig
+
+DEMO_JUMPS = 12
 
 
-@dataclass
-class DemoConfig:
-    n_jumps: int = 24
-    n_samples: int = 400
-    seed: int = 0
-
-
-def run_demo(out: Path, config: DemoConfig = DemoConfig(),
-             progress: Callable[[str], None] | None = None) -> dict[str, Path]:
-    """Run the pipeline into ``out`` (an existing empty directory); paths of the outputs."""
-    say = progress or (lambda msg: None)
-    say("making a planted dataset")
-    ds, _ = make_planted_dataset(config.n_jumps, config.n_samples, seed=config.seed)
-    write_dataset(ds, out / "data.h5")
-    say("training (exact solver)")
-    model = train(ds, TrainConfig(latent_dim=2, poly_order=1, seed=config.seed))
-    save_model(model, out / "model.json")
-    (out / "equations.txt").write_text(model.equations_text() + "\n")
-    say("evaluating on the test split (full horizon and 0.1 s resets)")
-    metrics, rollouts = evaluate(model, ds, "test", model_name="model.json", data_name="data.h5")
-    write_evaluation(out / "eval", metrics, rollouts, ds, title="planted system")
-    return {"data": out / "data.h5", "model": out / "model.json",
-            "equations": out / "equations.txt", "metrics": out / "eval" / "metrics.json",
-            "table": out / "eval" / "table.md"}
+def demo_config(jumps: int = DEMO_JUMPS, seed: int = 0, workers: int = 2) -> ReproduceConfig:
+    """SIM Go1 only: ``jumps`` jumps, its learned model and aSLIP, a sweep over l = 1-4, 6."""
+    if jumps < 3:
+        raise ValueError(f"the demo needs at least 3 jumps (train, val and test), got {jumps}")
+    base = ReproduceConfig()
+    return replace(base, datasets=(DatasetSpec("go1_sim", "go1", "pronk", jumps),),
+                   experiments=(base.go1(),), compare_solvers=False,
+                   sweep_dims=(1, 2, 3, 4, 6), sweep_seeds=2, seed=seed, workers=workers)
