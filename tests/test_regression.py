@@ -62,3 +62,18 @@ def test_a_feature_that_is_zero_up_to_rounding_gets_no_coefficient():
     Xi, mask = stlsq(theta, ddxi, ddxi @ W_d.T, W_d, STLSQConfig(threshold=0.01))
     assert np.all(Xi[3] == 0) and not mask[3].any()
     np.testing.assert_allclose(Xi, true, atol=1e-5)
+
+
+def test_alpha_is_a_ridge_on_the_standardised_features():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-0.1, 0.1, size=400)
+    theta = np.column_stack([np.ones(400), x, np.sin(x), 50.0 * rng.normal(size=400)])  # x ~ sin x
+    y = (0.3 + 2.0 * x + 0.01 * theta[:, 3] + 1e-3 * rng.normal(size=400))[:, None]
+    A = theta.T @ theta  # with G = 1 (the latent term alone)
+    for alpha in (1e-4, 1e-2):
+        Xi = solve_support(A, theta.T @ y, np.eye(1), np.ones((4, 1), bool), alpha=alpha)
+        expected = np.linalg.solve(A + alpha * np.diag(np.diag(A)), theta.T @ y)
+        np.testing.assert_allclose(Xi, expected, rtol=1e-8)
+        # ... and not a ridge of the same weight on the raw coefficients
+        raw = np.linalg.solve(A + alpha * np.mean(np.diag(A)) * np.eye(4), theta.T @ y)
+        assert np.abs(Xi - raw).max() > 1e-3

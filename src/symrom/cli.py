@@ -124,6 +124,8 @@ def train_cmd(
     decoded_weight: Annotated[float, typer.Option(
         "--decoded-weight", help="Weight of the decoded-acceleration term of the SINDy loss "
                                  "(1 = the paper; 0 = latent accelerations only).")] = 1.0,
+    alpha: Annotated[float, typer.Option(
+        "--alpha", help="Ridge on the standardised library features (exact solver; 0 = none).")] = 0.0,
     force: Force = False,
 ) -> None:
     """Train a hybrid symbolic model on the dataset's train split."""
@@ -137,7 +139,7 @@ def train_cmd(
         c.strip() for c in encoder_components.split(",") if c.strip())
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
-                         decoded_weight=decoded_weight)
+                         decoded_weight=decoded_weight, alpha=alpha)
     ds = read_dataset(data)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)

@@ -59,7 +59,9 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
                 if config.refit_decoder else (ae0.W_d, ae0.B_d))
     ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
     Xi, mask = model.Xi.copy(), model.mask.copy()
-    sw = np.sqrt(float(model.info.get("training", {}).get("decoded_weight", 1.0)))
+    trained = model.info.get("training", {})
+    sw = np.sqrt(float(trained.get("decoded_weight", 1.0)))
+    alpha = float(trained.get("alpha", 0.0))
     for k in range(len(model.phase_names)):
         r = rows & (ds.phase == k)
         if not r.any():
@@ -67,7 +69,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         theta = model.library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
                                         ae.encode_input(ds.u[r]))
         Xi[k], mask[k] = stlsq(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d,
-                               STLSQConfig(config.threshold, config.prior_weight),
+                               STLSQConfig(config.threshold, config.prior_weight, alpha),
                                prior=model.Xi[k], mask=model.mask[k])
     info = dict(model.info)
     info["finetune"] = {"config": asdict(config), "data_sha256": data_hash(ds),

@@ -20,17 +20,21 @@ import numpy as np
 import scipy.linalg
 
 
-_JITTER = 1e-10  # relative ridge on the equilibrated normal equations
+_JITTER = 1e-10  # smallest ridge on the equilibrated normal equations
 _NULL_FEATURE = 1e-10  # a column this small relative to the largest carries rounding only
 
 
 @dataclass(frozen=True)
 class STLSQConfig:
     """threshold: |Xi| below it is zeroed; ridge: Tikhonov weight relative to the
-    mean diagonal of Theta^T Theta (0 = none); max_iter: thresholding rounds."""
+    mean diagonal of Theta^T Theta (0 = none); alpha: ridge on the standardised
+    features (scikit-learn's and PySINDy's ``alpha`` with normalised columns), which
+    keeps near-collinear pairs such as xi and sin(xi) from cancelling with huge
+    coefficients (0 = a 1e-10 numerical jitter only); max_iter: thresholding rounds."""
 
     threshold: float = 0.01
     ridge: float = 0.0
+    alpha: float = 0.0
     max_iter: int = 25
 
 
@@ -42,9 +46,9 @@ def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tupl
 
 
 def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
-                  ridge: float = 0.0, prior: np.ndarray | None = None) -> np.ndarray:
-    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2 with Xi zero
-    off ``mask``, r = ridge * mean(diag A).
+                  ridge: float = 0.0, prior: np.ndarray | None = None, alpha: float = 0.0) -> np.ndarray:
+    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2
+    + alpha sum_ij G_jj A_ii Xi_ij^2 with Xi zero off ``mask``, r = ridge * mean(diag A).
 
     A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool,
     prior (p, l) or None (= 0). Returns Xi (p, l).
@@ -67,13 +71,14 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
         K = K + r * np.eye(idx.size)
         if prior is not None:
             rhs = rhs + r * prior[feat, col]
-    # Equilibrate (features differ in scale by orders of magnitude), then add a
-    # vanishing ridge: near-collinear features (x and sin x on a small range) make
-    # the system numerically singular, and the jittered Cholesky factorisation
-    # gives the minimum-norm optimum at a fraction of the cost of an SVD.
+    # Equilibrate (features differ in scale by orders of magnitude), then add the
+    # standardised ridge alpha, at least a vanishing jitter: near-collinear features
+    # (x and sin x on a small range) make the system numerically singular, and the
+    # jittered Cholesky factorisation gives the minimum-norm optimum at a fraction
+    # of the cost of an SVD.
     d = np.sqrt(np.clip(np.diag(K), 1e-300, None))
     Ks = K / d[:, None] / d[None, :]
-    Ks[np.diag_indices_from(Ks)] += _JITTER
+    Ks[np.diag_indices_from(Ks)] += max(alpha, _JITTER)
     try:
         x = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ks, check_finite=False), rhs / d,
                                    check_finite=False)
@@ -100,13 +105,13 @@ def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
     A = Theta.T @ Theta
     B = Theta.T @ Zs @ G
     mask = np.ones((Theta.shape[1], ddxi.shape[1]), dtype=bool) if mask is None else mask.copy()
-    Xi = solve_support(A, B, G, mask, config.ridge, prior)
+    Xi = solve_support(A, B, G, mask, config.ridge, prior, config.alpha)
     for _ in range(config.max_iter):
         new_mask = mask & (np.abs(Xi) >= config.threshold)
         if np.array_equal(new_mask, mask):
             break
         mask = new_mask
-        Xi = solve_support(A, B, G, mask, config.ridge, prior)
+        Xi = solve_support(A, B, G, mask, config.ridge, prior, config.alpha)
     return Xi * mask, mask
 
 

@@ -70,7 +70,8 @@ class TrainConfig:
     ``contact_phase`` names the phase that trains the encoder in step (a).
     ``encoder_components``: names of the q components the encoder reads (None =
     all 18, the paper); ``decoded_weight``: weight of the decoded-acceleration
-    term of the SINDy loss (1 = the paper).
+    term of the SINDy loss (1 = the paper); ``alpha``: ridge on the standardised
+    features in step (c) (``regression.STLSQConfig``; 0 = none, the paper).
     """
 
     latent_dim: int = 2
@@ -80,6 +81,7 @@ class TrainConfig:
     solver: str = "exact"
     threshold: float = 0.01
     ridge: float = 0.0
+    alpha: float = 0.0
     seed: int = 0
     contact_phase: str = "contact"
     encoder_components: tuple[str, ...] | None = None
@@ -105,6 +107,8 @@ class TrainConfig:
                 raise ValueError(f"encoder_components: {len(comps)} component(s) cannot span "
                                  f"latent_dim {self.latent_dim}")
             self.encoder_components = comps
+        if not self.alpha >= 0:
+            raise ValueError(f"alpha must be >= 0, got {self.alpha}")
         if not self.decoded_weight >= 0:
             raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
 
@@ -219,7 +223,7 @@ def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | N
             theta = lib.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
                                   ae.encode_input(ds.u[r]))
             x, m = stlsq(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d,
-                         STLSQConfig(config.threshold, config.ridge))
+                         STLSQConfig(config.threshold, config.ridge, config.alpha))
             Xi.append(x)
             mask.append(m)
         Xi_arr, mask_arr = np.array(Xi), np.array(mask)

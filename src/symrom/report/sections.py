@@ -111,7 +111,8 @@ def table2_section(run: Run) -> Section:
             comps = cfg.get("encoder_components")
             sec.add(Para("Training options: encoder reads "
                          + (", ".join(comps) if comps else "all 18 components")
-                         + f"; decoded-acceleration weight {cfg.get('decoded_weight', 1.0):g}."))
+                         + f"; decoded-acceleration weight {cfg.get('decoded_weight', 1.0):g}"
+                         + f"; standardised ridge alpha {cfg.get('alpha', 0.0):g}."))
         sec.add(Table(header, rows, caption=f"{name}, {split} jumps: {n}"))
         sec.add(Para(f"Diverged test jumps — {diverged_text(exp.metrics)}.",
                      note=any(h.get("diverged_jumps", 0) for h in exp.metrics.get("horizons", {}).values())))
@@ -123,7 +124,7 @@ def table2_section(run: Run) -> Section:
             prow, _ = table2_rows(name, pd["metrics"])
             sec.add(Table(header, [r for r in prow if r[1].startswith("ours")],
                           caption=f"{name} with the paper's defaults (encoder over all 18 components, "
-                                  f"decoded-acceleration weight 1)"))
+                                  f"decoded-acceleration weight 1, no ridge)"))
             sec.add(Para(f"Paper defaults, diverged test jumps — {diverged_text(pd['metrics'])}.",
                          note=any(h.get("diverged_jumps", 0) for h in pd["metrics"]["horizons"].values())))
         before = exp.summary.get("before_finetune")
