@@ -133,6 +133,7 @@ def test_html_has_every_section_and_no_external_resource(built):
     assert "<script" not in html and "<link" not in html
     assert "not in this run" not in html  # all three experiments present
     assert "go1_proxy before fine-tuning" in html
+    assert html.count("reconstruction floor RMSE") == 3  # one row per experiment
 
 
 def test_markdown_twin_has_the_same_sections_and_figures(built):
