@@ -3,8 +3,9 @@
 For every latent dimension l and seed s a model is trained and three numbers
 are kept (one "cell"):
 
-- ``E_dec``: final reconstruction error, the mean squared error of q
-  (rad^2 / m^2 mixed, as in the paper) over the training rows, with the
+- ``E_dec``: final reconstruction error, the paper's L_recon ||q - q_recon||^2
+  (squared 2-norm over the 18 components, rad^2 and m^2 mixed as in the paper)
+  averaged over the training rows, with the
   bootstrap the resampled rows, repeats counted
   (``symrom.model.training.reconstruction_error``);
 - ``active_terms``: |Xi|, nonzero coefficients summed over all phases;

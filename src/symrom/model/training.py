@@ -243,6 +243,7 @@ def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | N
 
 
 def reconstruction_error(model: HybridModel, ds: Dataset, rows: np.ndarray) -> float:
-    """Mean squared reconstruction error of q over ``rows`` (the sweep's E_dec)."""
+    """The reconstruction loss ||q - q_recon||^2 (squared 2-norm over the 18
+    components, as the paper's L_recon) averaged over ``rows``: the sweep's E_dec."""
     q = ds.q[rows]
-    return float(np.mean((model.autoencoder.reconstruct(q) - q) ** 2))
+    return float(np.mean(np.sum((model.autoencoder.reconstruct(q) - q) ** 2, axis=1)))
