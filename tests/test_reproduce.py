@@ -51,6 +51,13 @@ def test_summary_follows_the_contract(run):
     assert sweep["latent_dims"] == [1, 2] and len(sweep["E_dec"]) == 2 and len(sweep["E_dec"][0]) == 2
     assert sweep["best_latent_dim"] in (1, 2) and len(sweep["L_mod"]) == 2
     assert {p.name: p.stat().st_mtime for p in (d / "data").iterdir()} == before  # reused
+    go1 = on_disk["experiments"]["go1_sim"]
+    assert go1["config"]["encoder_components"] == ["x", "y", "z"]
+    assert set(go1["paper_defaults"]["metrics"]["horizons"]) == {"full", "0.1"}
+    from symrom.model.persistence import load_model
+
+    W_e = load_model(d / go1["model"]).autoencoder.W_e
+    assert abs(W_e[:, :12]).max() == 0 and abs(W_e[:, 15:]).max() == 0  # reads x, y, z only
 
 
 def test_rerun_resumes_without_retraining(run):
@@ -71,3 +78,6 @@ def test_report_builds_from_the_run(run):
     for section in ("Table 2", "aSLIP", "trade-off", "equations", "Data", "ommand"):
         assert section.lower() in text.lower(), section
     assert md.is_file()
+    md_text = md.read_text()
+    assert "with the paper's defaults" in md_text and md_text.count("reconstruction floor RMSE") == 3
+    assert "go1_sim experiment's model, whose encoder reads x, y, z" in md_text

@@ -333,6 +333,19 @@ def tradeoff_section(run: Run, fig_dir: Path) -> Section:
                                  f"latent 1..{l}); source: {source}"))
         except Exception as e:  # noqa: BLE001
             sec.add(Para(f"encoder heatmap l = {l} unavailable ({e}).", note=True))
+    exp = run.experiments.get("go1_sim")
+    comps = (exp.summary.get("config") or {}).get("encoder_components") if exp else None
+    if comps and exp.model_path is not None:
+        try:
+            from symrom.model.persistence import load_model
+
+            W = load_model(exp.model_path).autoencoder.W_e
+            path = figures.encoder_heatmap(W, fig_dir / "encoder_go1_sim.png",
+                                           title=rf"$W_e^T$, go1_sim model, l = {W.shape[0]}")
+            sec.add(Figure(path, "Heatmap of W_e^T of the go1_sim experiment's model, whose encoder reads "
+                                 + ", ".join(comps) + " (the heatmaps above are the paper's default encoder)"))
+        except Exception as e:  # noqa: BLE001
+            sec.add(Para(f"go1_sim encoder heatmap unavailable ({e}).", note=True))
     sec.add("Accuracy vs complexity")
     sweep = run.sweep
     if not sweep:
