@@ -20,9 +20,10 @@ Go1, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
 
 The SIM experiments use an encoder that reads the floating-base pose, the
 latent-acceleration term of the SINDy loss alone and a small standardised ridge
-(``ExperimentSpec``); the paper's defaults (encoder over all 18 components,
-decoded-acceleration term at weight 1, no ridge) are trained and evaluated beside them under ``paper_defaults``, so
-the effect of that choice is measured in every run (README, "Results").
+(``ExperimentSpec``). The paper's defaults (encoder over all 18 components,
+decoded-acceleration term at weight 1, no ridge) are trained and evaluated
+beside them under ``paper_defaults``, so the effect of that choice is measured
+in every run (README, "Reproducing the paper").
 """
 
 from __future__ import annotations

@@ -23,11 +23,12 @@
     (see ``regression``).
 ``adam`` is the paper's gradient training (``adam.py``, needs torch).
 
-Two options generalise the paper's losses (defaults reproduce them):
+Three options generalise the paper's losses (defaults reproduce them):
 ``encoder_components`` lets the encoder read only the named configuration
 components (step (a) then minimises their reconstruction, the decoder still
-maps to all 18), and ``decoded_weight`` scales the decoded-acceleration term
-||ddq - W_d Theta Xi||^2 of step (c).
+maps to all 18), ``decoded_weight`` scales the decoded-acceleration term
+||ddq - W_d Theta Xi||^2 of step (c), and ``alpha`` adds a ridge on the
+standardised library features to step (c).
 """
 
 from __future__ import annotations

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from symrom.data.dataset import Dataset
+from symrom.model.hybrid import HybridModel
 
 EXPERIMENTS: tuple[str, ...] = ("go1_sim", "a1_sim", "go1_proxy")
 
@@ -40,6 +41,16 @@ class Run:
     sweep: dict | None
     notes: list[str] = field(default_factory=list)
     _datasets: dict = field(default_factory=dict)
+    _models: dict = field(default_factory=dict)
+
+    def model(self, path: Path) -> HybridModel:
+        """The model file at ``path``, loaded once (validated)."""
+        from symrom.model.persistence import load_model
+
+        key = str(Path(path).resolve())
+        if key not in self._models:
+            self._models[key] = load_model(path)
+        return self._models[key]
 
     def dataset(self, path: Path) -> Dataset:
         """The dataset at ``path``, read once (validated)."""

@@ -39,6 +39,11 @@ def diverged_text(metrics: dict) -> str:
                      for k, h in metrics.get("horizons", {}).items())
 
 
+def any_diverged(metrics: dict) -> bool:
+    """Whether any horizon of a metrics dict lost a jump to divergence."""
+    return any(h.get("diverged_jumps", 0) for h in metrics.get("horizons", {}).values())
+
+
 def _exp_title(name: str) -> str:
     return f"{name} — paper row: {PAPER_LABELS.get(name, name)}"
 
@@ -106,7 +111,7 @@ def table2_section(run: Run) -> Section:
                          note=True))
             continue
         floor = _floor(run, exp)
-        if floor is not None and name in ("go1_sim", "a1_sim", "go1_proxy"):
+        if floor is not None:
             rows.append(["any", "reconstruction floor RMSE"] + [fmt(floor[c]) for c in TABLE2_COMPONENTS])
         split, n = exp.metrics.get("split", "test"), exp.metrics.get("n_jumps", "?")
         cfg = exp.summary.get("config")
@@ -118,7 +123,7 @@ def table2_section(run: Run) -> Section:
                          + f"; standardised ridge alpha {cfg.get('alpha', 0.0):g}."))
         sec.add(Table(header, rows, caption=f"{name}, {split} jumps: {n}"))
         sec.add(Para(f"Diverged test jumps — {diverged_text(exp.metrics)}.",
-                     note=any(h.get("diverged_jumps", 0) for h in exp.metrics.get("horizons", {}).values())))
+                     note=any_diverged(exp.metrics)))
         if wins:
             sec.add(Para("Ours ≤ paper RMSE in " + ", ".join(
                 f"{w} of {len(TABLE2_COMPONENTS)} components ({horizon_label(k)})" for k, w in wins.items()) + "."))
@@ -137,7 +142,7 @@ def table2_section(run: Run) -> Section:
                           caption=f"{name} with the paper's defaults (encoder over all 18 components, "
                                   f"decoded-acceleration weight 1, no ridge)"))
             sec.add(Para(f"Paper defaults, diverged test jumps — {diverged_text(pd['metrics'])}.",
-                         note=any(h.get("diverged_jumps", 0) for h in pd["metrics"]["horizons"].values())))
+                         note=any_diverged(pd["metrics"])))
         before = exp.summary.get("before_finetune")
         if isinstance(before, dict) and before.get("horizons"):
             brows, _ = table2_rows(name, before)
@@ -149,12 +154,11 @@ def table2_section(run: Run) -> Section:
 def _floor(run: Run, exp: Experiment) -> dict[str, float] | None:
     """The experiment's reconstruction floor on its evaluation split, if model and data load."""
     from symrom.evaluate.metrics import reconstruction_floor
-    from symrom.model.persistence import load_model
 
     if exp.model_path is None or exp.data_path is None:
         return None
     try:
-        return reconstruction_floor(load_model(exp.model_path), run.dataset(exp.data_path),
+        return reconstruction_floor(run.model(exp.model_path), run.dataset(exp.data_path),
                                     exp.metrics.get("split", "test"))
     except Exception:  # noqa: BLE001 - a diagnostic row; the table stands without it
         return None
@@ -171,12 +175,11 @@ class JumpCache:
     def get(self, exp: Experiment):
         """(dataset, jump index, {"full": Rollout, "0.1": Rollout}, model) of ``exp``."""
         if exp.name not in self._cache:
-            from symrom.model.persistence import load_model
             from symrom.rollout.integrate import RolloutOptions, rollout
 
             if exp.model_path is None or exp.data_path is None:
                 raise FileNotFoundError("model.json or the dataset file is missing")
-            model = load_model(exp.model_path)
+            model = self.run.model(exp.model_path)
             ds = self.run.dataset(exp.data_path)
             split = (exp.metrics or {}).get("split", "test")
             jumps = ds.jumps_in(split)
@@ -294,9 +297,7 @@ def encoder_weights(run: Run, l: int) -> tuple[np.ndarray, str] | None:
     if exp is None:
         return None
     if exp.model_path is not None:
-        from symrom.model.persistence import load_model
-
-        m = load_model(exp.model_path)
+        m = run.model(exp.model_path)
         if m.latent_dim == l:
             return m.autoencoder.W_e, "go1_sim/model.json"
     if exp.data_path is None:
@@ -337,9 +338,7 @@ def tradeoff_section(run: Run, fig_dir: Path) -> Section:
     comps = (exp.summary.get("config") or {}).get("encoder_components") if exp else None
     if comps and exp.model_path is not None:
         try:
-            from symrom.model.persistence import load_model
-
-            W = load_model(exp.model_path).autoencoder.W_e
+            W = run.model(exp.model_path).autoencoder.W_e
             path = figures.encoder_heatmap(W, fig_dir / "encoder_go1_sim.png",
                                            title=rf"$W_e^T$, go1_sim model, l = {W.shape[0]}")
             sec.add(Figure(path, "Heatmap of W_e^T of the go1_sim experiment's model, whose encoder reads "
@@ -366,15 +365,13 @@ def tradeoff_section(run: Run, fig_dir: Path) -> Section:
 
 
 # --------------------------------------------------------------------------- equations, solvers
-def _equations(exp: Experiment) -> dict[str, list[str]] | None:
+def _equations(run: Run, exp: Experiment) -> dict[str, list[str]] | None:
     eqs = exp.summary.get("equations")
     if eqs:
         return {k: [str(e) for e in v] for k, v in eqs.items()}
     if exp.model_path is None:
         return None
-    from symrom.model.persistence import load_model
-
-    return {k: [str(e) for e in v] for k, v in load_model(exp.model_path).equations(3).items()}
+    return {k: [str(e) for e in v] for k, v in run.model(exp.model_path).equations(3).items()}
 
 
 def equations_section(run: Run) -> Section:
@@ -383,7 +380,7 @@ def equations_section(run: Run) -> Section:
                  "(xi: latent position, dxi: latent velocity, nu: latent input)."))
     for name, exp in _present_experiments(run, sec):
         try:
-            eqs = _equations(exp)
+            eqs = _equations(run, exp)
         except Exception as e:  # noqa: BLE001
             eqs = None
             sec.add(Para(f"{name}: model file unreadable ({e}).", note=True))
