@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.data.synthetic import make_planted_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.model.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
+from symrom.testing import make_planted_dataset
 
 
 def timed(fn, runs: int) -> tuple[float, list[float], object]:

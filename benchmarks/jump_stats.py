@@ -14,7 +14,7 @@ import argparse
 import numpy as np
 
 from symrom.data import read_dataset
-from symrom.data.names import BASE_POS
+from symrom.names import BASE_POS
 
 
 def longest_run(mask: np.ndarray) -> int:

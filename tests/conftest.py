@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symrom.data.synthetic import make_planted_dataset
+from symrom.testing import make_planted_dataset
 
 
 @pytest.fixture(scope="session")

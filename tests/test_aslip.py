@@ -14,10 +14,10 @@ from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlipParams, ASlipRol
                                     rollout_errors, stance_pivots)
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.data.names import BASE_POS
-from symrom.data.synthetic import make_slip_dataset
 from symrom.evaluate.tables import table2
+from symrom.names import BASE_POS
 from symrom.robots import total_mass
+from symrom.testing import make_slip_dataset
 from conftest import one_line_error
 
 runner = CliRunner()

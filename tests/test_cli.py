@@ -6,7 +6,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.data.names import Q_NAMES
+from symrom.names import Q_NAMES
 
 runner = CliRunner()
 

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.data.synthetic import make_planted_dataset
+from symrom.testing import make_planted_dataset
 from conftest import one_line_error
 
 N_PER_JUMP = 80

@@ -5,11 +5,11 @@ import copy
 import numpy as np
 import pytest
 
-from symrom.data.synthetic import PLANTED_2D, make_planted_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
+from symrom.testing import PLANTED_2D, make_planted_dataset
 
 
 @pytest.fixture(scope="module")

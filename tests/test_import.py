@@ -13,7 +13,7 @@ from symrom.cli import app
 from symrom.data.importers import LogError, import_logs, parse_split, read_log, write_plain_csv
 from symrom.data.io import read_dataset
 from symrom.data.preprocess import com_wrench, differentiate
-from symrom.data.synthetic import make_planted_dataset
+from symrom.testing import make_planted_dataset
 
 N_PER_JUMP = 60
 DT = 0.002

@@ -14,19 +14,19 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.data.names import BASE_POS, TABLE2_COMPONENTS
-from symrom.data.synthetic import make_planted_dataset
 from symrom.evaluate.metrics import component_stats, evaluate
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.tables import fmt_value
 from symrom.model.persistence import save_model
 from symrom.model.training import TrainConfig, reconstruction_error, train
+from symrom.names import BASE_POS, TABLE2_COMPONENTS
 from symrom.report import figures
 from symrom.report.document import render_html
 from symrom.report.html import build_report
 from symrom.report.run import load_run
 from symrom.report.sections import table2_section
 from symrom.rollout.integrate import RolloutOptions
+from symrom.testing import make_planted_dataset
 
 SECTION_IDS = ("table2", "predictions", "aslip", "tradeoff", "equations", "solvers", "data", "run")
 SECTION_TITLES = ("Table 2", "aSLIP", "accuracy vs complexity", "Learned equations",

@@ -9,7 +9,7 @@ import json
 import numpy as np
 import pytest
 
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS
+from symrom.names import BASE_POS, BASE_RPY, JOINTS
 from symrom.robots import get_robot
 from symrom.sim import pronk, proxy
 from symrom.sim.world import World, WorldConfig

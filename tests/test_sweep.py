@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.data.synthetic import make_planted_dataset
+from symrom.testing import make_planted_dataset
 from symrom.experiments.sweep import (SweepConfig, bootstrap_jumps, l_mod, parse_latent_dims, run_sweep,
                                       summarise)
 

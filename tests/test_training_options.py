@@ -6,8 +6,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from symrom.data.names import Q_NAMES
 from symrom.model.training import TrainConfig, train
+from symrom.names import Q_NAMES
 
 
 def test_encoder_reads_only_the_named_components(planted_axis):

@@ -10,7 +10,7 @@ import pytest
 
 from symrom.data.dataset import DatasetError, jump_bounds
 from symrom.data.io import read_dataset, write_dataset
-from symrom.data.synthetic import make_planted_dataset
+from symrom.testing import make_planted_dataset
 
 N_PER_JUMP = 40
 

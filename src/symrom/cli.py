@@ -91,8 +91,9 @@ def import_cmd(
     force: Force = False,
 ) -> None:
     """Import CSV robot logs (Go1 hardware layout or plain layout) into a dataset file."""
+    from symrom.atomic import check_output_file
     from symrom.data.importers import import_logs
-    from symrom.data.io import check_output_file, write_dataset
+    from symrom.data.io import write_dataset
 
     check_output_file(out, force)
     resolved = {p.resolve() for p in logs}
@@ -129,7 +130,8 @@ def train_cmd(
     force: Force = False,
 ) -> None:
     """Train a hybrid symbolic model on the dataset's train split."""
-    from symrom.data.io import atomic_dir, check_output_file, read_dataset
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
     from symrom.model.persistence import save_model
     from symrom.model.training import AdamConfig, TrainConfig, train
 
@@ -167,7 +169,8 @@ def evaluate_cmd(
     force: Force = False,
 ) -> None:
     """Roll the model out on a split (full horizon and periodic resets); write metrics, table, plots."""
-    from symrom.data.io import atomic_dir, check_output_file, read_dataset
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
     from symrom.evaluate.metrics import evaluate
     from symrom.evaluate.outputs import write_evaluation
     from symrom.evaluate.tables import table2
@@ -267,7 +270,7 @@ def demo_cmd(
     """Simulate a dozen Go1 jumps, train, evaluate, fit the aSLIP and write the report."""
     import shlex
 
-    from symrom.data.io import atomic_dir, check_output_file
+    from symrom.atomic import atomic_dir, check_output_file
     from symrom.evaluate.tables import table2
     from symrom.experiments.demo import demo_config
     from symrom.experiments.reproduce import reproduce
@@ -313,8 +316,9 @@ def aslip_cmd(
     """Fit (train split) or fix the aSLIP baseline and evaluate its CoM prediction on a split."""
     from dataclasses import asdict
 
+    from symrom.atomic import atomic_dir, check_output_file
     from symrom.baselines.aslip import PAPER_PARAMS, ASlipParams, evaluate_aslip, fit_aslip, robot_mass
-    from symrom.data.io import atomic_dir, check_output_file, read_dataset
+    from symrom.data.io import read_dataset
     from symrom.evaluate.tables import table2
 
     check_output_file(out, force)
@@ -447,7 +451,8 @@ def sweep_cmd(
     force: Force = False,
 ) -> None:
     """Accuracy vs complexity over latent dimensions and seeds; resumes from OUT/cells."""
-    from symrom.data.io import check_output_file, read_dataset
+    from symrom.atomic import check_output_file
+    from symrom.data.io import read_dataset
     from symrom.experiments.sweep import SweepConfig, parse_latent_dims, run_sweep
 
     dims = parse_latent_dims(latent_dims)

@@ -28,8 +28,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from symrom.data.dataset import Dataset
-from symrom.data.names import BASE_POS, WRENCH
 from symrom.evaluate.metrics import component_stats, horizon_key, prediction_errors
+from symrom.names import BASE_POS, WRENCH
 from symrom.rollout.integrate import RolloutOptions, integrate_lsoda, integrate_rk4, pad_edge, reset_mask
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame

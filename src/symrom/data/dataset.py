@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from symrom.data.names import DEFAULT_DT, N_JOINTS, N_LEGS, N_Q, SPLITS
+from symrom.names import DEFAULT_DT, N_JOINTS, N_LEGS, N_Q, SPLITS
 
 SCHEMA_VERSION = 1
 

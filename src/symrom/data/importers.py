@@ -47,8 +47,8 @@ from pathlib import Path
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.data.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.data.preprocess import DIFF_METHODS, assemble, differentiate
+from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.robots import get_robot
 
 
@@ -427,7 +427,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
 
 def write_plain_csv(ds: Dataset, path: str | os.PathLike, accelerations: bool = True) -> None:
     """Write ``ds``'s arrays to ``path`` in the plain layout (exact float round trip)."""
-    from symrom.data.io import atomic_path
+    from symrom.atomic import atomic_path
 
     cols = [ds.jump[:, None], ds.t[:, None], ds.q, ds.dq]
     names = [*PLAIN.jump, *PLAIN.t, *PLAIN.q, *PLAIN.dq]

@@ -15,8 +15,8 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from symrom.data.dataset import Dataset, jump_bounds, validate
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
 from symrom.data.phases import label_phases
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
 from symrom.robots import leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 

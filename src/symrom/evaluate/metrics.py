@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.data.names import Q_NAMES
 from symrom.model.hybrid import HybridModel
+from symrom.names import Q_NAMES
 from symrom.rollout.integrate import Rollout, RolloutOptions, rollout
 
 

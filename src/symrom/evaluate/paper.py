@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from symrom.data.names import TABLE2_COMPONENTS
+from symrom.names import TABLE2_COMPONENTS
 
 _COLUMNS = TABLE2_COMPONENTS  # fl_hx fl_hy fl_kn rr_hx rr_hy rr_kn x y z roll pitch yaw
 

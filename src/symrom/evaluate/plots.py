@@ -6,9 +6,9 @@ import os
 
 import numpy as np
 
+from symrom.atomic import write_with
 from symrom.data.dataset import Dataset
-from symrom.data.io import write_with
-from symrom.data.names import Q_NAMES, Q_UNITS
+from symrom.names import Q_NAMES, Q_UNITS
 from symrom.rollout.integrate import Rollout
 
 JOINT_PANELS = ("fl_hx", "fl_hy", "fl_kn", "rr_hx", "rr_hy", "rr_kn")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from symrom.data.names import Q_UNITS, TABLE2_COMPONENTS
+from symrom.names import Q_UNITS, TABLE2_COMPONENTS
 
 
 def fmt_value(x: float) -> str:

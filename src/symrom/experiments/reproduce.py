@@ -38,8 +38,9 @@ from pathlib import Path
 import numpy as np
 
 from symrom import __version__
+from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
-from symrom.data.io import read_dataset, write_text_atomic
+from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.outputs import write_evaluation
 from symrom.model.finetune import FineTuneConfig, finetune

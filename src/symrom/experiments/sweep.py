@@ -44,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
+from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
-from symrom.data.io import write_text_atomic
-from symrom.data.names import N_Q, TABLE2_COMPONENTS
 from symrom.model.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
+from symrom.names import N_Q, TABLE2_COMPONENTS
 
 CELL_VERSION = 1
 DEFAULT_LAMBDA = 0.001

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symrom.data.names import N_Q
+from symrom.names import N_Q
 
 
 @dataclass

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.data.io import write_text_atomic
+from symrom.atomic import write_text_atomic
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import CandidateLibrary

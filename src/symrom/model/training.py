@@ -40,11 +40,11 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.data.names import Q_NAMES
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import CandidateLibrary
 from symrom.model.regression import STLSQConfig, stlsq
+from symrom.names import Q_NAMES
 
 SOLVERS = ("exact", "adam")
 

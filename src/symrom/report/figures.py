@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
+from symrom.atomic import write_with
 from symrom.data.dataset import Dataset
-from symrom.data.io import write_with
-from symrom.data.names import Q_NAMES
 from symrom.evaluate.plots import shade_phases, plot_jump
+from symrom.names import Q_NAMES
 from symrom.rollout.integrate import Rollout
 
 DPI = 110

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from symrom import __version__
-from symrom.data.io import OutputExistsError, atomic_dir, write_text_atomic
+from symrom.atomic import OutputExistsError, atomic_dir, write_text_atomic
 from symrom.report import sections as S
 from symrom.report.document import Para, render_html, render_markdown
 from symrom.report.run import load_run

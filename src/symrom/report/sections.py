@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.data.names import BASE_POS, Q_UNITS, TABLE2_COMPONENTS
+from symrom.names import BASE_POS, Q_UNITS, TABLE2_COMPONENTS
 from symrom.evaluate.paper import (PAPER_ASLIP, PAPER_BEST_DIMS, PAPER_LABELS, PAPER_LAMBDA,
                                    implied_rmse, paper_row)
 from symrom.evaluate.tables import fmt_value as fmt

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.data.names import N_JOINTS, N_LEGS
+from symrom.names import N_JOINTS, N_LEGS
 
 
 def _axis_angle(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from symrom.data.names import JOINTS, N_LEGS, leg_slice
+from symrom.names import JOINTS, N_LEGS, leg_slice
 from symrom.robots import RobotSpec, leg_kinematics
 from symrom.sim.world import RobotState
 

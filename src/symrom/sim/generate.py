@@ -33,8 +33,8 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.data.io import write_dataset
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
 from symrom.data.preprocess import assemble
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
 from symrom.robots import get_robot
 from symrom.sim.world import RobotState, World, WorldConfig
 

@@ -52,7 +52,7 @@ from functools import cache
 
 import numpy as np
 
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import RobotSpec, leg_kinematics
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
 from symrom.sim.proxy import ProxyConfig, sample_proxy

@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS
 from symrom.robots.kinematics import rpy_to_matrix
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pybullet as p
 
 from symrom.data.dataset import Dataset
-from symrom.data.names import BASE_POS, N_Q
+from symrom.names import BASE_POS, N_Q
 from symrom.sim.world import World
 
 

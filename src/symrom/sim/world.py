@@ -6,7 +6,7 @@ robot's base pose is reported for the URDF base link frame (the frame the leg
 kinematics use), not PyBullet's inertial frame. Joint order, foot links and
 torque limits come from ``symrom.robots``.
 
-Coordinates (see ``symrom.data.names``): ``q`` (18,) = 12 joint angles (rad,
+Coordinates (see ``symrom.names``): ``q`` (18,) = 12 joint angles (rad,
 FR FL RR RL x hx hy kn), base x y z (m, world), roll pitch yaw (rad, ZYX);
 ``dq`` (18,) = joint rates (rad/s), base linear velocity (m/s, world), Euler
 angle rates (rad/s).
@@ -20,7 +20,7 @@ import numpy as np
 import pybullet as p
 import pybullet_data
 
-from symrom.data.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import RobotSpec, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
 

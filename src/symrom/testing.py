@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from symrom.data.dataset import Dataset, validate
-from symrom.data.names import N_JOINTS, N_Q
 from symrom.model.library import CandidateLibrary
+from symrom.names import N_JOINTS, N_Q
 
 # Planted equations for l = 2, p = 1, by feature name; every phase damped so
 # that long rollouts stay bounded.
