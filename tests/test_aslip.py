@@ -9,13 +9,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlipParams, ASlipRolloutOptions,
-                                    aslip_acceleration, evaluate_aslip, fit_aslip, rollout_aslip,
-                                    rollout_errors, stance_pivots)
+from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlip, ASlipParams, aslip_acceleration,
+                                    fit_aslip, fit_aslip_rollout, stance_pivots)
 from symrom.cli import app
 from symrom.data.io import write_dataset
+from symrom.evaluate.metrics import evaluate, rollout_errors
 from symrom.evaluate.tables import table2
 from symrom.names import BASE_POS
+from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.robots import total_mass
 from symrom.testing import make_slip_dataset
 from conftest import one_line_error
@@ -91,7 +92,7 @@ def test_acceleration_form():
 @pytest.mark.parametrize("method", ["lsoda", "rk4"])
 def test_true_params_reproduce_the_trajectory(slip, method):
     ds, truth = slip
-    ro = rollout_aslip(truth, ds, options=ASlipRolloutOptions(method=method))
+    ro = rollout(ASlip(truth), ds, options=RolloutOptions(method=method))
     assert not ro.diverged.any()
     err = rollout_errors(ds, ro)
     assert err.shape == (ds.n_samples, 3)
@@ -103,31 +104,32 @@ def test_reset_restarts_from_the_truth(slip, method):
     ds, truth = slip
     wrong = replace(truth, k_s=0.5 * truth.k_s)
     j = int(ds.jumps_in("test")[0])
-    ro = rollout_aslip(wrong, ds, [j], ASlipRolloutOptions(method=method, reset=0.1))
+    ro = rollout(ASlip(wrong), ds, [j], RolloutOptions(method=method, reset=0.1))
     b_true = ds.q[ds.jump == j][:, BASE_POS]
     every = int(round(0.1 / ds.dt))
-    np.testing.assert_allclose(ro.b_pred[0][::every], b_true[::every], atol=1e-12)
-    assert not np.allclose(ro.b_pred[0][1:every], b_true[1:every], atol=1e-6)
+    np.testing.assert_allclose(ro.q_pred[0][::every], b_true[::every], atol=1e-12)
+    assert not np.allclose(ro.q_pred[0][1:every], b_true[1:every], atol=1e-6)
 
 
 @pytest.mark.parametrize("method", ["lsoda", "rk4"])
 def test_absurd_model_is_flagged(slip, method):
     ds, truth = slip
     crazy = replace(truth, k_s=1e9, l_0=100.0)
-    m = evaluate_aslip(crazy, ds, "test", resets=(None,), method=method,
-                       options=ASlipRolloutOptions(max_steps=200))
+    m, _ = evaluate(ASlip(crazy), ds, "test", resets=(None,),
+                    options=RolloutOptions(method=method, max_steps=200))
     full = m["horizons"]["full"]
     assert full["diverged_jumps"] == m["n_jumps"] and full["components"] == {}
 
 
 def test_metrics_layout(slip):
     ds, truth = slip
-    m = evaluate_aslip(truth, ds, "test", resets=(None, 0.1), method="rk4", data_name="d.h5")
+    m, _ = evaluate(ASlip(truth), ds, "test", resets=(None, 0.1), options=RolloutOptions("rk4"),
+                    data_name="d.h5")
     assert set(m) == {"model", "data", "split", "n_jumps", "integrator", "horizons"}
     assert m["split"] == "test" and m["n_jumps"] == len(ds.jumps_in("test")) and m["data"] == "d.h5"
     assert list(m["horizons"]) == ["full", "0.1"]
     for h in m["horizons"].values():
-        assert h["diverged_jumps"] == 0
+        assert h["diverged_jumps"] == 0 and h["diverged"] == []
         assert list(h["components"]) == ["x", "y", "z"]
         for c in h["components"].values():
             assert set(c) == {"mean", "std", "mae", "rmse"}

@@ -4,26 +4,26 @@ import numpy as np
 import pytest
 import sympy
 
-from symrom.model.library import CandidateLibrary
+from symrom.model.library import Library
 
 
 @pytest.mark.parametrize("l,p,expected", [(2, 1, 15), (4, 1, 29)])
 def test_counts_match_paper_table1(l, p, expected):
-    lib = CandidateLibrary(l, p)
+    lib = Library.standard(l, p)
     assert lib.n_features == expected
     assert len(lib.feature_names) == expected
 
 
 @pytest.mark.parametrize("l,p", [(1, 0), (1, 3), (3, 2), (6, 1)])
 def test_counts_follow_formula(l, p):
-    lib = CandidateLibrary(l, p)
+    lib = Library.standard(l, p)
     formula = sum(comb(2 * l + k - 1, k) for k in range(p + 1)) + 2 * (2 * l) + l
     assert lib.n_features == formula == len(lib.feature_names)
     assert lib.transform(np.zeros((3, l)), np.zeros((3, l)), np.zeros((3, l))).shape == (3, formula)
 
 
 def test_names_and_columns_agree():
-    lib = CandidateLibrary(2, 2)
+    lib = Library.standard(2, 2)
     rng = np.random.default_rng(0)
     xi, dxi, nu = rng.normal(size=(5, 2)), rng.normal(size=(5, 2)), rng.normal(size=(5, 2))
     theta = lib.transform(xi, dxi, nu)
@@ -39,11 +39,11 @@ def test_names_and_columns_agree():
 
 
 def test_round_trip_and_bad_spec():
-    lib = CandidateLibrary(3, 2, trig=False)
-    assert CandidateLibrary.from_dict(lib.to_dict()) == lib
+    lib = Library.standard(3, 2, trig=False)
+    assert Library.from_dict(lib.to_dict()) == lib
     d = lib.to_dict()
     d["feature_names"] = d["feature_names"][::-1]
     with pytest.raises(ValueError):
-        CandidateLibrary.from_dict(d)
+        Library.from_dict(d)
     with pytest.raises(ValueError):
-        CandidateLibrary(0, 1)
+        Library.standard(0, 1)

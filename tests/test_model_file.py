@@ -14,7 +14,7 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     text = path.read_text()
-    assert "pickle" not in text and json.loads(text)["format_version"] == 1
+    assert "pickle" not in text and json.loads(text)["format_version"] == 2
     back = load_model(path)
     for a, b in [(model.autoencoder.W_e, back.autoencoder.W_e), (model.autoencoder.W_d, back.autoencoder.W_d),
                  (model.Xi, back.Xi), (model.mask, back.mask)]:
@@ -24,13 +24,54 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     j = ds.jumps_in("test")[:1]
     np.testing.assert_array_equal(rollout(model, ds, j).q_pred[0], rollout(back, ds, j).q_pred[0])
     assert back.equations_text() == model.equations_text()
+    for name in model.phase_names:
+        a, b = model.phase_info[name], back.phase_info[name]
+        assert (a.trained, a.n_rows, a.duration_s, a.report) == (b.trained, b.n_rows, b.duration_s, b.report)
+        np.testing.assert_array_equal(a.operating_point, b.operating_point)
+    stab = json.loads(text)["phases"]["contact"]["stability"]
+    assert len(stab["eigenvalues"]) == 2 * model.latent_dim
+
+
+def test_format_1_files_still_load(planted_block, tmp_path):
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    d = model_to_dict(model)
+    lib = d["library"]
+    d.update(format_version=1, library={"latent_dim": lib["latent_dim"], "poly_order": 1, "trig": True,
+                                        "inputs": True, "feature_names": lib["feature_names"]})
+    d["phases"] = {n: {k: v for k, v in ph.items() if k in ("Xi", "mask", "active_terms")}
+                   for n, ph in d["phases"].items()}
+    path = tmp_path / "v1.json"
+    path.write_text(json.dumps(d))
+    back = load_model(path)
+    np.testing.assert_array_equal(back.Xi, model.Xi)
+    assert back.library == model.library and back.phase_info == {}
+    assert back.trained_phases() == model.phase_names
+
+
+def test_custom_blocks_round_trip(planted_block, tmp_path):
+    from symrom.model.estimator import SymbolicROM
+    from symrom.model.library import Custom, Inputs, Polynomial
+
+    ds, _ = planted_block
+    rom = SymbolicROM(2, Polynomial(1) + Inputs() + Custom(("xi1*nu1", "exp(-xi2**2)"), ("xi1 nu1", "bump")))
+    rom.fit(ds)
+    rom.save(tmp_path / "m.json")
+    back = SymbolicROM.load(tmp_path / "m.json")
+    assert back.model.library == rom.model.library
+    assert back.model.library.feature_names[-2:] == ["xi1 nu1", "bump"]
+    j = ds.jumps_in("test")[:1]
+    np.testing.assert_array_equal(rom.simulate(ds, j).q_pred[0], back.simulate(ds, j).q_pred[0])
 
 
 @pytest.mark.parametrize("edit,needle", [
     (lambda d: d.update(format_version=7), "format_version"),
     (lambda d: d["encoder"].update(W_e=[[0.0] * 18]), "encoder.W_e"),
     (lambda d: d["phases"]["flight"].update(Xi=[[0.0]]), "phases.flight.Xi"),
-    (lambda d: d["library"].update(poly_order=3), "library"),
+    (lambda d: d["library"]["blocks"][0].update(order=3), "library"),
+    (lambda d: d["library"]["blocks"].append({"kind": "custom", "expressions": ["__import__('os')"]}),
+     "unknown name '__import__'"),
+    (lambda d: d["phases"]["flight"].update(operating_point=[0.0]), "phases.flight.operating_point"),
     (lambda d: d.pop("decoder"), "decoder"),
 ])
 def test_bad_files_name_the_problem(planted_block, tmp_path, edit, needle):

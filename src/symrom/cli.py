@@ -305,6 +305,7 @@ def aslip_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
     out: Annotated[Path, typer.Option("--out", help="Output directory (metrics.json, params.json, table.md).")],
     split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
+    fit: Annotated[str, typer.Option("--fit", help="residual (acceleration residual) or rollout (CoM rollout error, from the residual fit).")] = "residual",
     fixed: Annotated[bool, typer.Option("--fixed", help="Use the paper's k_s=250 N/m, l_0=0.32 m, m=12.01 kg (overridable) instead of fitting.")] = False,
     k_s: Annotated[Optional[float], typer.Option("--k-s", help="Spring constant, N/m (with --fixed).")] = None,
     l0: Annotated[Optional[float], typer.Option("--l0", help="Rest length, m (with --fixed).")] = None,
@@ -316,21 +317,17 @@ def aslip_cmd(
     """Fit (train split) or fix the aSLIP baseline and evaluate its CoM prediction on a split."""
     from dataclasses import asdict
 
-    from symrom.atomic import atomic_dir, check_output_file
-    from symrom.baselines.aslip import PAPER_PARAMS, ASlipParams, evaluate_aslip, fit_aslip, robot_mass
-    from symrom.data.io import read_dataset
-    from symrom.evaluate.tables import table2
+    from symrom.atomic import check_output_file
+    from symrom.baselines.aslip import PAPER_PARAMS, ASlip, ASlipParams, fit_aslip, fit_aslip_rollout, robot_mass
 
     check_output_file(out, force)
-    if split not in ("train", "val", "test"):
-        raise ValueError(f"--split must be train, val or test, got {split!r}")
-    if integrator not in ("lsoda", "rk4"):
-        raise ValueError(f"--integrator must be lsoda or rk4, got {integrator!r}")
+    _check_split_and_integrator(split, integrator)
+    if fit not in ("residual", "rollout"):
+        raise ValueError(f"--fit must be residual or rollout, got {fit!r}")
     if not fixed and (k_s is not None or l0 is not None):
         raise ValueError("--k-s/--l0 set a fixed model: add --fixed (without it both are fitted)")
-    ds = read_dataset(data)
-    if ds.jumps_in(split).size == 0:
-        raise ValueError(f"{data} has no {split!r} jumps")
+    ds = _read_with_split(data, split)
+    extra = {}
     if fixed:
         params = ASlipParams(k_s=PAPER_PARAMS.k_s if k_s is None else k_s,
                              l_0=PAPER_PARAMS.l_0 if l0 is None else l0,
@@ -338,24 +335,81 @@ def aslip_cmd(
         how = "fixed"
     else:
         m = robot_mass(ds.robot) if mass is None else mass
-        with console.status("fitting k_s, l_0 on the train split"):
+        with console.status(f"fitting k_s, l_0 on the train split ({fit})"):
             params = fit_aslip(ds, ds.rows_of("train"), m)
-        how = "fitted on the train split" + ("" if mass is not None else f" (mass from the {ds.robot} URDF)")
-    resets = _parse_resets(reset)
-    with progress_bar() as bar:
-        task = bar.add_task("aSLIP rollouts", total=len(resets) * ds.jumps_in(split).size)
-        tick = _horizon_ticker(bar, task)
-
-        metrics = evaluate_aslip(params, ds, split, resets, integrator, data_name=str(data), progress=tick)
-    table = table2(metrics, components=("x", "y", "z"), title=f"aSLIP, {ds.robot} {ds.motion} ({split})")
-    with atomic_dir(out, force) as tmp:
-        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-        (tmp / "params.json").write_text(json.dumps(
-            {**asdict(params), "units": {"k_s": "N/m", "l_0": "m", "m": "kg"}, "source": how}, indent=1) + "\n")
-        (tmp / "table.md").write_text(table)
-    typer.echo(table)
+            if fit == "rollout":
+                params, record = fit_aslip_rollout(ds, m=m, start=params)
+                extra["stages"] = record.stages
+        how = (f"fitted on the train split ({fit} error)"
+               + ("" if mass is not None else f" (mass from the {ds.robot} URDF)"))
+    params_text = json.dumps({**asdict(params), "units": {"k_s": "N/m", "l_0": "m", "m": "kg"},
+                              "source": how, **extra}, indent=1) + "\n"
+    _evaluate_baseline(ASlip(params), ds, data, split, reset, integrator, out, force, "aSLIP",
+                       {"params.json": params_text})
     out_console.print(f"aSLIP ({how}): k_s {params.k_s:.4g} N/m, l_0 {params.l_0:.4g} m, m {params.m:.4g} kg; "
                       f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
+
+
+@app.command("newton")
+@guarded
+def newton_cmd(
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (metrics.json, table.md).")],
+    split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
+    mass: Annotated[Optional[float], typer.Option("--mass", help="Body mass, kg (default: the robot's total).")] = None,
+    reset: Annotated[Optional[list[float]], typer.Option("--reset", help="Reset period(s) in s (repeatable).")] = None,
+    integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch).")] = "lsoda",
+    force: Force = False,
+) -> None:
+    """Evaluate Newton's law on the measured ground force, b'' = g + F/m, on a split."""
+    from symrom.atomic import check_output_file
+    from symrom.baselines.newton import Newton
+
+    check_output_file(out, force)
+    _check_split_and_integrator(split, integrator)
+    ds = _read_with_split(data, split)
+    model = Newton.of(ds, mass)
+    _evaluate_baseline(model, ds, data, split, reset, integrator, out, force, "Newton", {})
+    out_console.print(f"Newton (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}", highlight=False,
+                      soft_wrap=True)
+
+
+def _check_split_and_integrator(split: str, integrator: str) -> None:
+    if split not in ("train", "val", "test"):
+        raise ValueError(f"--split must be train, val or test, got {split!r}")
+    if integrator not in ("lsoda", "rk4"):
+        raise ValueError(f"--integrator must be lsoda or rk4, got {integrator!r}")
+
+
+def _read_with_split(data: Path, split: str):
+    from symrom.data.io import read_dataset
+
+    ds = read_dataset(data)
+    if ds.jumps_in(split).size == 0:
+        raise ValueError(f"{data} has no {split!r} jumps")
+    return ds
+
+
+def _evaluate_baseline(model, ds, data: Path, split: str, reset, integrator: str, out: Path, force: bool,
+                       title: str, files: dict[str, str]) -> None:
+    """Roll a CoM baseline out on ``split``, print its table and write metrics, table and ``files``."""
+    from symrom.atomic import atomic_dir
+    from symrom.evaluate.metrics import evaluate
+    from symrom.evaluate.tables import table2
+    from symrom.rollout.integrate import RolloutOptions
+
+    resets = _parse_resets(reset)
+    with progress_bar() as bar:
+        task = bar.add_task(f"{title} rollouts", total=len(resets) * ds.jumps_in(split).size)
+        metrics, _ = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
+                              model_name=title, data_name=str(data), progress=_horizon_ticker(bar, task))
+    table = table2(metrics, components=tuple(model.components), title=f"{title}, {ds.robot} {ds.motion} ({split})")
+    with atomic_dir(out, force) as tmp:
+        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+        (tmp / "table.md").write_text(table)
+        for name, text in files.items():
+            (tmp / name).write_text(text)
+    typer.echo(table)
 
 
 @app.command("report")

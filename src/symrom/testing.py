@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from symrom.data.dataset import Dataset, validate
-from symrom.model.library import CandidateLibrary
+from symrom.model.library import Library
 from symrom.names import N_JOINTS, N_Q
 
 # Planted equations for l = 2, p = 1, by feature name; every phase damped so
@@ -44,14 +44,14 @@ PLANTED_2D: dict[str, list[dict[str, float]]] = {
 class PlantedSystem:
     """The truth behind a planted dataset: library, Xi per phase (P, p, l), embedding."""
 
-    library: CandidateLibrary
+    library: Library
     phase_names: list[str]
     Xi: np.ndarray
     E: np.ndarray  # (18, l) orthonormal columns
     c: np.ndarray  # (18,)
 
 
-def planted_xi(library: CandidateLibrary, equations: dict[str, list[dict[str, float]]]) -> np.ndarray:
+def planted_xi(library: Library, equations: dict[str, list[dict[str, float]]]) -> np.ndarray:
     """(P, p, l) coefficient matrices from ``{phase: [{feature: coef}, ...]}``."""
     names = library.feature_names
     Xi = np.zeros((len(equations), library.n_features, library.latent_dim))
@@ -106,7 +106,7 @@ def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str
     """
     rng = np.random.default_rng(seed)
     equations = equations or PLANTED_2D
-    lib = CandidateLibrary(2, 1)
+    lib = Library.standard(2, 1)
     phase_names = list(equations)
     Xi = planted_xi(lib, equations)
     l = lib.latent_dim

@@ -1,9 +1,12 @@
-"""Error metrics of rollouts, in the layout of ``metrics.json`` (DESIGN.md).
+"""Error metrics of rollouts, in the layout of ``metrics.json`` (``docs/design.md``).
 
-Per configuration component: ``mean`` and ``std`` of the signed error
-predicted - true over all samples of the split (the paper's Table 2), ``mae``
-and ``rmse``. Diverged jumps are excluded from the statistics and counted in
-``diverged_jumps``; with every jump diverged the components are empty.
+One implementation for every model that can be rolled out (``Rollable``: the
+learned model, the aSLIP, Newton): per configuration component it predicts,
+``mean`` and ``std`` of the signed error predicted - true over all samples of
+the split (the paper's Table 2), ``mae`` and ``rmse``. Diverged jumps are
+excluded from the statistics, counted in ``diverged_jumps`` and listed in
+``diverged`` with the time (s) at which each left its bound; with every jump
+diverged the components are empty.
 """
 
 from __future__ import annotations
@@ -14,9 +17,9 @@ from dataclasses import replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.model.hybrid import HybridModel
 from symrom.names import Q_NAMES
 from symrom.rollout.integrate import Rollout, RolloutOptions, rollout
+from symrom.rollout.system import Rollable
 
 
 def horizon_key(reset: float | None) -> str:
@@ -34,7 +37,7 @@ def component_stats(err: np.ndarray, names: tuple[str, ...] | list[str] = Q_NAME
 
 
 def prediction_errors(ds: Dataset, jumps: np.ndarray, predictions: list[np.ndarray],
-                      diverged: np.ndarray, columns: slice = slice(None)) -> np.ndarray:
+                      diverged: np.ndarray, columns: slice | list[int] = slice(None)) -> np.ndarray:
     """Signed errors predicted - true (N, C) over the non-diverged ``jumps``.
 
     predictions: per jump (n_j, C), compared with ``ds.q[:, columns]`` of that jump.
@@ -46,11 +49,12 @@ def prediction_errors(ds: Dataset, jumps: np.ndarray, predictions: list[np.ndarr
 
 
 def rollout_errors(ds: Dataset, ro: Rollout) -> np.ndarray:
-    """Signed errors (N, 18) over the non-diverged jumps of ``ro``."""
-    return prediction_errors(ds, ro.jumps, ro.q_pred, ro.diverged)
+    """Signed errors (N, C) of ``ro.components`` over the non-diverged jumps of ``ro``."""
+    return prediction_errors(ds, ro.jumps, ro.q_pred, ro.diverged,
+                             [Q_NAMES.index(c) for c in ro.components or Q_NAMES])
 
 
-def reconstruction_floor(model: HybridModel, ds: Dataset, split: str = "test") -> dict[str, float]:
+def reconstruction_floor(model, ds: Dataset, split: str = "test") -> dict[str, float]:
     """Per component, the RMSE of decode(encode(q)) over the split's true configurations.
 
     A rollout whose latent state were exact would still make this error, so no
@@ -62,11 +66,11 @@ def reconstruction_floor(model: HybridModel, ds: Dataset, split: str = "test") -
 
 
 def horizon_metrics(ds: Dataset, ro: Rollout) -> dict:
-    return {"diverged_jumps": int(ro.diverged.sum()),
-            "components": component_stats(rollout_errors(ds, ro))}
+    return {"diverged_jumps": int(ro.diverged.sum()), "diverged": ro.divergence_times(),
+            "components": component_stats(rollout_errors(ds, ro), ro.components or Q_NAMES)}
 
 
-def evaluate(model: HybridModel, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
+def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
              options: RolloutOptions = RolloutOptions(), model_name: str = "", data_name: str = "",
              progress: Callable[[int, int], None] | None = None) -> tuple[dict, dict[str, Rollout]]:
     """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts."""

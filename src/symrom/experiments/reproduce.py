@@ -210,7 +210,8 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
 
 def run_aslip(run: Path, data: Path, say: Say) -> dict:
     """Fit the aSLIP on Go1's training split and evaluate it on the test split."""
-    from symrom.baselines.aslip import evaluate_aslip, fit_aslip
+    from symrom.baselines.aslip import ASlip, fit_aslip
+    from symrom.rollout.integrate import RolloutOptions
 
     d = run / "go1_sim" / "aslip"
     if _done(d / "metrics.json"):
@@ -218,7 +219,7 @@ def run_aslip(run: Path, data: Path, say: Say) -> dict:
     say("aSLIP: fitting k_s, l_0 on the training split")
     ds = read_dataset(data)
     params = fit_aslip(ds, ds.rows_of("train"))
-    metrics = evaluate_aslip(params, ds, "test")
+    metrics, _ = evaluate(ASlip(params), ds, "test", options=RolloutOptions("lsoda"), model_name="aslip")
     d.mkdir(parents=True, exist_ok=True)
     write_text_atomic(d / "params.json", json.dumps(asdict(params), indent=1))
     write_text_atomic(d / "metrics.json", json.dumps(metrics, indent=1))

@@ -4,11 +4,15 @@ The encoder is kept: the latent coordinates, and so the meaning of every
 learned term, stay those of the source model. On the new jumps:
 - the decoder is refit by least squares pulled towards the source decoder,
   min ||q - W_d xi - B_d||^2 + r ||[W_d, B_d] - [W_d0, B_d0]||^2;
-- each phase's Xi is refit by sequential thresholding on the SINDy loss the
-  source model was trained with (its ``decoded_weight``) pulled towards the source coefficients, + r ||Xi - Xi_0||^2, starting from the
-  source support (terms may drop out, none are added).
+- each phase's Xi is refit by the ``FineTune`` regressor: sequential
+  thresholding on the SINDy loss the source model was trained with (its
+  ``decoded_weight``), pulled towards the source coefficients,
+  + r ||Xi - Xi_0||^2, starting from the source support (terms may drop
+  out, none are added). A phase the new jumps do not hold keeps the source
+  coefficients.
 Both are closed form. ``prior_weight`` sets r relative to the data's scale: 0
-refits from the new jumps alone, large values keep the source model.
+refits from the new jumps alone, large values keep the source model. Phases
+are matched by name.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.hybrid import HybridModel
-from symrom.model.regression import STLSQConfig, stlsq
-from symrom.model.training import data_hash
+from symrom.model.estimator import data_hash, phase_data
+from symrom.model.hybrid import HybridModel, ModelDataError
+from symrom.model.regressors.base import Coefficients, RegressionProblem
+from symrom.model.regressors.prior import FineTune
 
 
 @dataclass(frozen=True)
@@ -51,28 +56,27 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
     if not rows.any():
         raise ValueError("no fine-tuning rows (the dataset has no 'train' jumps)")
-    if list(ds.phase_names) != list(model.phase_names):
-        raise ValueError(f"phases differ: model {model.phase_names}, data {ds.phase_names}")
+    model.check_data(ds)
+    model.phase_index(ds, rows)  # every phase of the new rows must be one the model knows
     ae0 = model.autoencoder
     xi = ae0.encode(ds.q[rows])
     W_d, B_d = (_decoder_towards(xi, ds.q[rows], ae0.W_d, ae0.B_d, config.prior_weight)
                 if config.refit_decoder else (ae0.W_d, ae0.B_d))
     ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
-    Xi, mask = model.Xi.copy(), model.mask.copy()
     trained = model.info.get("training", {})
-    sw = np.sqrt(float(trained.get("decoded_weight", 1.0)))
-    alpha = float(trained.get("alpha", 0.0))
-    for k in range(len(model.phase_names)):
-        r = rows & (ds.phase == k)
-        if not r.any():
-            continue  # no new evidence: keep the source coefficients
-        theta = model.library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
-                                        ae.encode_input(ds.u[r]))
-        Xi[k], mask[k] = stlsq(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d,
-                               STLSQConfig(config.threshold, config.prior_weight, alpha),
-                               prior=model.Xi[k], mask=model.mask[k])
+    weight = float(model.info.get("decoded_weight", trained.get("decoded_weight", 1.0)))
+    phases = phase_data(ds, rows, ae, model.library, weight, model.phase_names)
+    if all(p is None for p in phases):
+        raise ModelDataError("no fine-tuning rows in any of the model's phases")
+    all_ddxi = ae.encode_derivative(ds.ddq[rows])
+    problem = RegressionProblem(model.library, list(model.phase_names), phases,
+                                np.maximum(np.sqrt(np.mean(all_ddxi ** 2, axis=0)), 1e-12), ds.dt)
+    regressor = FineTune(config.prior_weight, config.threshold, trained.get("measure", "coefficient"),
+                         float(trained.get("alpha", 0.0)))
+    fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
     info = dict(model.info)
     info["finetune"] = {"config": asdict(config), "data_sha256": data_hash(ds),
                         "source": ds.source, "n_rows": int(rows.sum()),
-                        "base_data_sha256": model.info.get("data_sha256")}
-    return replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)
+                        "base_data_sha256": model.info.get("data_sha256"),
+                        "phases_refit": [n for n, p in zip(model.phase_names, phases) if p is not None]}
+    return replace(model, autoencoder=ae, Xi=fit.Xi, mask=fit.mask, info=info)

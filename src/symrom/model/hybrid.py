@@ -1,18 +1,98 @@
 """HybridModel: the autoencoder, the library and one coefficient matrix per phase.
 
-Latent dynamics in phase k: ddxi = Theta(xi, dxi, nu) Xi_k.
+Latent dynamics in phase k: ddxi = Theta(xi, dxi, nu) Xi_k. The model is the
+fitted state of a ``SymbolicROM`` and what a model file holds; it implements
+the rollout protocol (``symrom.rollout.system.Rollable``), so ``rollout`` and
+``evaluate`` treat it like any other model.
+
+Data meet a model through names: a dataset's phases are mapped to the
+model's phases by name, its robot and joint layout must be the model's, and a
+phase the model was not trained on cannot be rolled out. Each mismatch raises
+``ModelDataError`` with one line saying what differs and where.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 import sympy
 
+from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.library import CandidateLibrary
+from symrom.model.library import Library
+from symrom.names import Q_NAMES
+from symrom.rollout.system import RolloutSystem
+
+# A phase's linearised dynamics grow by more than this factor over a typical
+# stay in the phase: a "fast" unstable mode, worth a warning.
+FAST_GROWTH = 10.0
+
+
+class ModelDataError(ValueError):
+    """Data that the model cannot be used on (phases, robot, layout); one clear line."""
+
+
+@dataclass
+class PhaseInfo:
+    """What training saw of one phase.
+
+    trained: whether the training data held rows of it; n_rows: how many;
+    operating_point (3l,): mean [xi, dxi, nu] over those rows, where the
+    stability diagnostics linearise; duration_s: median length of a contiguous
+    stay in the phase, s; report: the regressor's record (terms left out and
+    why, sparsity path, refinement), JSON-ready.
+    """
+
+    trained: bool = True
+    n_rows: int = 0
+    operating_point: np.ndarray | None = None
+    duration_s: float | None = None
+    report: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["operating_point"] = None if self.operating_point is None else np.asarray(self.operating_point).tolist()
+        return d
+
+
+@dataclass
+class PhaseStability:
+    """Eigenvalues (2l,) complex of a phase's dynamics linearised at its operating
+    point; growth: exp(max real part x duration), the factor by which the fastest
+    mode grows over a typical stay in the phase (None without a duration)."""
+
+    phase: str
+    eigenvalues: np.ndarray
+    duration_s: float | None
+
+    @property
+    def max_real(self) -> float:
+        return float(np.max(self.eigenvalues.real))
+
+    @property
+    def growth(self) -> float | None:
+        if self.duration_s is None:
+            return None
+        return float(np.exp(min(self.max_real * self.duration_s, 700.0)))
+
+    @property
+    def fast_unstable(self) -> bool:
+        return self.growth is not None and self.growth > FAST_GROWTH
+
+    def warning(self) -> str | None:
+        """One line if the phase has a fast unstable mode, else None."""
+        if not self.fast_unstable:
+            return None
+        return (f"phase {self.phase!r} has a fast unstable mode: eigenvalue real part "
+                f"{self.max_real:.3g} /s grows {self.growth:.3g}x over a typical {self.duration_s:.3g} s "
+                f"in the phase; long rollouts may diverge")
+
+    def to_dict(self) -> dict:
+        return {"phase": self.phase, "eigenvalues": [[float(z.real), float(z.imag)] for z in self.eigenvalues],
+                "max_real": self.max_real, "duration_s": self.duration_s, "growth": self.growth,
+                "fast_unstable": self.fast_unstable}
 
 
 @dataclass
@@ -20,15 +100,18 @@ class HybridModel:
     """autoencoder; library; phase_names (P,); Xi (P, p, l); mask (P, p, l) bool;
     latent_scale (2l,): largest |xi|, |dxi| seen in training, the yardstick for
     divergence; info: robot, motion, dt, training configuration, solver, seeds,
-    data hash."""
+    data hash; phase_info: per phase name, what training saw of it."""
 
     autoencoder: LinearAutoencoder
-    library: CandidateLibrary
+    library: Library
     phase_names: list[str]
     Xi: np.ndarray
     mask: np.ndarray
     latent_scale: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
+    phase_info: dict[str, PhaseInfo] = field(default_factory=dict)
+
+    components: ClassVar[tuple[str, ...]] = Q_NAMES
 
     def __post_init__(self) -> None:
         P, p, l = len(self.phase_names), self.library.n_features, self.autoencoder.latent_dim
@@ -39,6 +122,8 @@ class HybridModel:
                 raise ValueError(f"{name}: shape {np.shape(arr)}, expected {(P, p, l)}")
         if np.shape(self.latent_scale) != (2 * l,):
             raise ValueError(f"latent_scale: shape {np.shape(self.latent_scale)}, expected {(2 * l,)}")
+        if len(set(self.phase_names)) != P:
+            raise ValueError(f"phase names repeat: {self.phase_names}")
 
     @property
     def latent_dim(self) -> int:
@@ -48,12 +133,98 @@ class HybridModel:
         """Number of nonzero coefficients per phase."""
         return {n: int(self.mask[i].sum()) for i, n in enumerate(self.phase_names)}
 
+    def trained_phases(self) -> list[str]:
+        """The phases whose equations were fitted to data (all, for models without phase_info)."""
+        return [n for n in self.phase_names if n not in self.phase_info or self.phase_info[n].trained]
+
+    # ------------------------------------------------------------ the dynamics
     def latent_acceleration(self, xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray,
                             phase: np.ndarray) -> np.ndarray:
-        """ddxi (N, l) from xi, dxi, nu (N, l) and phase indices (N,)."""
+        """ddxi (N, l) from xi, dxi, nu (N, l) and model phase indices (N,)."""
         theta = self.library.transform(xi, dxi, nu)  # (N, p)
         return np.einsum("np,npl->nl", theta, self.Xi[np.asarray(phase)])
 
+    def linearisation(self, phase: int, xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray) -> np.ndarray:
+        """(2l, 2l) Jacobian of d[xi, dxi]/dt in ``phase`` at one state xi, dxi, nu (l,)."""
+        l = self.latent_dim
+        J = self.library.jacobian(xi[None], dxi[None], nu[None])[0]  # (p, 2l)
+        A = np.zeros((2 * l, 2 * l))
+        A[:l, l:] = np.eye(l)
+        A[l:] = self.Xi[phase].T @ J
+        return A
+
+    def stability(self) -> list[PhaseStability]:
+        """Per trained phase with an operating point, the eigenvalues of its linearisation."""
+        l = self.latent_dim
+        out = []
+        for k, name in enumerate(self.phase_names):
+            info = self.phase_info.get(name)
+            if info is None or not info.trained or info.operating_point is None:
+                continue
+            op = np.asarray(info.operating_point, dtype=float)
+            A = self.linearisation(k, op[:l], op[l:2 * l], op[2 * l:])
+            out.append(PhaseStability(name, np.linalg.eigvals(A), info.duration_s))
+        return out
+
+    # ------------------------------------------------------------ data guards
+    def phase_index(self, ds: Dataset, rows: np.ndarray | None = None) -> np.ndarray:
+        """Model phase index (N,) of each row of ``ds`` (or of ``rows``), matched by name.
+
+        Raises ``ModelDataError`` naming the first row in a phase the model has no
+        equations for, or was not trained on.
+        """
+        lookup = np.full(len(ds.phase_names), -1)
+        for i, name in enumerate(ds.phase_names):
+            if name in self.phase_names:
+                lookup[i] = self.phase_names.index(name)
+        phase = np.asarray(ds.phase if rows is None else ds.phase[rows], dtype=int)
+        idx = lookup[phase]
+        untrained = [self.phase_names.index(n) for n in self.phase_names if n not in self.trained_phases()]
+        bad = (idx < 0) | np.isin(idx, untrained)
+        if bad.any():
+            r = int(np.flatnonzero(bad)[0])
+            row = r if rows is None else int(np.flatnonzero(rows)[r])
+            name = ds.phase_names[phase[r]]
+            why = ("the model has no equations for it" if name not in self.phase_names
+                   else "the model's training data held no row of it")
+            raise ModelDataError(f"phase {name!r} (jump {int(ds.jump[row])}, row {row}): {why} "
+                                 f"(model phases: {', '.join(self.trained_phases())})")
+        return idx
+
+    def check_data(self, ds: Dataset) -> None:
+        """Raise ``ModelDataError`` if ``ds`` is of another robot or joint layout than the model."""
+        robot = self.info.get("robot")
+        if robot is not None and ds.robot != robot:
+            raise ModelDataError(f"robot: the model was trained on {robot!r}, the data are of {ds.robot!r}")
+        layout = self.info.get("q_names")
+        if layout is not None and list(layout) != list(Q_NAMES):
+            raise ModelDataError("joint layout: the model's configuration components "
+                                 f"{list(layout)} differ from this symrom's {list(Q_NAMES)}")
+
+    # ------------------------------------------------------------ rollouts
+    def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
+        """The latent system on ``jumps`` of ``ds`` (protocol ``Rollable``): encoded true
+        state, held latent inputs nu and phase, decoded predictions of all 18 components."""
+        self.check_data(ds)
+        phase = self.phase_index(ds)
+        ae, bounds = self.autoencoder, ds.jump_bounds()
+        x, v, nu, ph = [], [], [], []
+        for j in jumps:
+            a, b = bounds[j]
+            x.append(ae.encode(ds.q[a:b]))
+            v.append(ae.encode_derivative(ds.dq[a:b]))
+            nu.append(ae.encode_input(ds.u[a:b]))
+            ph.append(phase[a:b])
+        lib, Xi = self.library, self.Xi
+
+        def acceleration(drive: dict[str, np.ndarray], xs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+            return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
+
+        scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
+        return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
+                             lambda i, X: ae.decode(X))
+
+    # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:
         """Per phase, the l right-hand sides of ddxi_j, coefficients rounded to ``digits``
         significant digits."""

@@ -1,4 +1,10 @@
-"""The model file: versioned JSON, human-readable, no pickle (DESIGN.md, format_version 1)."""
+"""The model file: versioned JSON, human-readable, no pickle (``docs/design.md``).
+
+format_version 2 adds, per phase, whether it was trained, its operating point
+and typical duration, the regressor's report (terms left out and why, the
+sparsity path, the refinement) and, for readers, the stability diagnostics;
+and the library as a list of term blocks. Files of format 1 are still read.
+"""
 
 from __future__ import annotations
 
@@ -10,10 +16,11 @@ import numpy as np
 
 from symrom.atomic import write_text_atomic
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.hybrid import HybridModel
-from symrom.model.library import CandidateLibrary
+from symrom.model.hybrid import HybridModel, PhaseInfo
+from symrom.model.library import Library
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 
 
 class ModelFileError(ValueError):
@@ -22,6 +29,7 @@ class ModelFileError(ValueError):
 
 def model_to_dict(model: HybridModel) -> dict:
     ae = model.autoencoder
+    stab = {s.phase: s.to_dict() for s in model.stability()}
     return {
         "format_version": FORMAT_VERSION,
         "latent_dim": model.latent_dim,
@@ -30,7 +38,9 @@ def model_to_dict(model: HybridModel) -> dict:
         "decoder": {"W_d": ae.W_d.tolist(), "B_d": ae.B_d.tolist()},
         "latent_scale": model.latent_scale.tolist(),
         "phases": {name: {"Xi": model.Xi[k].tolist(), "mask": model.mask[k].astype(int).tolist(),
-                          "active_terms": int(model.mask[k].sum())}
+                          "active_terms": int(model.mask[k].sum()),
+                          **(model.phase_info[name].to_dict() if name in model.phase_info else {}),
+                          **({"stability": stab[name]} if name in stab else {})}
                    for k, name in enumerate(model.phase_names)},
         "phase_names": list(model.phase_names),
         "info": model.info,
@@ -59,11 +69,11 @@ def _array(d: dict, key: str, where: str, shape: tuple[int, ...]) -> np.ndarray:
 def model_from_dict(d: dict) -> HybridModel:
     if not isinstance(d, dict) or "format_version" not in d:
         raise ModelFileError("format_version: missing (not a symrom model file)")
-    if d["format_version"] != FORMAT_VERSION:
+    if d["format_version"] not in READABLE_VERSIONS:
         raise ModelFileError(f"format_version: {d['format_version']} is not supported "
-                             f"(this symrom reads {FORMAT_VERSION})")
+                             f"(this symrom reads {', '.join(map(str, READABLE_VERSIONS))})")
     try:
-        lib = CandidateLibrary.from_dict(d["library"])
+        lib = Library.from_dict(d["library"])
         l = int(d["latent_dim"])
         names = [str(n) for n in d["phase_names"]]
         phases = d["phases"]
@@ -76,14 +86,30 @@ def model_from_dict(d: dict) -> HybridModel:
                            _array(d.get("encoder", {}), "B_e", "encoder", (l,)),
                            _array(d.get("decoder", {}), "W_d", "decoder", (18, l)),
                            _array(d.get("decoder", {}), "B_d", "decoder", (18,)))
-    Xi, mask = [], []
+    Xi, mask, info = [], [], {}
     for n in names:
         if n not in phases:
             raise ModelFileError(f"phases.{n}: missing")
         Xi.append(_array(phases[n], "Xi", f"phases.{n}", (p, l)))
         mask.append(_array(phases[n], "mask", f"phases.{n}", (p, l)).astype(bool))
-    return HybridModel(ae, lib, names, np.array(Xi), np.array(mask),
-                       _array(d, "latent_scale", "model", (2 * l,)), dict(d.get("info", {})))
+        if "trained" in phases[n]:
+            info[n] = _phase_info(phases[n], f"phases.{n}", l)
+    try:
+        return HybridModel(ae, lib, names, np.array(Xi), np.array(mask),
+                           _array(d, "latent_scale", "model", (2 * l,)), dict(d.get("info", {})), info)
+    except ValueError as e:
+        raise ModelFileError(f"model: {e}") from None
+
+
+def _phase_info(d: dict, where: str, l: int) -> PhaseInfo:
+    op = d.get("operating_point")
+    duration = d.get("duration_s")
+    if duration is not None and not (isinstance(duration, (int, float)) and duration > 0):
+        raise ModelFileError(f"{where}.duration_s: expected a positive number, got {duration!r}")
+    return PhaseInfo(trained=bool(d["trained"]), n_rows=int(d.get("n_rows", 0)),
+                     operating_point=None if op is None else _array(d, "operating_point", where, (3 * l,)),
+                     duration_s=None if duration is None else float(duration),
+                     report=dict(d.get("report", {})))
 
 
 def load_model(path: str | os.PathLike) -> HybridModel:

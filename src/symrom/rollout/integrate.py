@@ -1,10 +1,13 @@
-"""Hybrid rollouts of a HybridModel along logged jumps.
+"""Rollouts of any model along logged jumps: one path for every ``Rollable``.
 
-The initial state and the logged inputs are encoded; latent accelerations are
-integrated with the phase's Xi taken from the logged phase sequence; inputs and
-phase are held constant over each sample (zero-order hold); the latent path is
-decoded to q_pred = W_d xi + B_d. With ``reset`` (s) the latent state is set
-back to the encoded true state every ``reset`` seconds (the paper's 0.1 s).
+The model sets itself up on the jumps (``Rollable.rollout_system``): its true
+state in its own coordinates, the logged drive (inputs, phase, ...) held
+constant over each sample (zero-order hold) and its acceleration function.
+The state is integrated from the first sample and mapped back to the
+configuration components the model predicts; for the learned model that is
+the encoded state, integrated with the phase's Xi from the logged phase
+sequence and decoded to q_pred = W_d xi + B_d. With ``reset`` (s) the state is
+set back to the true one every ``reset`` seconds (the paper's 0.1 s).
 
 Two integrators:
 - ``lsoda``: SciPy's LSODA (``odeint``) over each sample interval, the paper's
@@ -13,8 +16,9 @@ Two integrators:
 - ``rk4``: fixed-step classical Runge-Kutta advancing all jumps at once as
   arrays; the fast path for batch evaluation and for MPC-style use.
 
-A rollout whose latent state turns non-finite or leaves ``bound`` times the
-largest |xi|, |dxi| seen in training is stopped and flagged as diverged.
+A rollout whose state turns non-finite or leaves ``bound`` times the model's
+yardstick (for the learned model, the largest |xi|, |dxi| seen in training) is
+stopped and flagged as diverged, with the time at which it left.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ import numpy as np
 from scipy.integrate import odeint
 
 from symrom.data.dataset import Dataset
-from symrom.model.hybrid import HybridModel
+from symrom.rollout.system import Rollable
 
 METHODS = ("lsoda", "rk4")
 
@@ -36,7 +40,7 @@ METHODS = ("lsoda", "rk4")
 class RolloutOptions:
     """method: ``lsoda`` or ``rk4``; reset: s between resets (None = full horizon);
     substeps: RK4 steps per sample; max_steps: LSODA step budget per sample;
-    bound: divergence bound as a multiple of the training latent scale."""
+    bound: divergence bound as a multiple of the model's yardstick."""
 
     method: str = "lsoda"
     reset: float | None = None
@@ -53,8 +57,9 @@ class RolloutOptions:
 
 @dataclass
 class Rollout:
-    """Per jump (list of J): predicted q (n_j, 18), latent xi and dxi (n_j, l);
-    diverged (J,) bool and, for diverged jumps, the first bad sample (else -1)."""
+    """Per jump (list of J): predictions q_pred (n_j, C) of ``components``, the model's
+    state path xi and dxi (n_j, d); diverged (J,) bool and, for diverged jumps, the
+    first bad sample (else -1); dt the sample period, s."""
 
     jumps: np.ndarray
     q_pred: list[np.ndarray]
@@ -62,25 +67,13 @@ class Rollout:
     dxi: list[np.ndarray]
     diverged: np.ndarray
     diverged_at: np.ndarray
+    components: tuple[str, ...] = ()
+    dt: float = 0.0
 
-
-@dataclass
-class _JumpInputs:
-    xi: np.ndarray  # (n, l) encoded true
-    dxi: np.ndarray
-    nu: np.ndarray
-    phase: np.ndarray  # (n,)
-
-
-def _encode_jumps(model: HybridModel, ds: Dataset, jumps: np.ndarray) -> list[_JumpInputs]:
-    ae = model.autoencoder
-    bounds = ds.jump_bounds()
-    out = []
-    for j in jumps:
-        a, b = bounds[j]
-        out.append(_JumpInputs(ae.encode(ds.q[a:b]), ae.encode_derivative(ds.dq[a:b]),
-                               ae.encode_input(ds.u[a:b]), ds.phase[a:b].astype(int)))
-    return out
+    def divergence_times(self) -> list[dict]:
+        """[{"jump": j, "t": s}] for each diverged jump: when it left its bound."""
+        return [{"jump": int(j), "t": round(float(k) * self.dt, 6)}
+                for j, k, d in zip(self.jumps, self.diverged_at, self.diverged) if d]
 
 
 def reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
@@ -172,50 +165,40 @@ def integrate_rk4(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, lens: np.n
     return [X[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at
 
 
-def _model_accel(model: HybridModel, nu: np.ndarray, phase: np.ndarray) -> Accel:
-    """Latent acceleration with nu (J, n, l) and phase (J, n) of sample k held."""
-    lib, Xi = model.library, model.Xi
-    return lambda k, x, v: np.einsum("jp,jpl->jl", lib.transform(x, v, nu[:, k]), Xi[phase[:, k]])
-
-
-def rollout(model: HybridModel, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
+def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
             options: RolloutOptions = RolloutOptions(),
             progress: Callable[[int, int], None] | None = None) -> Rollout:
     """Roll ``model`` out along the logged ``jumps`` of ``ds`` (default: all).
 
-    Returns predicted configurations in the units of q (rad, m).
+    Returns its predictions in the units of q (rad, m); ValueError with one
+    clear message when the data do not fit the model.
     """
-    if model.library.inputs and ds.u.shape[1] != model.autoencoder.W_e.shape[1]:
-        raise ValueError("dataset inputs do not match the model")
     jumps = np.arange(ds.n_jumps) if jumps is None else np.asarray(jumps, dtype=int)
-    inps = _encode_jumps(model, ds, jumps)
-    limit = opts_limit(model, options)
-    if not inps:
-        return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int))
+    comps = tuple(model.components)
+    if jumps.size == 0:
+        return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int), comps, ds.dt)
+    sysm = model.rollout_system(ds, jumps)
+    limit = options.bound * sysm.scale  # (J, 2d)
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
-        for i, inp in enumerate(inps):
-            n = inp.xi.shape[0]
-            X, V, d = integrate_lsoda(_model_accel(model, inp.nu[None], inp.phase[None]), inp.xi, inp.dxi,
-                                      reset_mask(n, options.reset, ds.dt), limit, ds.dt, options.max_steps)
+        for i, (x, v) in enumerate(zip(sysm.x, sysm.v)):
+            drive = {name: d[i][:, None] for name, d in sysm.drive.items()}  # (n, 1, ...)
+            X, V, d = integrate_lsoda(lambda k, xs, vs, drive=drive: sysm.acceleration(
+                {n: a[k] for n, a in drive.items()}, xs, vs), x, v,
+                reset_mask(x.shape[0], options.reset, ds.dt), limit[i], ds.dt, options.max_steps)
             Xs.append(X)
             Vs.append(V)
             div.append(d)
             if progress:
-                progress(i + 1, len(inps))
+                progress(i + 1, len(jumps))
         div_at = np.array(div, dtype=int)
     else:
-        lens = np.array([i.xi.shape[0] for i in inps])
-        acc = _model_accel(model, pad_edge([i.nu for i in inps]), pad_edge([i.phase for i in inps]))
-        Xs, Vs, div_at = integrate_rk4(acc, pad_edge([i.xi for i in inps]), pad_edge([i.dxi for i in inps]),
-                                       lens, reset_mask(int(lens.max()), options.reset, ds.dt), limit,
-                                       ds.dt, options.substeps)
+        lens = np.array([x.shape[0] for x in sysm.x])
+        drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
+        Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
+            {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
+            lens, reset_mask(int(lens.max()), options.reset, ds.dt), limit, ds.dt, options.substeps)
         if progress:
-            progress(len(inps), len(inps))
-    q_pred = [model.autoencoder.decode(X) for X in Xs]
-    return Rollout(jumps, q_pred, Xs, Vs, div_at >= 0, div_at)
-
-
-def opts_limit(model: HybridModel, options: RolloutOptions) -> np.ndarray:
-    """(2l,) divergence limit on |[xi, dxi]|."""
-    return options.bound * (model.latent_scale + 1e-3)
+            progress(len(jumps), len(jumps))
+    q_pred = [sysm.observe(i, X) for i, X in enumerate(Xs)]
+    return Rollout(jumps, q_pred, Xs, Vs, div_at >= 0, div_at, comps, ds.dt)

@@ -1,0 +1,92 @@
+"""What the centre-of-mass baselines share: the logged drive and the rollout set-up.
+
+A CoM baseline predicts the base position b = q[12:15] (m, world; symrom's
+stand-in for the CoM, as in the learned model's data) from b'' = a(b, b',
+drive), integrated by ``symrom.rollout`` like any other model. The drive is
+logged per sample: u, the summed ground-reaction force (``ds.u[:, 12:15]``,
+N) divided by the mass m, an acceleration; the stance pivot, the mean of the
+feet in contact; and whether the sample is in contact (any phase but
+``flight``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.names import BASE_POS, WRENCH
+from symrom.rollout.system import RolloutSystem
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
+COMPONENTS: tuple[str, ...] = ("x", "y", "z")
+FLIGHT_PHASE = "flight"
+
+
+def robot_mass(robot: str) -> float:
+    """Total mass of ``robot`` from its description, kg; a clear error for robots without one."""
+    from symrom.robots import ROBOTS, total_mass
+
+    if robot.lower() not in ROBOTS:
+        raise ValueError(f"robot {robot!r} has no URDF to take the mass from; give the mass "
+                         f"explicitly (--mass)")
+    return total_mass(robot)
+
+
+def flight_rows(ds: Dataset) -> np.ndarray:
+    """(N,) bool: rows in the phase named ``flight`` (none if the dataset has no such phase)."""
+    if FLIGHT_PHASE not in ds.phase_names:
+        return np.zeros(ds.n_samples, dtype=bool)
+    return ds.phase == ds.phase_names.index(FLIGHT_PHASE)
+
+
+def stance_pivots(ds: Dataset) -> np.ndarray:
+    """(N, 3) m, world: mean of the feet in contact per row.
+
+    Feet from ``ds.foot_pos`` if logged, else from the kinematics of the
+    robot's URDF. A row without any foot flagged in contact (flight, or a
+    contact-phase row whose flags disagree with its label) takes the mean of
+    all four feet, so the pivot is always defined and finite.
+    """
+    if ds.foot_pos is not None:
+        feet = ds.foot_pos
+    else:
+        from symrom.data.preprocess import foot_positions_world
+
+        feet = foot_positions_world(ds.robot, ds.q)
+    w = (np.asarray(ds.contact) > 0).astype(float)  # (N, 4)
+    none = w.sum(axis=1) == 0
+    w[none] = 1.0
+    return np.einsum("nk,nkd->nd", w, feet) / w.sum(axis=1)[:, None]
+
+
+def input_acceleration(ds: Dataset, m: float) -> np.ndarray:
+    """(N, 3) m/s^2: u = summed ground-reaction force (ds.u[:, 12:15], N) / m (kg)."""
+    return ds.u[:, WRENCH][:, :3] / m
+
+
+def com_system(ds: Dataset, jumps: np.ndarray, m: float,
+               acceleration: Callable[[dict[str, np.ndarray], np.ndarray, np.ndarray], np.ndarray]
+               ) -> RolloutSystem:
+    """The rollout set-up of a CoM baseline of mass ``m`` (kg) on ``jumps`` of ``ds``.
+
+    Drive: ``u`` (n, 3) m/s^2, ``pivot`` (n, 3) m, ``contact`` (n,) bool. The
+    divergence yardstick is the jump's own largest |b| (at least 0.1 m) and
+    |b'| (at least 0.1 m/s): one scale for all positions and one for all
+    velocities, so that a coordinate barely moving in the data (y of a planar
+    jump) does not make a small drift absurd.
+    """
+    bounds = ds.jump_bounds()
+    u, pivot, contact = input_acceleration(ds, m), stance_pivots(ds), ~flight_rows(ds)
+    x, v, drive, scale = [], [], {"u": [], "pivot": [], "contact": []}, []
+    for j in jumps:
+        s = slice(*bounds[j])
+        b, db = ds.q[s][:, BASE_POS], ds.dq[s][:, BASE_POS]
+        x.append(b)
+        v.append(db)
+        drive["u"].append(u[s])
+        drive["pivot"].append(pivot[s])
+        drive["contact"].append(contact[s])
+        scale.append(np.repeat([max(np.abs(b).max(), 0.1), max(np.abs(db).max(), 0.1)], 3))
+    return RolloutSystem(x, v, drive, np.array(scale), acceleration, lambda i, X: X)

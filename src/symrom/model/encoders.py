@@ -1,0 +1,175 @@
+"""Steps (a) and (b) of the training: the linear autoencoder, as plug-ins.
+
+An encoder plug-in fits a ``LinearAutoencoder`` from the contact-phase
+configurations (step (a): encoder and decoder on the reconstruction loss) and
+all training configurations (step (b): decoder refit with the encoder frozen).
+
+``PCAEncoder`` takes each step's closed-form optimum:
+(a) The reconstruction loss depends on (W_e, W_d) only through the rank-l map
+    W_d W_e; by Eckart-Young its minimum is the orthogonal projector onto the
+    top-l principal subspace of the centred contact-phase configurations. Any
+    orthonormal basis of that subspace is optimal; we take the varimax rotation
+    of the leading principal directions, the basis whose rows load on as few
+    configuration components as possible (so a latent reads as "mostly CoM x"),
+    ordered by latent variance, sign fixed so each row's largest entry is
+    positive. The loss fixes only W_d B_e + B_d, so B_e = 0 is a free choice:
+    xi is then a pure linear projection of q, and xi, dxi, ddxi share one map.
+(b) With xi fixed the loss is linear least squares in (W_d, B_d).
+Options: ``components`` restricts the encoder to the named configuration
+components (their reconstruction is then minimised, the decoder still maps to
+all 18); ``scaling="spread"`` divides each component by its standard deviation
+over the contact rows first, so radians and metres weigh alike.
+
+``AdamAutoencoder`` is the paper's gradient training of both steps (needs torch).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from symrom.model.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
+from symrom.model.autoencoder import LinearAutoencoder
+from symrom.names import N_Q, Q_NAMES
+
+SCALINGS = ("none", "spread")
+
+
+def varimax(W: np.ndarray, max_iter: int = 500, tol: float = 1e-13) -> np.ndarray:
+    """Orthogonal rotation of the rows of W (l, n) maximising the varimax criterion.
+
+    Kaiser's (1958) iteration, written here because SciPy and NumPy have none:
+    each step is the polar factor of the criterion's gradient. The best rotation
+    seen is kept, since on perfectly symmetric loadings the iteration can cycle.
+    """
+    L = W.T  # (n, l) loadings
+
+    def criterion(B):
+        return float(np.sum(np.var(B ** 2, axis=0)))
+
+    R = best = np.eye(L.shape[1])
+    best_val = criterion(L)
+    for _ in range(max_iter):
+        B = L @ R
+        U, _, Vt = np.linalg.svd(L.T @ (B ** 3 - B @ np.diag(np.mean(B ** 2, axis=0))))
+        R_new = U @ Vt
+        val = criterion(L @ R_new)
+        if val > best_val:
+            best, best_val = R_new, val
+        if np.abs(R_new - R).max() < tol ** 0.5 * 1e-1:  # rotation settled
+            break
+        R = R_new
+    return (L @ best).T
+
+
+def principal_encoder(q: np.ndarray, latent_dim: int, components: np.ndarray | None = None) -> np.ndarray:
+    """Step (a), exact: W_e (l, 18), an orthonormal basis of the top-l principal
+    subspace of q (N, 18), varimax-rotated, ordered by variance, signs fixed.
+
+    With ``components`` (18,) bool the encoder reads only those columns (zero
+    weight elsewhere): the optimum of their reconstruction loss.
+    """
+    if components is not None and not np.all(components):
+        W = np.zeros((latent_dim, q.shape[1]))
+        W[:, components] = principal_encoder(q[:, components], latent_dim)
+        return W
+    qc = q - q.mean(axis=0)
+    _, _, Vt = np.linalg.svd(qc, full_matrices=False)
+    W = Vt[:latent_dim].copy()
+    if W.shape[0] < latent_dim:  # fewer samples than dimensions: pad with orthonormal rows
+        Q, _ = np.linalg.qr(np.vstack([W, np.eye(q.shape[1])]).T)
+        W = Q.T[:latent_dim]
+    if latent_dim > 1:
+        W = varimax(W)
+        W = W[np.argsort(-np.var(qc @ W.T, axis=0), kind="stable")]
+    sign = np.sign(W[np.arange(latent_dim), np.argmax(np.abs(W), axis=1)])
+    return W * sign[:, None]
+
+
+def fit_decoder(xi: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Step (b), exact: least-squares W_d (18, l), B_d (18,) with q ~ W_d xi + B_d."""
+    X = np.hstack([xi, np.ones((xi.shape[0], 1))])
+    coef, *_ = np.linalg.lstsq(X, q, rcond=None)
+    return coef[:-1].T.copy(), coef[-1].copy()
+
+
+def component_mask(components: tuple[str, ...] | None) -> np.ndarray:
+    """(18,) bool of the named configuration components (all for None)."""
+    if components is None:
+        return np.ones(N_Q, dtype=bool)
+    return np.isin(np.array(Q_NAMES), components)
+
+
+def check_components(components: tuple[str, ...] | None, latent_dim: int) -> tuple[str, ...] | None:
+    """The components as a tuple; ValueError naming unknown, repeated or too few."""
+    if components is None:
+        return None
+    comps = tuple(components)
+    bad = [c for c in comps if c not in Q_NAMES]
+    if bad:
+        raise ValueError(f"encoder_components: unknown component(s) {', '.join(bad)}; "
+                         f"choose from {', '.join(Q_NAMES)}")
+    if len(set(comps)) != len(comps):
+        raise ValueError("encoder_components: a component is named twice")
+    if len(comps) < latent_dim:
+        raise ValueError(f"encoder_components: {len(comps)} component(s) cannot span "
+                         f"latent_dim {latent_dim}")
+    return comps
+
+
+@dataclass(frozen=True)
+class PCAEncoder:
+    """The exact steps (a) and (b) (module docstring). components: names the encoder
+    reads (None = all 18, the paper); scaling: ``none`` (the paper) or ``spread``."""
+
+    components: tuple[str, ...] | None = None
+    scaling: str = "none"
+
+    def __post_init__(self) -> None:
+        if self.scaling not in SCALINGS:
+            raise ValueError(f"encoder scaling must be one of {SCALINGS}, got {self.scaling!r}")
+        if self.components is not None:
+            object.__setattr__(self, "components", tuple(self.components))
+
+    def fit(self, q_contact: np.ndarray, q_all: np.ndarray, latent_dim: int) -> LinearAutoencoder:
+        """q_contact (Nc, 18), q_all (N, 18) configurations -> the autoencoder."""
+        check_components(self.components, latent_dim)
+        mask = component_mask(self.components)
+        scale = np.ones(q_contact.shape[1])
+        if self.scaling == "spread":
+            std = q_contact.std(axis=0)
+            # A component that never moves (a locked joint) must not be blown up from rounding.
+            scale = np.maximum(std, 1e-6 * max(float(std[mask].max()), 1e-300))
+        W_e = principal_encoder(q_contact / scale, latent_dim, mask) / scale
+        W_d, B_d = fit_decoder(q_all @ W_e.T, q_all)
+        return LinearAutoencoder(W_e, np.zeros(latent_dim), W_d, B_d)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"name": "PCAEncoder", "components": None if self.components is None else list(self.components),
+                "scaling": self.scaling}
+
+
+@dataclass
+class AdamAutoencoder:
+    """Steps (a) and (b) by Adam (``symrom.model.adam``). ``generator_`` holds the
+    run's torch generator after ``fit``, for the Adam regressor to continue."""
+
+    config: AdamConfig = field(default_factory=AdamConfig)
+    components: tuple[str, ...] | None = None
+    seed: int = 0
+    progress: Progress | None = field(default=None, repr=False, compare=False)
+    generator_: Any = field(default=None, init=False, repr=False, compare=False)
+
+    def fit(self, q_contact: np.ndarray, q_all: np.ndarray, latent_dim: int) -> LinearAutoencoder:
+        check_components(self.components, latent_dim)
+        self.generator_ = generator(self.seed)
+        return fit_autoencoder_adam(q_contact, q_all, latent_dim, component_mask(self.components),
+                                    self.config, self.generator_, self.progress or (lambda s, f: None))
+
+    def to_dict(self) -> dict[str, Any]:
+        from dataclasses import asdict
+
+        return {"name": "AdamAutoencoder", "config": asdict(self.config), "seed": self.seed,
+                "components": None if self.components is None else list(self.components)}

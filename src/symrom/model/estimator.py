@@ -1,0 +1,232 @@
+"""``SymbolicROM``: the learner as one estimator with plug-in parts.
+
+In the manner of PySINDy and scikit-learn, the estimator holds only its
+settings until ``fit``; its parts are plug-ins:
+
+- ``library``: term blocks (``symrom.model.library``), bound to the latent
+  dimension at fit;
+- ``encoder``: steps (a) and (b) (``symrom.model.encoders``): the exact
+  ``PCAEncoder`` or the paper's ``AdamAutoencoder``;
+- ``regressor``: step (c) (``symrom.model.regressors``): ``STLSQ``, ``Adam``,
+  ``FineTune`` (towards a prior model) or ``Refine`` (rollout-aware).
+
+``fit(ds)`` trains on the ``train`` split and leaves the fitted model in
+``model_`` (a ``HybridModel``, what a model file holds). Then ``predict``
+gives latent accelerations, ``simulate`` rolls the model out along logged
+jumps, ``equations`` prints it, ``stability`` linearises it, and ``save`` /
+``load`` go through the versioned JSON model file.
+
+Example::
+
+    rom = SymbolicROM(latent_dim=2, library=Polynomial(1) + Inputs(),
+                      encoder=PCAEncoder(components=("x", "y", "z")),
+                      regressor=STLSQ(threshold=0.05, measure="contribution", alpha=1e-3,
+                                      collinearity=0.995))
+    rom.fit(ds)
+    print(rom.equations())
+    ro = rom.simulate(ds, ds.jumps_in("test"))
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from symrom.data.dataset import Dataset, jump_bounds
+from symrom.model.adam import Adam
+from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.encoders import AdamAutoencoder, PCAEncoder
+from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
+from symrom.model.library import LibrarySpec, TermBlock
+from symrom.model.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
+from symrom.model.regressors.stlsq import STLSQ
+from symrom.names import Q_NAMES
+
+Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
+
+
+def data_hash(ds: Dataset) -> str:
+    """SHA-256 of the arrays a model is trained on."""
+    h = hashlib.sha256()
+    for a in (ds.jump, ds.q, ds.dq, ds.ddq, ds.u, ds.phase):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(np.asarray(ds.split, dtype=str).tobytes())
+    return h.hexdigest()
+
+
+def contact_rows(ds: Dataset, rows: np.ndarray, contact_phase: str) -> np.ndarray:
+    """(N,) bool: the ``rows`` in phase ``contact_phase`` (all ``rows`` if there are none)."""
+    pid = ds.phase_names.index(contact_phase) if contact_phase in ds.phase_names else 0
+    sel = rows & (ds.phase == pid)
+    return sel if sel.sum() > 0 else rows
+
+
+def phase_data(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder, library, decoded_weight: float,
+               phase_names: list[str] | None = None) -> list[PhaseData | None]:
+    """Per phase name (default: those of ``ds``), its ``rows`` encoded for step (c)
+    (None where ``ds`` has no such row)."""
+    sw = np.sqrt(decoded_weight)
+    out: list[PhaseData | None] = []
+    for name in ds.phase_names if phase_names is None else phase_names:
+        r = rows & (ds.phase == ds.phase_names.index(name)) if name in ds.phase_names else np.zeros(0, bool)
+        if not r.any():
+            out.append(None)
+            continue
+        theta = library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]), ae.encode_input(ds.u[r]))
+        out.append(PhaseData(theta, ae.encode_derivative(ds.ddq[r]), sw * ds.ddq[r], sw * ae.W_d))
+    return out
+
+
+def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder) -> list[Trajectory]:
+    """The jumps holding ``rows``, encoded (their rows among ``rows`` only)."""
+    out = []
+    for a, b in jump_bounds(ds.jump):
+        r = np.flatnonzero(rows[a:b]) + a
+        if r.size:
+            out.append(Trajectory(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
+                                  ae.encode_input(ds.u[r]), ds.phase[r].astype(int)))
+    return out
+
+
+def _median_stay(ds: Dataset, rows: np.ndarray, k: int) -> float | None:
+    """Median length (s) of the contiguous runs of phase k among ``rows``, within jumps."""
+    lengths = []
+    for a, b in jump_bounds(ds.jump):
+        inside = (rows[a:b] & (ds.phase[a:b] == k)).astype(np.int8)
+        edges = np.diff(np.r_[0, inside, 0])
+        lengths += list(np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1))
+    return float(np.median(lengths) * ds.dt) if lengths else None
+
+
+@dataclass
+class SymbolicROM:
+    """The learner (module docstring). latent_dim: l; library: blocks (a ``LibrarySpec``
+    or one block); encoder, regressor: plug-ins; decoded_weight: weight of the
+    decoded-acceleration term ||ddq - W_d Theta Xi||^2 of the SINDy loss (1 = the
+    paper); contact_phase: the phase that trains the encoder in step (a);
+    path_thresholds: if set (and the regressor is ``STLSQ``), record each phase's
+    sparsity path over these thresholds with its validation error."""
+
+    latent_dim: int = 2
+    library: LibrarySpec | TermBlock = field(default_factory=LibrarySpec.standard)
+    encoder: PCAEncoder | AdamAutoencoder = field(default_factory=PCAEncoder)
+    regressor: Regressor = field(default_factory=STLSQ)
+    decoded_weight: float = 1.0
+    contact_phase: str = "contact"
+    path_thresholds: tuple[float, ...] | None = None
+    model_: HybridModel | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.library, TermBlock):
+            self.library = LibrarySpec((self.library,))
+        if not 1 <= int(self.latent_dim) <= len(Q_NAMES):
+            raise ValueError(f"latent_dim must be within 1..{len(Q_NAMES)}, got {self.latent_dim}")
+        if not self.decoded_weight >= 0:
+            raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, ds: Dataset, rows: np.ndarray | None = None, progress: Progress | None = None,
+            info: dict | None = None) -> SymbolicROM:
+        """Train on the ``train`` split of ``ds`` (or on boolean ``rows`` (N,)); sets ``model_``.
+
+        A phase of ``ds`` without training rows is kept untrained (its equations are
+        zero and rollouts through it are refused); ``model_.trained_phases()`` lists
+        the others. ``info`` is merged into the model's record.
+        """
+        rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
+        if rows.shape != (ds.n_samples,):
+            raise ValueError(f"rows: shape {rows.shape}, expected ({ds.n_samples},)")
+        if not rows.any():
+            raise ValueError("no training rows (the dataset has no 'train' jumps)")
+        say = progress or (lambda stage, frac: None)
+        l = int(self.latent_dim)
+        lib = self.library.bind(l)
+        say("encoder (contact phase)", 0.0)
+        ae = self.encoder.fit(ds.q[contact_rows(ds, rows, self.contact_phase)], ds.q[rows], l)
+        say("dynamics", 0.5)
+        nu_all = ae.encode_input(ds.u[rows])
+        ddxi_all = ae.encode_derivative(ds.ddq[rows])
+        val_rows = ds.rows_of("val") & ~rows
+        problem = RegressionProblem(
+            lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
+            target_scale=np.maximum(np.sqrt(np.mean(ddxi_all ** 2, axis=0)), 1e-12), dt=ds.dt,
+            trajectories=trajectories(ds, rows, ae) if getattr(self.regressor, "needs_trajectories", False) else [],
+            validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
+        regressor = self.regressor
+        if isinstance(regressor, Adam) and isinstance(self.encoder, AdamAutoencoder):
+            # One torch stream for the whole run, as in the paper's training.
+            regressor = replace(regressor, generator=self.encoder.generator_)
+        coefs = regressor.fit(problem)
+        paths = (regressor.path(problem, self.path_thresholds)
+                 if self.path_thresholds and isinstance(regressor, STLSQ) else {})
+        xi, dxi = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows])
+        phase_info = {}
+        for k, name in enumerate(ds.phase_names):
+            r = ds.phase[rows] == k
+            report = dict(coefs.report.get(name, {}))
+            if name in paths:
+                report["path"] = paths[name]
+            trained = bool(r.any())
+            phase_info[name] = PhaseInfo(
+                trained=trained, n_rows=int(r.sum()),
+                operating_point=np.concatenate([xi[r].mean(0), dxi[r].mean(0), nu_all[r].mean(0)]) if trained else None,
+                duration_s=_median_stay(ds, rows, k), report=report)
+        scale = np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)
+        record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
+                  "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
+                  "n_train_jumps": int(np.unique(ds.jump[rows]).size),
+                  "encoder": self.encoder.to_dict(), "regressor": regressor.to_dict(),
+                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight,
+                  "untrained_phases": [n for n, p in phase_info.items() if not p.trained]}
+        record.update(info or {})
+        say("done", 1.0)
+        self.model_ = HybridModel(ae, lib, list(ds.phase_names), coefs.Xi, coefs.mask, scale, record, phase_info)
+        return self
+
+    # ------------------------------------------------------------------ use
+    @property
+    def model(self) -> HybridModel:
+        if self.model_ is None:
+            raise ValueError("this SymbolicROM is not fitted yet: call fit(ds) first")
+        return self.model_
+
+    def predict(self, ds: Dataset, rows: np.ndarray | None = None) -> np.ndarray:
+        """Latent accelerations ddxi (N, l) the model predicts at the logged rows (all by default)."""
+        m = self.model
+        m.check_data(ds)
+        rows = np.ones(ds.n_samples, bool) if rows is None else np.asarray(rows, dtype=bool)
+        ae = m.autoencoder
+        return m.latent_acceleration(ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]),
+                                     ae.encode_input(ds.u[rows]), m.phase_index(ds, rows))
+
+    def simulate(self, ds: Dataset, jumps=None, reset: float | None = None, method: str = "rk4"):
+        """Roll the model out along logged ``jumps`` (default: all); a ``Rollout``."""
+        from symrom.rollout.integrate import RolloutOptions, rollout
+
+        return rollout(self.model, ds, jumps, RolloutOptions(method=method, reset=reset))
+
+    def equations(self, latex: bool = False, digits: int = 3) -> str:
+        return self.model.equations_text(latex=latex, digits=digits)
+
+    def stability(self) -> list[PhaseStability]:
+        return self.model.stability()
+
+    def save(self, path: str | os.PathLike) -> None:
+        from symrom.model.persistence import save_model
+
+        save_model(self.model, path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> SymbolicROM:
+        """A fitted estimator from a model file (its settings as recorded there)."""
+        from symrom.model.persistence import load_model
+
+        model = load_model(path)
+        rom = cls(latent_dim=model.latent_dim, library=model.library.spec,
+                  decoded_weight=float(model.info.get("decoded_weight", 1.0)))
+        rom.model_ = model
+        return rom

@@ -1,0 +1,64 @@
+"""The one protocol every model that can be rolled out implements.
+
+A model (the learned ``HybridModel``, the aSLIP, the Newton baseline, ...)
+is a second-order system x'' = a(x, x', drive) in coordinates of its own
+(latent xi for the learned model, the CoM position for the CoM baselines),
+driven by per-sample inputs logged in the data and held over each sample.
+Given a dataset and its jumps it returns a ``RolloutSystem``: the true state
+in its coordinates (the start, and the reset targets), the held drive, the
+acceleration function, the divergence bound and the map from its state back
+to the configuration components it predicts. ``symrom.rollout.integrate``
+integrates any such system; ``symrom.evaluate.metrics`` scores it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+
+# acceleration(drive at one sample {name: (J, ...)}, x (J, d), v (J, d)) -> (J, d)
+Acceleration = Callable[[dict[str, np.ndarray], np.ndarray, np.ndarray], np.ndarray]
+
+
+@dataclass
+class RolloutSystem:
+    """A model set up on J jumps of a dataset, for the integrators.
+
+    x, v: per jump (n_j, d) the true state in the model's coordinates (start and
+    reset values); drive: per name, per jump (n_j, ...) inputs held over each
+    sample; scale: (J, 2d) the yardstick of |[x, v]|: a rollout has diverged once
+    it leaves ``bound`` (``RolloutOptions``) times it; acceleration: see ``Acceleration``; observe(i, X): the model's
+    prediction (n, C) of its ``components`` from its path X (n, d) on jump i.
+    """
+
+    x: list[np.ndarray]
+    v: list[np.ndarray]
+    drive: dict[str, list[np.ndarray]]
+    scale: np.ndarray
+    acceleration: Acceleration
+    observe: Callable[[int, np.ndarray], np.ndarray]
+
+    @property
+    def n_jumps(self) -> int:
+        return len(self.x)
+
+
+@runtime_checkable
+class Rollable(Protocol):
+    """What ``rollout`` and ``evaluate`` need of a model.
+
+    components: the configuration components (``symrom.names.Q_NAMES``) it
+    predicts, in the order of ``observe``'s columns.
+    """
+
+    components: tuple[str, ...]
+
+    def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
+        """Set the model up on ``jumps`` of ``ds``; raise ValueError with one clear
+        message when the data do not fit the model (phases, robot, inputs)."""
+        ...
