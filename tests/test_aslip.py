@@ -188,3 +188,53 @@ def test_cli_errors(slip_file, tmp_path):
     one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(out), "--fixed",
                                         "--l0", "-1"]), "l_0")
     assert not out.exists()
+
+
+def test_rollout_fit_recovers_the_spring_from_a_wrong_start(slip):
+    ds, truth = slip
+    start = replace(truth, k_s=0.6 * truth.k_s, l_0=1.1 * truth.l_0)
+    fitted, record = fit_aslip_rollout(ds, m=truth.m, start=start)
+    assert fitted.k_s == pytest.approx(truth.k_s, rel=0.02)
+    assert fitted.l_0 == pytest.approx(truth.l_0, rel=0.02)
+    assert [s["reset_s"] for s in record.stages] == [0.1, 0.3, None]
+    assert all(s["cost_after"] <= s["cost_before"] for s in record.stages)
+
+
+def test_newton_is_exact_when_the_logged_force_is_the_whole_force(slip):
+    from symrom.baselines.newton import Newton
+
+    ds, truth = slip
+    # Log the whole force (spring and actuation) as the ground force: Newton's law is then
+    # the truth, up to holding the force over each 2 ms sample.
+    u = ds.u.copy()
+    u[:, 12:15] = truth.m * (ds.ddq[:, BASE_POS] - GRAVITY)
+    full = replace(ds, u=u)
+    m, _ = evaluate(Newton(truth.m), full, "test", resets=(None, 0.1), options=RolloutOptions("rk4"))
+    for key, bound in (("full", 1e-2), ("0.1", 1e-3)):  # m; the hold error grows with the horizon
+        h = m["horizons"][key]
+        assert list(h["components"]) == ["x", "y", "z"] and h["diverged_jumps"] == 0
+        assert max(c["rmse"] for c in h["components"].values()) < bound
+    # On the logged actuation alone it misses the spring, and the aSLIP does not.
+    newton, _ = evaluate(Newton(truth.m), ds, "test", resets=(None,), options=RolloutOptions("rk4"))
+    aslip, _ = evaluate(ASlip(truth), ds, "test", resets=(None,), options=RolloutOptions("rk4"))
+    z = lambda m: m["horizons"]["full"]["components"]["z"]["rmse"]  # noqa: E731
+    assert z(newton) > 100 * z(aslip)
+    with pytest.raises(ValueError, match="mass"):
+        Newton(0.0)
+
+
+def test_cli_newton_and_rollout_fit(slip, slip_file, tmp_path):
+    _, truth = slip
+    r = runner.invoke(app, ["newton", str(slip_file), "--out", str(tmp_path / "n"), "--mass", str(truth.m),
+                            "--integrator", "rk4"])
+    assert r.exit_code == 0, r.output
+    assert set(json.loads((tmp_path / "n" / "metrics.json").read_text())["horizons"]["full"]["components"]) \
+        == {"x", "y", "z"}
+    r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(tmp_path / "a"), "--mass", str(truth.m),
+                            "--fit", "rollout", "--integrator", "rk4"])
+    assert r.exit_code == 0, r.output
+    params = json.loads((tmp_path / "a" / "params.json").read_text())
+    assert "rollout" in params["source"] and params["k_s"] == pytest.approx(truth.k_s, rel=0.02)
+    assert len(params["stages"]) == 3
+    one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(tmp_path / "b"), "--mass", "3",
+                                       "--fit", "bogus"]), "--fit")

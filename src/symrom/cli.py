@@ -127,6 +127,16 @@ def train_cmd(
                                  "(1 = the paper; 0 = latent accelerations only).")] = 1.0,
     alpha: Annotated[float, typer.Option(
         "--alpha", help="Ridge on the standardised library features (exact solver; 0 = none).")] = 0.0,
+    measure: Annotated[str, typer.Option(
+        "--measure", help="What --threshold applies to: coefficient (|Xi|, the paper), contribution "
+                          "or explained (scale-free).")] = "coefficient",
+    collinearity: Annotated[Optional[float], typer.Option(
+        "--collinearity", help="Leave out terms whose |correlation| with a simpler one exceeds this "
+                               "on a phase's rows, e.g. 0.995 (default: keep all).")] = None,
+    encoder_scaling: Annotated[str, typer.Option(
+        "--encoder-scaling", help="none, or spread: standardise components before step (a).")] = "none",
+    trig: Annotated[bool, typer.Option("--trig/--no-trig", help="Trigonometric terms in the library.")] = True,
+    refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
     force: Force = False,
 ) -> None:
     """Train a hybrid symbolic model on the dataset's train split."""
@@ -139,9 +149,10 @@ def train_cmd(
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
-    config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, solver=solver,
+    config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
-                         decoded_weight=decoded_weight, alpha=alpha)
+                         decoded_weight=decoded_weight, alpha=alpha, measure=measure,
+                         collinearity=collinearity, encoder_scaling=encoder_scaling, refine=refine)
     ds = read_dataset(data)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)
@@ -154,6 +165,17 @@ def train_cmd(
     terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
     out_console.print(f"model: {out / 'model.json'}  (l={latent_dim}, p={poly_order}, "
                       f"{model.library.n_features} candidates; active terms: {terms})")
+    _model_warnings(model)
+
+
+def _model_warnings(model) -> None:
+    """One warning line per untrained phase and per phase with a fast unstable mode."""
+    for name in model.info.get("untrained_phases", []):
+        console.print(f"[yellow]warning:[/yellow] phase {name!r} has no training rows: it is not trained, "
+                      "and rollouts through it are refused", highlight=False, soft_wrap=True)
+    for st in model.stability():
+        if st.warning():
+            console.print(f"[yellow]warning:[/yellow] {st.warning()}", highlight=False, soft_wrap=True)
 
 
 @app.command("evaluate")
@@ -184,6 +206,8 @@ def evaluate_cmd(
         raise ValueError(f"--split must be train, val or test, got {split!r}")
     if ds.jumps_in(split).size == 0:
         raise ValueError(f"{data} has no {split!r} jumps")
+    model.check_data(ds)  # robot, layout and phases: refused before any work starts
+    model.phase_index(ds, ds.rows_of(split))
     if plot_jump:
         bad = [j for j in plot_jump if not 0 <= j < ds.n_jumps]
         if bad:
@@ -201,8 +225,10 @@ def evaluate_cmd(
     typer.echo(table2(metrics))
     for key, h in metrics["horizons"].items():
         if h["diverged_jumps"]:
+            when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
             console.print(f"[yellow]warning:[/yellow] {h['diverged_jumps']} of {metrics['n_jumps']} "
-                          f"jumps diverged at horizon {key}; they are excluded from the statistics")
+                          f"jumps diverged at horizon {key} ({when}); they are excluded from the statistics",
+                          highlight=False, soft_wrap=True)
     out_console.print(f"metrics: {out / 'metrics.json'}")
 
 
@@ -218,6 +244,15 @@ def equations_cmd(
 
     model = load_model(model_path)
     typer.echo(model.equations_text(latex=latex, digits=digits))
+    stab = model.stability()
+    if stab:
+        typer.echo("\nlinearised at each phase's training mean: eigenvalues (1/s)")
+        for st in stab:
+            eig = ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}"
+                            for z in sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag)))
+            growth = "" if st.growth is None else f"  (fastest mode x{st.growth:.3g} over {st.duration_s:.3g} s)"
+            typer.echo(f"[{st.phase}] {eig}{growth}")
+    _model_warnings(model)
 
 
 @app.command("reproduce")

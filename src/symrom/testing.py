@@ -94,7 +94,8 @@ def embedding_matrix(kind: str, l: int, rng: np.random.Generator) -> tuple[np.nd
 def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str = "block",
                          noise: float = 1e-4, seed: int = 0, dt: float = 0.002,
                          substeps: int = 8, equations: dict[str, list[dict[str, float]]] | None = None,
-                         embedding_seed: int | None = None) -> tuple[Dataset, PlantedSystem]:
+                         embedding_seed: int | None = None,
+                         amplitude: tuple[float, float] = (3.0, 2.0)) -> tuple[Dataset, PlantedSystem]:
     """A planted pronk-like dataset and its truth.
 
     embedding: ``axis``, ``block`` or ``dense`` (see the module docstring);
@@ -115,7 +116,7 @@ def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str
     n1, n2 = round(n_samples * 3 / 8), round(n_samples * 5 / 8)
     sched = np.r_[np.zeros(n1), np.ones(n2 - n1), np.zeros(n_samples - n2)].astype(np.int8)
     h = dt / substeps
-    amp = np.array([3.0, 2.0])  # wide enough that sin, cos differ from their linearisation
+    amp = np.asarray(amplitude, dtype=float)  # the default: wide enough that sin, cos differ from their linearisation
 
     def acc(x, v, nu, k):  # batch over jumps: (J, l) each, k scalar phase
         return lib.transform(x, v, nu) @ Xi[k]

@@ -153,7 +153,7 @@ class SymbolicROM:
         val_rows = ds.rows_of("val") & ~rows
         problem = RegressionProblem(
             lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
-            target_scale=np.maximum(np.sqrt(np.mean(ddxi_all ** 2, axis=0)), 1e-12), dt=ds.dt,
+            target_spread=np.maximum(ddxi_all.std(axis=0), 1e-12), dt=ds.dt,
             trajectories=trajectories(ds, rows, ae) if getattr(self.regressor, "needs_trajectories", False) else [],
             validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
         regressor = self.regressor

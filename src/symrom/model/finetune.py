@@ -70,7 +70,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
-                                np.maximum(np.sqrt(np.mean(all_ddxi ** 2, axis=0)), 1e-12), ds.dt)
+                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt)
     regressor = FineTune(config.prior_weight, config.threshold, trained.get("measure", "coefficient"),
                          float(trained.get("alpha", 0.0)))
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))

@@ -118,20 +118,25 @@ class Polynomial(TermBlock):
         return [RANK_CONSTANT if not m else RANK_LINEAR if len(m) == 1 else RANK_MONOMIAL
                 for m in self.monomials(l)]
 
+    # Monomials come by degree: the constant, then s itself (degree 1, in order),
+    # then the products; the first two are written directly since rollouts call these often.
     def columns(self, s: np.ndarray, nu: np.ndarray) -> np.ndarray:
-        l = s.shape[1] // 2
-        cols = [np.prod(s[:, list(m)], axis=1) if m else np.ones(s.shape[0]) for m in self.monomials(l)]
-        return np.stack(cols, axis=1)
+        d = s.shape[1]
+        cols = [np.ones((s.shape[0], 1)), s] if self.order >= 1 else [np.ones((s.shape[0], 1))]
+        cols += [np.prod(s[:, list(m)], axis=1)[:, None] for m in self.monomials(d // 2)[1 + d:]]
+        return np.concatenate(cols, axis=1)
 
     def jacobian(self, s: np.ndarray, nu: np.ndarray) -> np.ndarray:
-        l = s.shape[1] // 2
-        mons = self.monomials(l)
-        J = np.zeros((s.shape[0], len(mons), 2 * l))
-        for k, m in enumerate(mons):
+        d = s.shape[1]
+        mons = self.monomials(d // 2)
+        J = np.zeros((s.shape[0], len(mons), d))
+        if self.order >= 1:
+            J[:, 1:1 + d, :] = np.eye(d)
+        for k, m in enumerate(mons[1 + d:], start=1 + d):
             for i in set(m):
                 rest = list(m)
                 rest.remove(i)  # d/ds_i s_i^c * r = c s_i^(c-1) r
-                J[:, k, i] = m.count(i) * (np.prod(s[:, rest], axis=1) if rest else 1.0)
+                J[:, k, i] = m.count(i) * np.prod(s[:, rest], axis=1)
         return J
 
     def to_dict(self) -> dict:
@@ -202,20 +207,27 @@ CUSTOM_FUNCTIONS = ("sin", "cos", "tan", "exp", "log", "sqrt", "tanh", "Abs", "s
 _TOKEN = re.compile(r"\s*(?:(\d+\.?\d*(?:[eE][-+]?\d+)?|\.\d+(?:[eE][-+]?\d+)?)|([A-Za-z_]\w*)|(\*\*|[-+*/(),]))")
 
 
-def parse_expression(text: str, l: int) -> sympy.Expr:
+_LATENT = re.compile(r"(?:xi|dxi|nu)[1-9]\d*")
+
+
+def parse_expression(text: str, l: int | None) -> sympy.Expr | None:
     """A sympy expression from ``text`` over xi1..xil, dxi1..dxil, nu1..nul and
-    ``CUSTOM_FUNCTIONS``; ValueError naming the first token that is not allowed."""
-    allowed = set(state_names(l)) | set(input_names(l)) | set(CUSTOM_FUNCTIONS)
+    ``CUSTOM_FUNCTIONS``; ValueError naming the first token that is not allowed.
+    With ``l`` None, only check the text (any latent index) and return None."""
+    allowed = set(CUSTOM_FUNCTIONS) | (set() if l is None else set(state_names(l)) | set(input_names(l)))
     pos = 0
     text = str(text)
     while pos < len(text.rstrip()):
         m = _TOKEN.match(text, pos)
         if not m or m.end() == pos:
             raise ValueError(f"custom term {text!r}: cannot read {text[pos:].strip()[:12]!r}")
-        if m.group(2) and m.group(2) not in allowed:
-            raise ValueError(f"custom term {text!r}: unknown name {m.group(2)!r} (allowed: "
-                             f"{', '.join(sorted(allowed))})")
+        name = m.group(2)
+        if name and name not in allowed and not (l is None and _LATENT.fullmatch(name)):
+            raise ValueError(f"custom term {text!r}: unknown name {name!r} (allowed: xi<i>, dxi<i>, "
+                             f"nu<i> for i <= the latent dimension, and {', '.join(CUSTOM_FUNCTIONS)})")
         pos = m.end()
+    if l is None:
+        return None
     s, nu = symbols(l)
     local = {str(v): v for v in [*s, *nu]} | {f: getattr(sympy, f) for f in CUSTOM_FUNCTIONS}
     try:
@@ -238,6 +250,8 @@ class Custom(TermBlock):
         object.__setattr__(self, "expressions", tuple(str(e) for e in self.expressions))
         if not self.expressions:
             raise ValueError("a custom block needs at least one expression")
+        for e in self.expressions:
+            parse_expression(e, None)
         if self.labels is not None:
             object.__setattr__(self, "labels", tuple(str(x) for x in self.labels))
             if len(self.labels) != len(self.expressions):
@@ -388,18 +402,19 @@ class Library:
         return any(e.has(*nu) for e in self.sympy_features())
 
     def _state(self, xi: np.ndarray, dxi: np.ndarray) -> np.ndarray:
-        return np.concatenate([np.atleast_2d(xi), np.atleast_2d(dxi)], axis=1)
+        xi, dxi = np.asarray(xi, dtype=float), np.asarray(dxi, dtype=float)
+        return np.concatenate([xi.reshape(-1, self.latent_dim), dxi.reshape(-1, self.latent_dim)], axis=1)
 
     def transform(self, xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray) -> np.ndarray:
         """Theta: xi, dxi, nu each (N, l) -> (N, p)."""
         s = self._state(xi, dxi)
-        nu = np.atleast_2d(nu)
+        nu = np.asarray(nu, dtype=float).reshape(s.shape[0], -1)
         return np.concatenate([b.columns(s, nu) for b in self.blocks], axis=1)
 
     def jacobian(self, xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray) -> np.ndarray:
         """d Theta / d [xi, dxi]: (N, p, 2l)."""
         s = self._state(xi, dxi)
-        nu = np.atleast_2d(nu)
+        nu = np.asarray(nu, dtype=float).reshape(s.shape[0], -1)
         return np.concatenate([b.jacobian(s, nu) for b in self.blocks], axis=1)
 
     def sympy_features(self) -> list[sympy.Expr]:

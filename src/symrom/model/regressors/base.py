@@ -58,7 +58,7 @@ class RegressionProblem:
     """Everything a regressor may use, for a library of p terms and P phases.
 
     phases: per phase its training rows (None: the data holds no row of it);
-    target_scale (l,): RMS of each latent acceleration over all training rows,
+    target_spread (l,): standard deviation of each latent acceleration over all training rows,
     the yardstick of scale-free sparsity; trajectories: the training jumps for
     rollout-based regressors, sampled every ``dt`` s; validation: per phase its
     validation rows (for the sparsity path), or None.
@@ -67,7 +67,7 @@ class RegressionProblem:
     library: Library
     phase_names: list[str]
     phases: list[PhaseData | None]
-    target_scale: np.ndarray
+    target_spread: np.ndarray
     dt: float
     trajectories: list[Trajectory] = field(default_factory=list)
     validation: list[PhaseData | None] | None = None

@@ -39,7 +39,7 @@ class FineTune(Regressor):
             raise ValueError("fine-tuning needs the source model's coefficients (init)")
         Xi, mask = init.Xi.copy(), init.mask.copy()
         cfg = STLSQConfig(self.threshold, self.prior_weight, self.alpha, measure=self.measure,
-                          target_scale=tuple(float(s) for s in problem.target_scale))
+                          target_spread=tuple(float(s) for s in problem.target_spread))
         for k, ph in enumerate(problem.phases):
             if ph is None:
                 continue  # no new evidence: keep the source coefficients

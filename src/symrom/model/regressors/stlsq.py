@@ -15,10 +15,17 @@ What "small" means is the ``measure``:
 - ``coefficient``: |Xi_pj| < threshold, the paper's rule. It depends on the
   units of each term: a ground-force input in N has coefficients near 1/m and
   is the first to go, however much of the motion it explains.
-- ``contribution``: |Xi_pj| rms(Theta_p) / rms(ddxi_j) < threshold, the
-  term's typical size in the equation of ddxi_j relative to that latent
-  acceleration's size over all phases. Scale-free: a threshold of 0.05 drops
-  the terms that contribute less than 5 %.
+- ``contribution``: |Xi_pj| rms(Theta_p) / spread(ddxi_j) < threshold, the
+  term's typical size in the equation of ddxi_j relative to the spread of that
+  latent acceleration over all training rows. Scale-free, but blind to
+  cancellation: two large terms that cancel on the data both look important.
+- ``explained``: the share of the target's spread that the term explains and
+  no other term can: the increase of the loss when the term is removed and
+  the others refit, x_i^2 / (K^-1)_ii for the normal matrix K, over
+  N G_jj spread(ddxi_j)^2. Terms are removed one at a time, the least
+  explaining first, and the rest refit, until every remaining term explains at
+  least ``threshold``; a term whose effect another can take over (one of a
+  cancelling pair) explains nothing of its own and goes first.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from symrom.model.audit import negligible
 from symrom.model.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor
 
 _JITTER = 1e-10  # smallest ridge on the equilibrated normal equations
-MEASURES = ("coefficient", "contribution")
+MEASURES = ("coefficient", "contribution", "explained")
 
 
 @dataclass(frozen=True)
@@ -42,15 +49,16 @@ class STLSQConfig:
     standardised features (scikit-learn's and PySINDy's ``alpha`` with normalised
     columns), which keeps near-collinear pairs such as xi and sin(xi) from
     cancelling with huge coefficients (0 = a 1e-10 numerical jitter only);
-    max_iter: thresholding rounds; measure: ``coefficient`` or ``contribution``;
-    target_scale (l,): rms of each latent acceleration, for ``contribution``."""
+    max_iter: thresholding rounds; measure: ``coefficient``, ``contribution`` or
+    ``explained``; target_spread (l,): standard deviation of each latent
+    acceleration over all training rows, for the scale-free measures."""
 
     threshold: float = 0.01
     ridge: float = 0.0
     alpha: float = 0.0
     max_iter: int = 25
     measure: str = "coefficient"
-    target_scale: tuple[float, ...] | None = None
+    target_spread: tuple[float, ...] | None = None
 
 
 def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -61,12 +69,15 @@ def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tupl
 
 
 def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
-                  ridge: float = 0.0, prior: np.ndarray | None = None, alpha: float = 0.0) -> np.ndarray:
+                  ridge: float = 0.0, prior: np.ndarray | None = None, alpha: float = 0.0,
+                  importance: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
     """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2
     + alpha sum_ij G_jj A_ii Xi_ij^2 with Xi zero off ``mask``, r = ridge * mean(diag A).
 
     A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool,
-    prior (p, l) or None (= 0). Returns Xi (p, l).
+    prior (p, l) or None (= 0). Returns Xi (p, l); with ``importance`` also
+    (p, l) the increase of the loss if each active entry were removed and the
+    others refit, x_i^2 / (K^-1)_ii (inf off the support).
     """
     p, l = mask.shape
     # A term that is zero on this phase's rows up to rounding (e.g. the latent ground
@@ -76,7 +87,7 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     idx = np.flatnonzero(mask.T.ravel())  # column-major vec of Xi
     Xi = np.zeros((p, l))
     if idx.size == 0:
-        return Xi
+        return (Xi, np.full((p, l), np.inf)) if importance else Xi
     feat, col = idx % p, idx // p
     K = G[np.ix_(col, col)] * A[np.ix_(feat, feat)]  # rows/cols of G kron A
     rhs = B[feat, col]
@@ -94,23 +105,44 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     Ks = K / d[:, None] / d[None, :]
     Ks[np.diag_indices_from(Ks)] += max(alpha, _JITTER)
     try:
-        x = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ks, check_finite=False), rhs / d,
-                                   check_finite=False)
+        factor = scipy.linalg.cho_factor(Ks, check_finite=False)
+        x = scipy.linalg.cho_solve(factor, rhs / d, check_finite=False)
+        inv_diag = (lambda: np.diag(scipy.linalg.cho_solve(factor, np.eye(idx.size), check_finite=False)))
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(Ks)
         keep = w > w.max() * 1e-13
         x = V[:, keep] @ ((V[:, keep].T @ (rhs / d)) / w[keep])
-    x = x / d
-    Xi.T.flat[idx] = x
-    return Xi
+        inv_diag = (lambda: np.einsum("ik,k,ik->i", V[:, keep], 1.0 / w[keep], V[:, keep]))
+    Xi.T.flat[idx] = x / d
+    if not importance:
+        return Xi
+    gain = np.full((p, l), np.inf)
+    gain.T.flat[idx] = x ** 2 / inv_diag()  # invariant under the equilibration
+    return Xi, gain
 
 
 def term_sizes(Xi: np.ndarray, theta_rms: np.ndarray, config: STLSQConfig) -> np.ndarray:
-    """(p, l) the size of every term in ``config.measure``; theta_rms (p,) rms of each column."""
+    """(p, l) the size of every term in ``config.measure`` (``coefficient`` or
+    ``contribution``); theta_rms (p,) rms of each column."""
     if config.measure == "coefficient":
         return np.abs(Xi)
-    scale = np.asarray(config.target_scale, dtype=float)
-    return np.abs(Xi) * theta_rms[:, None] / np.maximum(scale, 1e-300)[None, :]
+    spread = np.asarray(config.target_spread, dtype=float)
+    return np.abs(Xi) * theta_rms[:, None] / np.maximum(spread, 1e-300)[None, :]
+
+
+def _backward_elimination(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray, n_rows: int,
+                          config: STLSQConfig, prior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """The ``explained`` measure: drop the least explaining term until all explain enough."""
+    spread = np.asarray(config.target_spread, dtype=float)
+    norm = n_rows * np.diag(G) * np.maximum(spread, 1e-300) ** 2  # (l,)
+    while True:
+        Xi, gain = solve_support(A, B, G, mask, config.ridge, prior, config.alpha, importance=True)
+        share = np.where(mask, gain / norm[None, :], np.inf)
+        i = np.unravel_index(np.argmin(share), share.shape)
+        if not np.isfinite(share[i]) or share[i] >= config.threshold:
+            return Xi * mask, mask
+        mask = mask.copy()
+        mask[i] = False
 
 
 def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
@@ -125,13 +157,16 @@ def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
     """
     if config.measure not in MEASURES:
         raise ValueError(f"unknown sparsity measure {config.measure!r}; choose from {MEASURES}")
-    if config.measure == "contribution" and config.target_scale is None:
-        raise ValueError("the contribution measure needs the latent accelerations' target_scale")
+    if config.measure != "coefficient" and config.target_spread is None:
+        raise ValueError(f"the {config.measure} measure needs the latent accelerations' target_spread")
     Zs, G = weighted_targets(ddxi, ddq, W_d)
     A = Theta.T @ Theta
     B = Theta.T @ Zs @ G
     theta_rms = np.sqrt(np.diag(A) / max(Theta.shape[0], 1))
     mask = np.ones((Theta.shape[1], ddxi.shape[1]), dtype=bool) if mask is None else mask.copy()
+    mask &= ~negligible(np.sqrt(np.diag(A)))[:, None]
+    if config.measure == "explained":
+        return _backward_elimination(A, B, G, mask, Theta.shape[0], config, prior)
     Xi = solve_support(A, B, G, mask, config.ridge, prior, config.alpha)
     for _ in range(config.max_iter):
         new_mask = mask & (term_sizes(Xi, theta_rms, config) >= config.threshold)
@@ -149,10 +184,10 @@ def weighted_loss(Theta: np.ndarray, Xi: np.ndarray, ddxi: np.ndarray, ddq: np.n
     return float(np.sum((ddxi - Z) ** 2) + np.sum((ddq - Z @ W_d.T) ** 2))
 
 
-def acceleration_error(ph: PhaseData, Xi: np.ndarray, target_scale: np.ndarray) -> float:
-    """Mean over the l latent accelerations of rms(ddxi - Theta Xi) / target_scale on ``ph``."""
+def acceleration_error(ph: PhaseData, Xi: np.ndarray, target_spread: np.ndarray) -> float:
+    """Mean over the l latent accelerations of rms(ddxi - Theta Xi) / target_spread on ``ph``."""
     res = ph.ddxi - ph.theta @ Xi
-    return float(np.mean(np.sqrt(np.mean(res ** 2, axis=0)) / np.maximum(target_scale, 1e-300)))
+    return float(np.mean(np.sqrt(np.mean(res ** 2, axis=0)) / np.maximum(target_spread, 1e-300)))
 
 
 @dataclass(frozen=True)
@@ -180,15 +215,15 @@ class STLSQ(Regressor):
         if self.collinearity is not None and not 0 < self.collinearity <= 1:
             raise ValueError(f"collinearity must lie in (0, 1], got {self.collinearity}")
 
-    def config(self, target_scale: np.ndarray) -> STLSQConfig:
+    def config(self, target_spread: np.ndarray) -> STLSQConfig:
         return STLSQConfig(self.threshold, self.ridge, self.alpha, self.max_iter, self.measure,
-                           tuple(float(s) for s in target_scale))
+                           tuple(float(s) for s in target_spread))
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
         P, p, l = problem.shape
         Xi, mask = np.zeros((P, p, l)), np.zeros((P, p, l), dtype=bool)
-        cfg = self.config(problem.target_scale)
+        cfg = self.config(problem.target_spread)
         for k, ph in enumerate(problem.phases):
             if ph is None:
                 continue
@@ -209,5 +244,5 @@ class STLSQ(Regressor):
                 val = problem.validation[k] if problem.validation is not None else None
                 out[name].append({"threshold": float(t), "active_terms": int(fit.mask[k].sum()),
                                   "val_error": None if val is None or val.n_rows == 0 else
-                                  acceleration_error(val, fit.Xi[k], problem.target_scale)})
+                                  acceleration_error(val, fit.Xi[k], problem.target_spread)})
         return out

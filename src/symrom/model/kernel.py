@@ -1,0 +1,247 @@
+"""Compiled evaluation of the latent dynamics (numba).
+
+Every term of the paper's library is a product of simple factors of one
+variable: a power of a state variable, sin or cos of one, or an input. The
+term table reads those factors off each term's sympy form (the one place a
+block defines its terms), so any library made of such terms is evaluated by
+one compiled routine, whatever its blocks; a library with other terms
+(``Custom`` expressions beyond products of these factors) has no table and
+runs on the NumPy path.
+
+``rk4_windows`` rolls many windows of the hybrid latent model out at once
+with classical Runge-Kutta, optionally with the exact parameter
+sensitivities (see ``symrom.model.shooting``, whose NumPy implementation is
+the reference this kernel is tested against). Functions are compiled on first
+use and cached on disk.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+
+from symrom.model.library import Library, symbols
+
+STATE_POWER, SIN, COS, INPUT = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class TermTable:
+    """Factors of each of the p terms: kind (p, F) of ``STATE_POWER``, ``SIN``, ``COS``,
+    ``INPUT``; var (p, F) index into s = [xi, dxi] (or into nu for inputs); power
+    (p, F); count (p,) factors used (0 for the constant)."""
+
+    kind: np.ndarray
+    var: np.ndarray
+    power: np.ndarray
+    count: np.ndarray
+
+
+def term_table(library: Library) -> TermTable | None:
+    """The factor table of ``library``, or None if a term is not a product of simple factors."""
+    s, nu = symbols(library.latent_dim)
+    s_index = {v: i for i, v in enumerate(s)}
+    nu_index = {v: i for i, v in enumerate(nu)}
+    rows = []
+    for expr in library.sympy_features():
+        factors = []
+        coeff, parts = expr.as_coeff_mul()
+        if coeff != 1:
+            return None
+        for f in parts:
+            base, exp = f.as_base_exp()
+            if base in s_index and exp.is_Integer and exp > 0:
+                factors.append((STATE_POWER, s_index[base], int(exp)))
+            elif base in nu_index and exp == 1:
+                factors.append((INPUT, nu_index[base], 1))
+            elif isinstance(f, (sympy.sin, sympy.cos)) and f.args[0] in s_index:
+                factors.append((SIN if isinstance(f, sympy.sin) else COS, s_index[f.args[0]], 1))
+            else:
+                return None
+        rows.append(factors)
+    F = max(1, max(len(r) for r in rows))
+    p = len(rows)
+    kind, var, power = (np.zeros((p, F), dtype=np.int64) for _ in range(3))
+    count = np.array([len(r) for r in rows], dtype=np.int64)
+    for t, r in enumerate(rows):
+        for f, (k, v, e) in enumerate(r):
+            kind[t, f], var[t, f], power[t, f] = k, v, e
+    return TermTable(kind, var, power, count)
+
+
+def _numba():
+    import numba
+
+    return numba
+
+
+_KERNELS: dict[str, object] = {}
+
+
+def kernels():
+    """The compiled routines (compiled once per process, cached on disk)."""
+    if _KERNELS:
+        return _KERNELS
+    numba = _numba()
+    njit = numba.njit(cache=True, fastmath=False)
+
+    @njit
+    def features(s, nu, kind, var, power, count, theta, dtheta, want_jac):
+        """theta (p,) and, if want_jac, dtheta (p, 2l) at one state s (2l,), inputs nu (l,)."""
+        p, F = kind.shape
+        fv = np.empty(F)
+        dv = np.empty(F)
+        if want_jac:
+            dtheta[:, :] = 0.0
+        for t in range(p):
+            val = 1.0
+            for f in range(count[t]):
+                k, i, e = kind[t, f], var[t, f], power[t, f]
+                if k == 0:
+                    x = s[i]
+                    fv[f] = x ** e
+                    dv[f] = e * x ** (e - 1) if e > 1 else 1.0
+                elif k == 1:
+                    fv[f] = np.sin(s[i])
+                    dv[f] = np.cos(s[i])
+                elif k == 2:
+                    fv[f] = np.cos(s[i])
+                    dv[f] = -np.sin(s[i])
+                else:
+                    fv[f] = nu[i]
+                    dv[f] = 0.0
+                val *= fv[f]
+            theta[t] = val
+            if want_jac:
+                for f in range(count[t]):
+                    if kind[t, f] == 3:
+                        continue
+                    other = 1.0
+                    for g in range(count[t]):
+                        if g != f:
+                            other *= fv[g]
+                    dtheta[t, var[t, f]] += other * dv[f]
+
+    @njit
+    def field(s, S, nu, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+              theta, dtheta, ds, dS, want_sens):
+        """ds (2l,) = f(s) and, if want_sens, dS (2l, n) = A S + B, in phase ph."""
+        l = Xi.shape[2]
+        features(s, nu, kind, var, power, count, theta, dtheta, want_sens)
+        for j in range(l):
+            ds[j] = s[l + j]
+            acc = 0.0
+            for a in range(n_active[ph]):
+                q = active[ph, a]
+                acc += theta[q] * Xi[ph, q, j]
+            ds[l + j] = acc
+        if not want_sens:
+            return
+        n = pk.shape[0]
+        for j in range(l):
+            for t in range(n):
+                dS[j, t] = S[l + j, t]
+        for j in range(l):
+            for t in range(n):
+                dS[l + j, t] = 0.0
+            for d in range(2 * l):
+                a_jd = 0.0
+                for a in range(n_active[ph]):
+                    q = active[ph, a]
+                    a_jd += Xi[ph, q, j] * dtheta[q, d]
+                if a_jd != 0.0:
+                    for t in range(n):
+                        dS[l + j, t] += a_jd * S[d, t]
+        for t in range(n):
+            if pk[t] == ph:
+                dS[l + pj[t], t] += theta[pp[t]]
+
+    @njit
+    def rk4_windows(xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                    dt, substeps, limit, stride, want_sens, X, V, S_out, alive):
+        W, L, l = xi.shape
+        p = kind.shape[0]
+        n = pk.shape[0]
+        h = dt / substeps
+        theta = np.empty(p)
+        dtheta = np.zeros((p, 2 * l))
+        s = np.empty(2 * l)
+        S = np.zeros((2 * l, n))
+        st, Sst = np.empty(2 * l), np.empty((2 * l, n))
+        k1, k2, k3, k4 = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
+        K1, K2, K3, K4 = (np.zeros((2 * l, n)), np.zeros((2 * l, n)), np.zeros((2 * l, n)),
+                          np.zeros((2 * l, n)))
+        s_new, S_new = np.empty(2 * l), np.empty((2 * l, n))
+        for w in range(W):
+            for j in range(l):
+                s[j], s[l + j] = xi[w, 0, j], dxi[w, 0, j]
+            S[:, :] = 0.0
+            ok = True
+            for k in range(L):
+                for j in range(l):
+                    X[w, k, j], V[w, k, j] = s[j], s[l + j]
+                if want_sens and k % stride == 0:
+                    S_out[w, k // stride] = S
+                alive[w, k] = ok
+                if k == L - 1:
+                    break
+                if not ok:  # left the bound: state held, sensitivities zero
+                    continue
+                ph = phase[w, k]
+                u = nu[w, k]
+                for _ in range(substeps):
+                    field(s, S, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                          theta, dtheta, k1, K1, want_sens)
+                    for d in range(2 * l):
+                        st[d] = s[d] + 0.5 * h * k1[d]
+                    if want_sens:
+                        Sst[:, :] = S + 0.5 * h * K1
+                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                          theta, dtheta, k2, K2, want_sens)
+                    for d in range(2 * l):
+                        st[d] = s[d] + 0.5 * h * k2[d]
+                    if want_sens:
+                        Sst[:, :] = S + 0.5 * h * K2
+                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                          theta, dtheta, k3, K3, want_sens)
+                    for d in range(2 * l):
+                        st[d] = s[d] + h * k3[d]
+                    if want_sens:
+                        Sst[:, :] = S + h * K3
+                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                          theta, dtheta, k4, K4, want_sens)
+                    good = True
+                    for d in range(2 * l):
+                        s_new[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+                        if not (np.abs(s_new[d]) <= limit[d]):  # also catches NaN
+                            good = False
+                    if want_sens:
+                        S_new[:, :] = S + h / 6.0 * (K1 + 2.0 * K2 + 2.0 * K3 + K4)
+                        if not np.all(np.isfinite(S_new)):
+                            good = False
+                    if good:
+                        s[:] = s_new
+                        if want_sens:
+                            S[:, :] = S_new
+                    else:
+                        ok = False
+                        S[:, :] = 0.0
+                        break
+
+    _KERNELS.update(features=features, rk4_windows=rk4_windows)
+    return _KERNELS
+
+
+def active_terms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per phase the terms with any nonzero coefficient: (P, p) indices, (P,) counts."""
+    used = mask.any(axis=2)
+    P, p = used.shape
+    active = np.zeros((P, p), dtype=np.int64)
+    n = np.zeros(P, dtype=np.int64)
+    for k in range(P):
+        idx = np.flatnonzero(used[k])
+        active[k, :idx.size] = idx
+        n[k] = idx.size
+    return active, n

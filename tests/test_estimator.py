@@ -1,0 +1,145 @@
+"""The estimator API (fit / predict / simulate / equations / save / load), stability
+diagnostics, and the guards between a model and the data it is used on."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import symrom
+from symrom.cli import app
+from symrom.data.io import write_dataset
+from symrom.model.hybrid import HybridModel, ModelDataError, PhaseInfo
+from symrom.model.library import Inputs, Library, Polynomial, Trigonometric
+from symrom.rollout.integrate import rollout
+from conftest import one_line_error
+
+runner = CliRunner()
+
+
+def test_top_level_api(planted_axis, tmp_path):
+    ds, truth = planted_axis
+    for name in ("SymbolicROM", "TrainConfig", "read_dataset", "train", "load_model", "rollout", "evaluate",
+                 "STLSQ", "Refine", "PCAEncoder", "Polynomial", "Trigonometric", "Inputs", "Custom"):
+        assert hasattr(symrom, name), name
+    rom = symrom.SymbolicROM(2, Polynomial(1) + Trigonometric() + Inputs())
+    with pytest.raises(ValueError, match="not fitted"):
+        rom.predict(ds)
+    assert rom.fit(ds) is rom
+    # predict: the latent accelerations of the planted system, on rows never trained on
+    test = ds.rows_of("test")
+    ddxi = ds.ddq[test] @ rom.model.autoencoder.W_e.T
+    np.testing.assert_allclose(rom.predict(ds, test), ddxi, atol=2e-3 * np.abs(ddxi).max())
+    ro = rom.simulate(ds, ds.jumps_in("test"), reset=0.1)
+    assert ro.components == symrom.names.Q_NAMES and not ro.diverged.any()
+    assert "[contact]" in rom.equations() and "\\ddot{\\xi}_{1}" in rom.equations(latex=True)
+    rom.save(tmp_path / "m.json")
+    back = symrom.SymbolicROM.load(tmp_path / "m.json")
+    np.testing.assert_array_equal(back.model.Xi, rom.model.Xi)
+    np.testing.assert_array_equal(back.simulate(ds, [0]).q_pred[0], rom.simulate(ds, [0]).q_pred[0])
+    metrics, _ = symrom.evaluate(symrom.load_model(tmp_path / "m.json"), ds, "test")
+    assert metrics["horizons"]["full"]["diverged_jumps"] == 0
+
+
+def test_linear_planted_system_has_its_analytic_eigenvalues(planted_axis):
+    ds, truth = planted_axis
+    model = symrom.train(ds, symrom.TrainConfig(trig=False))
+    # ddxi = K xi + C dxi + ... : eigenvalues of [[0, I], [K, C]] at any point.
+    for st in model.stability():
+        k = model.phase_names.index(st.phase)
+        names = model.library.feature_names
+        K = np.array([[model.Xi[k, names.index(f"xi{i}"), j] for i in (1, 2)] for j in range(2)])
+        C = np.array([[model.Xi[k, names.index(f"dxi{i}"), j] for i in (1, 2)] for j in range(2)])
+        A = np.block([[np.zeros((2, 2)), np.eye(2)], [K, C]])
+        np.testing.assert_allclose(np.sort_complex(st.eigenvalues), np.sort_complex(np.linalg.eigvals(A)),
+                                   atol=1e-9)
+
+
+def _unstable(model: HybridModel) -> HybridModel:
+    """The model with a strong anti-damping in contact: a fast unstable mode."""
+    names = model.library.feature_names
+    Xi = model.Xi.copy()
+    Xi[model.phase_names.index("contact"), names.index("dxi1"), 0] = 40.0
+    return replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
+
+
+def test_fast_unstable_mode_is_warned_and_shown(planted_axis, tmp_path):
+    ds, _ = planted_axis
+    model = symrom.train(ds, symrom.TrainConfig())
+    assert not any(s.fast_unstable for s in model.stability())
+    bad = _unstable(model)
+    warn = [s.warning() for s in bad.stability() if s.warning()]
+    assert len(warn) == 1 and "'contact'" in warn[0] and "fast unstable mode" in warn[0]
+    symrom.SymbolicROM(2).fit(ds).model  # noqa: B018 - a fitted estimator has its model
+    path = tmp_path / "bad.json"
+    symrom.model.persistence.save_model(bad, path)
+    r = runner.invoke(app, ["equations", str(path)])
+    assert r.exit_code == 0, r.output
+    assert "eigenvalues" in r.output and "fast unstable mode" in r.output
+
+
+def test_diverged_rollouts_record_when_they_left(planted_axis):
+    ds, _ = planted_axis
+    bad = _unstable(symrom.train(ds, symrom.TrainConfig()))
+    metrics, ros = symrom.evaluate(bad, ds, "test", resets=(None,),
+                                   options=symrom.RolloutOptions("rk4"))
+    full = metrics["horizons"]["full"]
+    assert full["diverged_jumps"] == len(full["diverged"]) > 0
+    ro = ros["full"]
+    for d in full["diverged"]:
+        i = list(ro.jumps).index(d["jump"])
+        assert d["t"] == pytest.approx(ro.diverged_at[i] * ds.dt)
+        assert np.isnan(ro.q_pred[i][ro.diverged_at[i]:]).all() and np.isfinite(ro.q_pred[i][:ro.diverged_at[i]]).all()
+
+
+# ------------------------------------------------------------------ guards
+def test_phases_are_matched_by_name(planted_axis):
+    ds, _ = planted_axis
+    model = symrom.train(ds, symrom.TrainConfig())
+    # The same data with its phase list written in the other order: same rollout.
+    flipped = replace(ds, phase_names=ds.phase_names[::-1], phase=(1 - ds.phase).astype(np.int8))
+    j = ds.jumps_in("test")[:1]
+    np.testing.assert_array_equal(rollout(model, ds, j).q_pred[0], rollout(model, flipped, j).q_pred[0])
+    # A phase the model has no equations for is refused, naming it, the jump and the row.
+    other = replace(ds, phase_names=["contact", "partial"])
+    with pytest.raises(ModelDataError, match=r"phase 'partial' \(jump 0, row \d+\): the model has no equations"):
+        rollout(model, other, [0])
+
+
+def test_robot_and_layout_are_checked(planted_axis):
+    ds, _ = planted_axis
+    model = symrom.train(ds, symrom.TrainConfig())
+    with pytest.raises(ModelDataError, match="trained on 'planted', the data are of 'go1'"):
+        rollout(model, replace(ds, robot="go1"), [0])
+    shuffled = replace(model, info={**model.info, "q_names": list(model.info["q_names"])[::-1]})
+    with pytest.raises(ModelDataError, match="joint layout"):
+        rollout(shuffled, ds, [0])
+
+
+def test_a_phase_without_training_rows_is_kept_untrained(planted_axis):
+    ds, _ = planted_axis
+    train_rows = ds.rows_of("train") & (ds.phase == ds.phase_names.index("contact"))
+    model = symrom.train(ds, symrom.TrainConfig(), rows=train_rows)
+    assert model.trained_phases() == ["contact"] and model.info["untrained_phases"] == ["flight"]
+    assert not model.mask[model.phase_names.index("flight")].any()
+    with pytest.raises(ModelDataError, match="phase 'flight'.*training data held no row of it"):
+        rollout(model, ds, [0])
+
+
+def test_cli_names_misuse_in_one_line(planted_axis, tmp_path):
+    ds, _ = planted_axis
+    data = tmp_path / "d.h5"
+    write_dataset(ds, data)
+    r = runner.invoke(app, ["train", str(data), "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    other = tmp_path / "other.h5"
+    write_dataset(replace(ds, robot="a1"), other)
+    one_line_error(runner.invoke(app, ["evaluate", str(tmp_path / "m" / "model.json"), str(other),
+                                       "--out", str(tmp_path / "e")]), "robot", "'a1'")
+    assert not (tmp_path / "e").exists()
+    nof = tmp_path / "noflight.h5"
+    write_dataset(replace(ds, phase=np.zeros_like(ds.phase)), nof)  # every row contact: no flight rows
+    r = runner.invoke(app, ["train", str(nof), "--out", str(tmp_path / "m2")])
+    assert r.exit_code == 0, r.output
+    assert "flight" in r.output and "no training rows" in r.output
