@@ -93,10 +93,9 @@ def test_sample_params_is_deterministic_and_varied():
 
 
 def test_initial_pose_is_standing():
-    spec = get_robot("a1")
     with World("a1") as w:
-        ctrl = froggy.FroggyController(spec, froggy.FroggyParams())
-        w.reset(ctrl.initial_q(w))
+        ctrl = froggy.FroggyController("a1", froggy.FroggyParams())
+        w.reset(ctrl.reset(w))
         s = w.state()
         assert s.contact.tolist() == [1, 1, 1, 1]
         tau = ctrl.torque(s)

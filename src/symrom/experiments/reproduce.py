@@ -140,11 +140,12 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     path = run / "data" / f"{spec.name}.h5"
     if _done(path):
         return path
-    from symrom.sim.generate import generate
+    from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
 
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
-    generate(robot=spec.robot, motion=spec.motion, n_jumps=spec.jumps, out=path, seed=cfg.seed,
-             workers=cfg.workers, noise=spec.noise, proxy=spec.proxy, resume=True,
+    gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed, proxy=spec.proxy,
+                        noise=NoiseConfig() if spec.noise else None)
+    generate(gc, path, workers=cfg.workers, resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))
     return path
