@@ -17,9 +17,11 @@ pose moving along the take-off line; in flight they are level, so the legs
 reach plumb down for the landing. Each leg's torques are scaled together into
 the robot's limits (``World.step`` clips as well).
 
-With ``FroggyParams.hold_hx`` the hip abduction (hx) joints are held at their
-standing angle by the world (``World.hold_joints``). The parameters are the
-A1's and are not scaled to other robots.
+The hip abduction (hx) joints are held at their standing angle by the world
+(``World.hold_joints``), as the paper's froggy jumps held them (its A1 hx
+errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
+Cartesian PD like the other joints. The parameters are the A1's and are not
+scaled to other robots.
 """
 
 from __future__ import annotations
@@ -84,7 +86,7 @@ class FroggyParams:
     xy_ratio: float = 0.4
     k_att: float = 150.0
     d_att: float = 8.0
-    hold_hx: bool = False
+    hold_hx: bool = True
 
 
 def sample_params(rng: np.random.Generator) -> FroggyParams:
