@@ -22,6 +22,7 @@ _HERE = Path(__file__).resolve().parent
 ROBOTS: dict[str, Path] = {
     "a1": _HERE / "a1" / "a1.toml",
     "go1": _HERE / "go1" / "go1.toml",
+    "laikago": _HERE / "laikago" / "laikago.toml",
 }
 
 __all__ = ["ROBOTS", "LegKinematics", "RobotDescription", "RobotDescriptionError", "get_robot",
