@@ -394,22 +394,24 @@ def generate_cmd(
     force: Force = False,
 ) -> None:
     """Simulate jumps in PyBullet, check them and write a dataset file."""
-    from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
+    from symrom.robots import get_robot
+    from symrom.sim.generate import GenerateConfig, NoiseConfig, check_config, generate
 
     if out.exists() and not force:  # fail before drawing the progress bar
         raise FileExistsError(f"{out} exists; use --force to overwrite it")
+    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
+                                         noise=NoiseConfig() if noise else None))
+    label = f"{get_robot(config.robot).name} {motion}"
     with progress_bar() as bar:
-        task = bar.add_task(f"{robot} {motion}", total=jumps)
+        task = bar.add_task(label, total=jumps)
         retries = [0]
 
         def _progress(done: int, total: int, info: dict) -> None:
             retries[0] += int(info.get("retries", 0))
             note = f" ({info['resumed']} resumed)" if info.get("resumed") else ""
             bar.update(task, completed=done, total=total,
-                       description=f"{robot} {motion}: jump {done}/{total}, {retries[0]} retries{note}")
+                       description=f"{label}: jump {done}/{total}, {retries[0]} retries{note}")
 
-        config = GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
-                                noise=NoiseConfig() if noise else None)
         ds = generate(config, out, workers=workers, resume=resume, force=force,
                       progress_callback=_progress)
     counts = {s: int((ds.split == s).sum()) for s in ("train", "val", "test")}
