@@ -14,7 +14,6 @@ result it is, which decides how the report shows it) and its files.
 from __future__ import annotations
 
 import json
-import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -230,8 +229,3 @@ def read_manifest(items: Any, where: str = "summary.json: manifest") -> list[Man
             raise RecordError(f"{where}: name {e.name!r} appears twice")
         seen.add(e.name)
     return entries
-
-
-def finite(x: float | None) -> bool:
-    """Whether ``x`` is a finite number (not None or NaN)."""
-    return x is not None and math.isfinite(x)

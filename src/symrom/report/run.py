@@ -36,9 +36,6 @@ class Run:
     def entry(self, name: str | None) -> ManifestEntry | None:
         return next((e for e in self.entries if e.name == name), None)
 
-    def of_role(self, role: str) -> list[ManifestEntry]:
-        return [e for e in self.entries if e.role == role]
-
     def path(self, entry: ManifestEntry, key: str) -> Path | None:
         """The absolute path of file ``key`` of ``entry``, None if not named or not there."""
         rel = entry.files.get(key)
