@@ -17,15 +17,17 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.sim.generate import ROBOT_OF_MOTION, generate, motion_available
+from symrom.sim.generate import GenerateConfig, generate, motion_available
+
+ROBOT_OF_MOTION = {"froggy": "a1", "pronk": "go1"}  # the robots of the paper's datasets
 
 
 def _run(motion: str, n: int, workers: int, seed: int, out: Path) -> tuple[float, float, list[float]]:
     """(wall s, simulated s, MPC solve times s) of one generation run."""
     solves: list[float] = []
     t0 = time.perf_counter()
-    ds = generate(ROBOT_OF_MOTION[motion], motion, n, out, seed=seed, workers=workers, force=True,
-                  progress_callback=lambda d, t, info: solves.extend(info.get("mpc_solve_times", [])))
+    ds = generate(GenerateConfig(ROBOT_OF_MOTION[motion], motion, n, seed=seed), out, workers=workers,
+                  force=True, progress_callback=lambda d, t, info: solves.extend(info.get("mpc_solve_times", [])))
     wall = time.perf_counter() - t0
     return wall, ds.n_samples * ds.dt, solves
 

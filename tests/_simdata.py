@@ -8,7 +8,7 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from symrom.sim.generate import generate, motion_available
+from symrom.sim.generate import GenerateConfig, NoiseConfig, generate, motion_available
 
 _ROOT = Path(tempfile.mkdtemp(prefix="symrom-simtests-"))
 atexit.register(shutil.rmtree, _ROOT, True)
@@ -28,8 +28,15 @@ def tmp_path(name: str) -> Path:
 def reference_file(motion: str, noise: bool = False) -> Path:
     """A small dataset of ``motion`` (one worker, seed ``SEED``)."""
     out = tmp_path(f"{motion}{'_noise' if noise else ''}.h5")
-    generate(ROBOT[motion], motion, N_JUMPS[motion], out, seed=SEED, workers=1, noise=noise)
+    generate(config(motion, noise=noise), out)
     return out
+
+
+def config(motion: str, n_jumps: int | None = None, seed: int = SEED, noise: bool = False,
+           robot: str | None = None) -> GenerateConfig:
+    """The generation options of the shared datasets (other counts, seeds, robots on request)."""
+    return GenerateConfig(robot or ROBOT[motion], motion, N_JUMPS[motion] if n_jumps is None else n_jumps,
+                          seed=seed, noise=NoiseConfig() if noise else None)
 
 
 def have(motion: str) -> bool:

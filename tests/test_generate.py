@@ -9,10 +9,14 @@ import h5py
 import numpy as np
 import pytest
 
-from _simdata import N_JUMPS, SEED, have, reference_file, tmp_path
+from _simdata import N_JUMPS, SEED, config, have, reference_file, tmp_path
 from symrom.data.io import read_dataset
+from symrom.robots import get_robot
 from symrom.sim import generate as gen
-from symrom.sim.generate import GenerationError, generate, parts_dir, split_counts
+from symrom.sim.checks import JumpChecks, check_jump
+from symrom.sim.froggy import MOTION as FROGGY
+from symrom.sim.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
+from symrom.sim.parts import read_part, write_part
 
 needs_pronk = pytest.mark.skipif(not have("pronk"), reason="Go1 pronk controller not installed")
 
@@ -27,17 +31,17 @@ def _same_file(a, b) -> None:
 
 # ---------------------------------------------------------------- fast, no simulation
 def test_paper_splits_and_scaling():
-    assert split_counts(156, "go1") == (120, 30, 6)
-    assert split_counts(150, "a1") == (100, 40, 10)
-    assert split_counts(15, "go1", proxy=True) == (12, 2, 1)
+    assert split_counts(156, "pronk") == (120, 30, 6)
+    assert split_counts(150, "froggy") == (100, 40, 10)
+    assert split_counts(15, "pronk", proxy=True) == (12, 2, 1)
     for n in (1, 2, 3, 7, 40, 300):
-        for robot, proxy in (("go1", False), ("a1", False), ("go1", True)):
-            c = split_counts(n, robot, proxy)
+        for motion, proxy in (("pronk", False), ("froggy", False), ("pronk", True)):
+            c = split_counts(n, motion, proxy)
             assert sum(c) == n and c[0] >= 1
-    assert split_counts(300, "a1") == (200, 80, 20)
+    assert split_counts(300, "froggy") == (200, 80, 20)
     for n in (2, 3, 4, 10):  # small sets can still be evaluated (and validated from 3 on)
-        for robot, proxy in (("go1", False), ("a1", False), ("go1", True)):
-            tr, va, te = split_counts(n, robot, proxy)
+        for motion, proxy in (("pronk", False), ("froggy", False), ("pronk", True)):
+            tr, va, te = split_counts(n, motion, proxy)
             assert tr >= 1 and te >= 1 and (va >= 1 or n < 3)
 
 
@@ -54,30 +58,38 @@ def test_checks_catch_bad_jumps():
     log = {"q": np.zeros((n, 18)), "tau": np.zeros((n, 12)), "contact": np.ones((n, 4), np.uint8),
            "t": np.arange(n) * 0.002}
     log["q"][:, 14] = 0.3
-    bad = gen.check_jump(log, "froggy", "a1", 0.002)
+    def reasons():
+        return check_jump(log, "a1", 0.002) + FROGGY.check(log, 0.002, JumpChecks())
+
+    bad = reasons()
     assert any("no flight" in b for b in bad) and any("travel" in b for b in bad)
     log["contact"][100:180] = 0  # 0.16 s flight ...
-    log["contact"][80:100, :2] = 0  # ... after 0.04 s on the rear feet
+    log["contact"][90:100, :2] = 0  # ... after 0.02 s on the rear feet: too short for froggy
     log["q"][:, 12] = np.linspace(0, 0.3, n)
     log["q"][100:180, 14] = 0.4
-    assert gen.check_jump(log, "froggy", "a1", 0.002) == []
+    assert reasons() == ["rear-only contact 0.020 s before flight"]
+    log["contact"][80:100, :2] = 0  # 0.04 s
+    assert reasons() == []
     log["q"][300, 16] = 1.0
-    assert any("tilt" in b for b in gen.check_jump(log, "froggy", "a1", 0.002))
+    assert any("tilt" in b for b in reasons())
     log["q"][300, 16] = 0.0
     log["tau"][5, 2] = 40.0
-    assert any("torque" in b for b in gen.check_jump(log, "froggy", "a1", 0.002))
+    assert any("torque" in b for b in reasons())
 
 
 def test_bad_requests_fail_clearly(tmp_path):
-    with pytest.raises(GenerationError, match="go1"):
-        generate("a1", "pronk", 2, tmp_path / "x.h5")
-    with pytest.raises(GenerationError, match="motion"):
-        generate("a1", "walk", 2, tmp_path / "x.h5")
-    with pytest.raises(GenerationError, match="proxy"):
-        generate("a1", "froggy", 2, tmp_path / "x.h5", proxy=True)
+    with pytest.raises(GenerationError, match="unknown robot 'b2'"):
+        generate(GenerateConfig("b2", "pronk", 2), tmp_path / "x.h5")
+    with pytest.raises(GenerationError, match="unknown motion 'walk'"):
+        generate(GenerateConfig("a1", "walk", 2), tmp_path / "x.h5")
+    with pytest.raises(GenerationError, match="--proxy is not a variant of 'froggy'"):
+        generate(GenerateConfig("a1", "froggy", 2, proxy=True), tmp_path / "x.h5")
+    with pytest.raises(GenerationError, match="at least one jump"):
+        generate(GenerateConfig("a1", "froggy", 0), tmp_path / "x.h5")
     (tmp_path / "exists.h5").write_text("x")
     with pytest.raises(GenerationError, match="--force"):
-        generate("a1", "froggy", 1, tmp_path / "exists.h5")
+        generate(GenerateConfig("a1", "froggy", 1), tmp_path / "exists.h5")
+    assert not (tmp_path / "x.h5.parts").exists()  # nothing started
 
 
 def test_part_files_are_plain_npz(tmp_path):
@@ -85,10 +97,10 @@ def test_part_files_are_plain_npz(tmp_path):
            "tau": np.zeros((3, 12)), "contact": np.ones((3, 4), np.uint8),
            "foot_pos": np.zeros((3, 4, 3))}
     p = tmp_path / "jump_00000.npz"
-    gen.write_part(p, log, {"jump": 0, "params": {"a": 1.0}}, "abc")
+    write_part(p, log, {"jump": 0, "params": {"a": 1.0}}, "abc")
     with np.load(p, allow_pickle=False) as z:  # loads without pickle
         assert set(z.files) == set(log) | {"meta"}
-    back, rec, fp = gen.read_part(p)
+    back, rec, fp = read_part(p)
     assert fp == "abc" and rec["params"] == {"a": 1.0}
     np.testing.assert_array_equal(back["contact"], log["contact"])
 
@@ -98,8 +110,7 @@ def test_part_files_are_plain_npz(tmp_path):
 def test_froggy_same_seed_same_file_with_two_workers():
     out = tmp_path("froggy_w2.h5")
     calls = []
-    generate("a1", "froggy", N_JUMPS["froggy"], out, seed=SEED, workers=2,
-             progress_callback=lambda d, t, i: calls.append((d, t)))
+    generate(config("froggy"), out, workers=2, progress_callback=lambda d, t, i: calls.append((d, t)))
     _same_file(reference_file("froggy"), out)
     assert calls[-1] == (N_JUMPS["froggy"], N_JUMPS["froggy"])
     assert not parts_dir(out).exists()
@@ -110,15 +121,14 @@ def test_froggy_same_seed_same_file_with_two_workers():
 @pytest.mark.slow
 def test_froggy_interrupted_then_resumed_gives_the_same_file():
     out = tmp_path("froggy_resumed.h5")
-    assert generate("a1", "froggy", N_JUMPS["froggy"], out, seed=SEED, stop_after=1) is None
+    assert generate(config("froggy"), out, stop_after=1) is None
     assert not out.exists() and len(list(parts_dir(out).glob("jump_*.npz"))) == 1
     with pytest.raises(GenerationError, match="--resume"):
-        generate("a1", "froggy", N_JUMPS["froggy"], out, seed=SEED)
+        generate(config("froggy"), out)
     with pytest.raises(GenerationError, match="other options"):
-        generate("a1", "froggy", N_JUMPS["froggy"], out, seed=SEED + 1, resume=True)
+        generate(config("froggy", seed=SEED + 1), out, resume=True)
     seen = []
-    generate("a1", "froggy", N_JUMPS["froggy"], out, seed=SEED, resume=True,
-             progress_callback=lambda d, t, i: seen.append(i))
+    generate(config("froggy"), out, resume=True, progress_callback=lambda d, t, i: seen.append(i))
     assert seen[0] == {"resumed": 1}
     _same_file(reference_file("froggy"), out)
 
@@ -126,13 +136,13 @@ def test_froggy_interrupted_then_resumed_gives_the_same_file():
 @pytest.mark.slow
 def test_killed_subprocess_leaves_parts_that_resume(tmp_path):
     out = tmp_path / "killed.h5"
-    code = ("import sys; from symrom.sim.generate import generate; "
-            f"generate('a1', 'froggy', 2, {str(out)!r}, seed=7, "
+    code = ("import sys; from symrom.sim.generate import GenerateConfig, generate; "
+            f"generate(GenerateConfig('a1', 'froggy', 2, seed=7), {str(out)!r}, "
             "progress_callback=lambda d, t, i: sys.exit(3) if d == 1 else None)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=300)
     assert r.returncode == 3 and not out.exists()
     assert [p.name for p in parts_dir(out).glob("jump_*.npz")] == ["jump_00000.npz"]
-    ds = generate("a1", "froggy", 2, out, seed=7, resume=True)
+    ds = generate(GenerateConfig("a1", "froggy", 2, seed=7), out, resume=True)
     assert ds.n_jumps == 2 and read_dataset(out).n_jumps == 2
 
 
@@ -152,7 +162,7 @@ def test_go1_pronk_dataset():
     ds = read_dataset(reference_file("pronk"))
     assert ds.robot == "go1" and ds.motion == "pronk" and ds.phase_names == ["contact", "flight"]
     assert ds.dt == 0.002
-    limit = np.asarray(gen.get_robot("go1").torque_limit)
+    limit = np.asarray(get_robot("go1").torque_limit)
     for j, (a, b) in enumerate(ds.jump_bounds()):
         c, q = ds.contact[a:b], ds.q[a:b]
         air = (c.sum(axis=1) == 0).astype(int)

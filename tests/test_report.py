@@ -14,47 +14,43 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.evaluate.metrics import component_stats, evaluate
+from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
+from symrom.evaluate.records import (BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry, Metrics,
+                                    RecordError)
 from symrom.evaluate.tables import fmt_value
 from symrom.model.persistence import save_model
 from symrom.model.training import TrainConfig, reconstruction_error, train
-from symrom.names import BASE_POS, TABLE2_COMPONENTS
+from symrom.names import TABLE2_COMPONENTS
 from symrom.report import figures
 from symrom.report.document import render_html
+from symrom.report.context import Context
 from symrom.report.html import build_report
+from symrom.report.roles import build_sections
 from symrom.report.run import load_run
-from symrom.report.sections import table2_section
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import make_planted_dataset
 
-SECTION_IDS = ("table2", "predictions", "aslip", "tradeoff", "equations", "solvers", "data", "run")
-SECTION_TITLES = ("Table 2", "aSLIP", "accuracy vs complexity", "Learned equations",
+SECTION_IDS = ("experiments", "table2", "predictions", "baselines", "tradeoff", "equations", "solvers",
+               "data", "run")
+SECTION_TITLES = ("Table 2", "baselines", "accuracy vs complexity", "Learned equations",
                   "Data summary", "Commands, versions and seeds")
 
 
 def _aslip_metrics(ds, run: Path) -> dict:
-    """aSLIP metrics via the real module; a trivial stand-in (CoM held at its start) only
-    if the module is absent."""
-    try:
-        from symrom.baselines.aslip import evaluate_aslip, fit_aslip
-    except ImportError:
-        errs = []
-        for a, b in ds.jump_bounds()[ds.jumps_in("test")]:
-            com = ds.q[a:b, BASE_POS]
-            errs.append(com[:1] - com)
-        comps = component_stats(np.concatenate(errs), ("x", "y", "z"))
-        return {"model": "stand-in", "data": "", "split": "test", "n_jumps": int(ds.jumps_in("test").size),
-                "horizons": {"full": {"diverged_jumps": 0, "components": comps}}}
+    """aSLIP metrics and parameters via the real module."""
     from dataclasses import asdict
+
+    from symrom.baselines.aslip import ASlip, fit_aslip
 
     params = fit_aslip(ds, ds.rows_of("train"), 12.0)
     (run / "go1_sim" / "aslip").mkdir(parents=True, exist_ok=True)
     (run / "go1_sim" / "aslip" / "params.json").write_text(json.dumps(asdict(params)))
-    return evaluate_aslip(params, ds, "test", method="rk4")
+    return evaluate(ASlip(params), ds, "test", options=RolloutOptions(method="rk4"), model_name="aslip")[0]
 
 
 def _experiment(run: Path, name: str, ds) -> dict:
+    """Train and evaluate on ``ds``; the files, as a manifest entry's ``files``."""
     write_dataset(ds, run / "data" / f"{name}.h5")
     model = train(ds, TrainConfig(latent_dim=2, poly_order=1))
     (run / name / "eval").mkdir(parents=True)
@@ -62,10 +58,7 @@ def _experiment(run: Path, name: str, ds) -> dict:
     metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method="rk4"),
                           model_name=f"{name}/model.json", data_name=f"data/{name}.h5")
     (run / name / "eval" / "metrics.json").write_text(json.dumps(metrics))
-    return {"latent_dim": 2, "poly_order": 1, "n_candidates": model.library.n_features,
-            "active_terms": model.active_terms(),
-            "equations": {k: [str(e) for e in v] for k, v in model.equations(3).items()},
-            "metrics": metrics, "data": f"data/{name}.h5", "model": f"{name}/model.json"}
+    return {"model": f"{name}/model.json", "metrics": f"{name}/eval/metrics.json", "data": f"data/{name}.h5"}
 
 
 def _sweep(ds, dims=(1, 2, 3), seeds=(0, 1), lam=1e-3) -> dict:
@@ -82,31 +75,41 @@ def _sweep(ds, dims=(1, 2, 3), seeds=(0, 1), lam=1e-3) -> dict:
             "L_mod": L, "best_latent_dim": int(dims[int(np.argmin(L))]), "lambda": lam}
 
 
+def _summary(run_dir: Path, entries: list[ManifestEntry], **extra) -> None:
+    (run_dir / "summary.json").write_text(json.dumps({"manifest": [e.to_dict() for e in entries], **extra}))
+
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("run")
     base, _ = make_planted_dataset(n_jumps=10, n_samples=240, embedding="block", seed=5)
     ds = replace(base, robot="go1", foot_pos=np.zeros((base.n_samples, 4, 3)))  # feet at the origin
-    exps = {}
+    files = {}
     for name, seed in (("go1_sim", 5), ("a1_sim", 6), ("go1_proxy", 7)):
         d = ds if seed == 5 else replace(make_planted_dataset(n_jumps=8, n_samples=240, seed=seed)[0],
                                          robot="a1" if name == "a1_sim" else "go1")
-        exps[name] = _experiment(run, name, d)
-    exps["go1_proxy"]["before_finetune"] = exps["go1_proxy"]["metrics"]
+        files[name] = _experiment(run, name, d)
     aslip = _aslip_metrics(ds, run)
-    (run / "go1_sim" / "aslip").mkdir(parents=True, exist_ok=True)
     (run / "go1_sim" / "aslip" / "metrics.json").write_text(json.dumps(aslip))
-    exps["go1_sim"]["aslip"] = aslip
-    exps["go1_sim"]["solvers"] = {"exact": {"wall_time_s": 0.1, "active_terms": exps["go1_sim"]["active_terms"],
-                                            "metrics": exps["go1_sim"]["metrics"]}}
     sweep = _sweep(ds)
     (run / "sweep").mkdir()
     (run / "sweep" / "sweep.json").write_text(json.dumps(sweep))
-    summary = {"experiments": exps, "sweep": sweep,
-               "run": {"command": "symrom reproduce --out RUN --quick",
-                       "versions": {"python": "3.11", "numpy": np.__version__, "symrom": "0.1.0"},
-                       "seeds": {"seed": 0}, "wall_time_s": 1.5}}
-    (run / "summary.json").write_text(json.dumps(summary))
+    entries = [
+        ManifestEntry("go1_sim", LEARNED, files=files["go1_sim"], paper="go1_sim",
+                      facts={"config": {"encoder_components": ["x", "y", "z"], "decoded_weight": 0.0}}),
+        ManifestEntry("a1_sim", LEARNED, files=files["a1_sim"], paper="a1_sim"),
+        ManifestEntry("go1_proxy", FINE_TUNED, files={**files["go1_proxy"], "before": files["go1_proxy"]["metrics"]},
+                      paper="go1_proxy"),
+        ManifestEntry("go1_sim/aslip", BASELINE, "aSLIP", of="go1_sim", paper="aslip",
+                      files={"metrics": "go1_sim/aslip/metrics.json", "params": "go1_sim/aslip/params.json"}),
+        ManifestEntry("go1_sim/solvers/exact", SOLVER, "exact", of="go1_sim",
+                      files={"model": files["go1_sim"]["model"], "metrics": files["go1_sim"]["metrics"]},
+                      facts={"wall_time_s": 0.1}),
+        ManifestEntry("sweep", SWEEP, of="go1_sim", files={"result": "sweep/sweep.json"}),
+    ]
+    _summary(run, entries, run={"command": "symrom reproduce --out RUN --quick",
+                                "versions": {"python": "3.11", "numpy": np.__version__, "symrom": "0.1.0"},
+                                "seeds": {"seed": 0}, "wall_time_s": 1.5})
     return run
 
 
@@ -128,12 +131,12 @@ def test_html_has_every_section_and_no_external_resource(built):
         assert f'<section id="{sid}">' in html
     for title in SECTION_TITLES:
         assert title in html
-    assert html.count('src="data:image/png;base64,') >= 6  # 3 jumps, aSLIP, 2 heatmaps, trade-off
+    assert html.count('src="data:image/png;base64,') == 8  # 3 jumps, aSLIP, 3 heatmaps, trade-off
     assert not _external_links(html) and "http" not in html
     assert "<script" not in html and "<link" not in html
-    assert "not in this run" not in html  # all three experiments present
-    assert "go1_proxy before fine-tuning" in html
-    assert html.count("reconstruction floor RMSE") == 3  # one row per experiment
+    assert "go1_proxy before fine-tuning" in html and "unreadable" not in html
+    assert html.count("reconstruction floor RMSE") == 6  # joints and base pose of three models
+    assert '<section id="other">' not in html  # every role has its renderer
 
 
 def test_markdown_twin_has_the_same_sections_and_figures(built):
@@ -162,20 +165,55 @@ def test_table2_numbers_equal_metrics_json(built, run_dir):
             assert fmt_value(implied_rmse(*paper["z"])) in html
 
 
-def test_go1_only_run_builds_with_notes(run_dir, tmp_path):
+def test_tables_and_equations_fit_the_page(built):
+    _, md, _ = built
+    table2 = md[md.index("## Table 2"):md.index("## Predictions")]
+    widths = [line.count("|") - 1 for line in table2.splitlines() if line.startswith("| horizon")]
+    assert widths and max(widths) <= 8  # horizon, row and six components
+    code = md[md.index("## Learned equations"):md.index("## Solvers")]
+    assert max(len(line) for line in code.splitlines() if line.startswith("  ")) <= 100
+
+
+def test_a_run_holding_one_experiment_renders(run_dir, tmp_path):
     only = tmp_path / "only"
     shutil.copytree(run_dir, only, ignore=shutil.ignore_patterns("a1_sim*", "go1_proxy*", "sweep"))
-    summary = json.loads((only / "summary.json").read_text())
-    summary["experiments"] = {"go1_sim": summary["experiments"]["go1_sim"]}
-    del summary["run"], summary["sweep"]
-    (only / "summary.json").write_text(json.dumps(summary))
+    _summary(only, [ManifestEntry("go1_sim", LEARNED, files={
+        "model": "go1_sim/model.json", "metrics": "go1_sim/eval/metrics.json", "data": "data/go1_sim.h5"})])
     html_path, md_path = build_report(only, tmp_path / "r.html")
     html = html_path.read_text()
-    assert "a1_sim: not in this run" in html and "go1_proxy: not in this run" in html
-    assert "Not in this run, skipped: a1_sim, go1_proxy." in html
-    assert "commands, versions and seeds unknown" in html and "No sweep in this run" in html
-    assert html.count('src="data:image/png;base64,') == 4  # jump, aSLIP, 2 heatmaps
+    ids = re.findall(r'<section id="([a-z0-9]+)">', html)
+    assert ids == ["experiments", "table2", "predictions", "equations", "data", "run"]
+    assert "commands, versions and seeds unknown" in html and "paper row" not in html
+    assert html.count('src="data:image/png;base64,') == 1  # its test jump
     assert (tmp_path / "r_files").is_dir() and md_path == tmp_path / "r.md"
+
+
+def test_a_new_experiment_of_a_known_role_appears_and_an_unknown_role_falls_back(run_dir, tmp_path):
+    run = tmp_path / "more"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep", "a1_sim*", "go1_proxy*"))
+    files = {"model": "go1_sim/model.json", "metrics": "go1_sim/eval/metrics.json", "data": "data/go1_sim.h5"}
+    _summary(run, [ManifestEntry("go1_sim", LEARNED, files=files),
+                   ManifestEntry("go1_sim/retrained", LEARNED, "a second training", files=files, of="go1_sim"),
+                   ManifestEntry("go1_sim/selection", "selection", files={"metrics": files["metrics"]}),
+                   ManifestEntry("notes", "diary", files={})])
+    html = render_html("t", [], build_sections(load_run(run), Context(load_run(run), tmp_path)))
+    assert "go1_sim/retrained — a second training" in html
+    assert html.count("go1_sim/retrained, test jumps") == 2  # its joints and base-pose tables
+    assert '<section id="other">' in html and "go1_sim/selection (selection)" in html
+    assert "go1_sim/selection: RMSE per component" in html and "No renderer for role &#x27;diary&#x27;" in html
+
+
+def test_missing_files_and_a_missing_manifest_become_notes(run_dir, tmp_path):
+    run = tmp_path / "broken"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep"))
+    (run / "a1_sim" / "eval" / "metrics.json").write_text('{"n_jumps": 2, "horizons": {"full": {}}}')
+    html = build_report(run, tmp_path / "b.html")[0].read_text()
+    assert ("a1_sim/eval/metrics.json is unreadable (metrics.json: key horizons.full.components: missing)"
+            in html)
+    assert "sweep: result file sweep/sweep.json is missing" in html
+    (run / "summary.json").write_text(json.dumps({"experiments": {}}))
+    html = build_report(run, tmp_path / "c.html")[0].read_text()
+    assert "has no manifest" in html and "This run lists no experiments." in html
 
 
 def test_diverged_jumps_are_shown(run_dir, tmp_path):
@@ -185,10 +223,30 @@ def test_diverged_jumps_are_shown(run_dir, tmp_path):
     m = json.loads(mpath.read_text())
     m["horizons"]["full"] = {"diverged_jumps": m["n_jumps"], "components": {}}
     mpath.write_text(json.dumps(m))
-    html = render_html("t", [], [table2_section(load_run(only))])
+    run = load_run(only)
+    html = render_html("t", [], build_sections(run, Context(run, tmp_path)))
     assert f"all {m['n_jumps']} jumps diverged" in html
     assert f"Full: {m['n_jumps']} of {m['n_jumps']}" in html
     assert '<p class="note">Diverged test jumps' in html
+
+
+def test_metrics_records_read_what_later_versions_add():
+    d = {"model": "m", "data": "d", "split": "test", "n_jumps": 2, "integrator": "rk4", "selected": True,
+         "horizons": {"full": {"diverged_jumps": 1, "diverged": [{"jump": 4, "t": 0.312}],
+                               "components": {c: {"mean": 0.1, "std": 0.2, "mae": 0.15, "rmse": 0.3}
+                                              for c in ("x", "y", "z")}}}}
+    m = Metrics.from_dict(d)
+    full = m.horizons["full"]
+    assert full.diverged[0].jump == 4 and full.diverged[0].t == 0.312 and set(full.components) == {"x", "y", "z"}
+    assert full.stat("z", "rmse") == 0.3 and full.stat("fl_hx", "rmse") is None and m.any_diverged
+    assert m.to_dict() == d and m.extra == {"selected": True}
+    bad = json.loads(json.dumps(d))
+    bad["horizons"]["full"]["components"]["y"]["rmse"] = "x"
+    with pytest.raises(RecordError, match=r"^metrics\.horizons\.full\.components\.y\.rmse: expected float"):
+        Metrics.from_dict(bad)
+    with pytest.raises(RecordError, match=r"diverged\[0\]\.t: missing"):
+        Metrics.from_dict({"n_jumps": 1, "horizons": {"full": {"diverged_jumps": 1, "components": {},
+                                                               "diverged": [{"jump": 0}]}}})
 
 
 def test_cli_report_force_and_errors(tmp_path):
@@ -200,7 +258,7 @@ def test_cli_report_force_and_errors(tmp_path):
     assert r.exit_code == 0, r.output
     assert str(run / "report.html") in r.output and (run / "report.md").is_file()
     html = (run / "report.html").read_text()
-    assert "go1_sim: not in this run" in html and "No sweep in this run" in html
+    assert "has no manifest" in html and "This run lists no experiments." in html
     r = runner.invoke(app, ["report", str(run)])
     assert r.exit_code == 1 and "--force" in r.output and "Traceback" not in r.output
     r = runner.invoke(app, ["report", str(run), "--out", str(tmp_path / "x.html"), "--force"])

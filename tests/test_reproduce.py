@@ -60,6 +60,28 @@ def test_summary_follows_the_contract(run):
     assert abs(W_e[:, :12]).max() == 0 and abs(W_e[:, 15:]).max() == 0  # reads x, y, z only
 
 
+def test_manifest_lists_every_experiment_with_its_role(run):
+    from symrom.evaluate.records import Metrics, read_manifest
+
+    d, summary, *_ = run
+    entries = read_manifest(json.loads((d / "summary.json").read_text())["manifest"])
+    roles = {e.name: e.role for e in entries}
+    assert roles == {"go1_sim": "learned", "go1_sim/paper_defaults": "learned", "a1_sim": "learned",
+                     "a1_sim/paper_defaults": "learned", "go1_sim/aslip": "baseline",
+                     "go1_sim/solvers/exact": "solver", "go1_sim/solvers/adam": "solver",
+                     "go1_proxy": "fine_tuned", "sweep": "sweep"}
+    for e in entries:
+        for key, rel in e.files.items():
+            assert (d / rel).exists(), (e.name, key, rel)
+        if "metrics" in e.files:
+            Metrics.read(d / e.files["metrics"])  # every metrics file reads as typed records
+    by = {e.name: e for e in entries}
+    assert by["go1_sim/paper_defaults"].of == "go1_sim" and by["go1_sim"].paper == "go1_sim"
+    assert by["go1_sim/solvers/adam"].facts["wall_time_s"] > 0
+    assert Metrics.read(d / by["go1_proxy"].files["before"]).to_dict() == summary["experiments"]["go1_proxy"][
+        "before_finetune"]
+
+
 def test_rerun_resumes_without_retraining(run):
     d, _, _, cfg = run
     stamp = (d / "go1_sim" / "model.json").stat().st_mtime
@@ -79,5 +101,7 @@ def test_report_builds_from_the_run(run):
         assert section.lower() in text.lower(), section
     assert md.is_file()
     md_text = md.read_text()
-    assert "with the paper's defaults" in md_text and md_text.count("reconstruction floor RMSE") == 3
-    assert "go1_sim experiment's model, whose encoder reads x, y, z" in md_text
+    # one floor row per table: joints and base pose of the 5 learned and fine-tuned models
+    assert "with the paper's defaults" in md_text and md_text.count("reconstruction floor RMSE") == 10
+    assert "go1_sim model, whose encoder reads x, y, z" in md_text
+    assert "go1_proxy before fine-tuning" in md_text and "| exact |" in md_text and "| adam |" in md_text

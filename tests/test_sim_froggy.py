@@ -93,12 +93,34 @@ def test_sample_params_is_deterministic_and_varied():
 
 
 def test_initial_pose_is_standing():
-    spec = get_robot("a1")
     with World("a1") as w:
-        ctrl = froggy.FroggyController(spec, froggy.FroggyParams())
-        w.reset(ctrl.initial_q(w))
+        ctrl = froggy.FroggyController("a1", froggy.FroggyParams())
+        w.reset(ctrl.reset(w))
         s = w.state()
         assert s.contact.tolist() == [1, 1, 1, 1]
         tau = ctrl.torque(s)
         assert tau.shape == (12,) and np.all(np.abs(tau) <= LIMIT + 1e-9)
         assert not ctrl.done(s)
+
+
+def test_hx_joints_are_held_as_in_the_paper(ds):
+    for j, s in _per_jump(ds):
+        assert np.ptp(ds.q[s][:, 0:12:3], axis=0).max() < 1e-4, f"jump {j}: hx moved"
+
+
+def _hx_travel(hold: bool) -> float:
+    """Largest hx excursion (rad) over the crouch and push of a default jump."""
+    params = froggy.FroggyParams(hold_hx=hold)
+    with World("a1") as w:
+        ctrl = froggy.FroggyController("a1", params)
+        w.reset(ctrl.reset(w))
+        hx = []
+        for _ in range(950):
+            s = w.state()
+            hx.append(s.q[0:12:3])
+            w.step(ctrl.torque(s))
+    return float(np.ptp(np.array(hx), axis=0).max())
+
+
+def test_hx_moves_when_not_held():
+    assert _hx_travel(False) > 100 * _hx_travel(True)

@@ -11,6 +11,7 @@ import pytest
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
 from symrom.robots import get_robot
+from symrom.robots.stance import FOOT_PRELOAD, start_pose
 from symrom.sim import pronk, proxy
 from symrom.sim.world import World, WorldConfig
 
@@ -23,8 +24,8 @@ def _jump(params: pronk.PronkParams) -> dict:
     world = World("go1", WorldConfig())
     if params.proxy is not None:
         world = proxy.ProxyWorld(world, params.proxy)
-    ctrl = pronk.PronkController(SPEC, params)
-    world.reset(pronk.initial_state(SPEC, params))
+    ctrl = pronk.PronkController("go1", params)
+    world.reset(ctrl.reset(world))
     pos, rpy, contact, tau = [], [], [], []
     try:
         for _ in range(int(params.max_time * world.config.physics_hz) + 1):
@@ -91,13 +92,13 @@ def test_sample_params_ranges():
 
 
 def test_initial_state_stands_on_the_feet():
-    q = pronk.initial_state(SPEC, pronk.PronkParams())
+    q = start_pose("go1")
     assert q[BASE_POS][2] == pytest.approx(SPEC.start_height)
     world = World("go1")
     try:
         world.reset(q)
         s = world.state()
-        np.testing.assert_allclose(s.foot_pos[:, 2], 0.02 - pronk.FOOT_PRELOAD, atol=1e-6)  # r = 2 cm
+        np.testing.assert_allclose(s.foot_pos[:, 2], 0.02 - FOOT_PRELOAD, atol=1e-6)  # r = 2 cm
         np.testing.assert_allclose(s.q[JOINTS][1::3], s.q[JOINTS][1], atol=1e-9)
     finally:
         world.close()
@@ -124,7 +125,7 @@ def test_proxy_world_perturbs_the_robot():
         c, rob = world.client, world.robot
         assert p.getDynamicsInfo(rob, -1, physicsClientId=c)[0] == pytest.approx(5.204 * 1.1)
         assert p.getDynamicsInfo(world.plane, -1, physicsClientId=c)[1] == pytest.approx(0.6)
-        world.reset(pronk.initial_state(SPEC, pronk.PronkParams()))
+        world.reset(start_pose("go1"))
         seen, truth = world.state(), world.true_state()
         assert seen.q.shape == truth.q.shape == (18,)
         assert 0 < np.abs(seen.q - truth.q).max() < 0.05  # noisy, but close

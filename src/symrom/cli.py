@@ -82,9 +82,9 @@ def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
 @guarded
 def import_cmd(
     logs: Annotated[list[Path], typer.Argument(help="CSV log file(s); several are concatenated as consecutive jumps.")],
-    robot: Annotated[str, typer.Option("--robot", help="Robot of the logs (go1 or a1); its URDF gives the wrench.")],
+    robot: Annotated[str, typer.Option("--robot", help="Robot of the logs: go1, a1 or a robot description file (.toml); its URDF gives the wrench.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
-    motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy); sets the phase rule.")] = "pronk",
+    motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy): its registry entry sets the phase rule.")] = "pronk",
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
     split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1); default all train.")] = None,
     diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
@@ -471,34 +471,38 @@ def report_cmd(
 @app.command("generate")
 @guarded
 def generate_cmd(
-    robot: Annotated[str, typer.Option("--robot", help="go1 or a1.")],
-    motion: Annotated[str, typer.Option("--motion", help="pronk (go1, MPC) or froggy (a1, Cartesian PD).")],
+    robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
+    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC, any robot) or froggy (Cartesian PD, tuned on the a1).")],
     jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
-    proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like Go1 (source=proxy).")] = False,
+    proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
     workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
     force: Force = False,
 ) -> None:
     """Simulate jumps in PyBullet, check them and write a dataset file."""
-    from symrom.sim.generate import generate
+    from symrom.robots import get_robot
+    from symrom.sim.generate import GenerateConfig, NoiseConfig, check_config, generate
 
     if out.exists() and not force:  # fail before drawing the progress bar
         raise FileExistsError(f"{out} exists; use --force to overwrite it")
+    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
+                                         noise=NoiseConfig() if noise else None))
+    label = f"{get_robot(config.robot).name} {motion}"
     with progress_bar() as bar:
-        task = bar.add_task(f"{robot} {motion}", total=jumps)
+        task = bar.add_task(label, total=jumps)
         retries = [0]
 
         def _progress(done: int, total: int, info: dict) -> None:
             retries[0] += int(info.get("retries", 0))
             note = f" ({info['resumed']} resumed)" if info.get("resumed") else ""
             bar.update(task, completed=done, total=total,
-                       description=f"{robot} {motion}: jump {done}/{total}, {retries[0]} retries{note}")
+                       description=f"{label}: jump {done}/{total}, {retries[0]} retries{note}")
 
-        ds = generate(robot, motion, jumps, out, seed=seed, workers=workers, noise=noise,
-                      resume=resume, progress_callback=_progress, proxy=proxy, force=force)
+        ds = generate(config, out, workers=workers, resume=resume, force=force,
+                      progress_callback=_progress)
     counts = {s: int((ds.split == s).sum()) for s in ("train", "val", "test")}
     out_console.print(f"data: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, "
                       f"{ds.generator['retries']} retries; split {counts})", highlight=False)

@@ -25,13 +25,14 @@ FLIGHT_PHASE = "flight"
 
 
 def robot_mass(robot: str) -> float:
-    """Total mass of ``robot`` from its description, kg; a clear error for robots without one."""
-    from symrom.robots import ROBOTS, total_mass
+    """Total mass of ``robot`` (a name or description file) from its URDF, kg; a clear error
+    for robots without a description."""
+    from symrom.robots import RobotDescriptionError, get_robot
 
-    if robot.lower() not in ROBOTS:
-        raise ValueError(f"robot {robot!r} has no URDF to take the mass from; give the mass "
-                         f"explicitly (--mass)")
-    return total_mass(robot)
+    try:
+        return get_robot(robot).mass
+    except RobotDescriptionError as e:
+        raise ValueError(f"{e}; give the mass explicitly (--mass)") from None
 
 
 def flight_rows(ds: Dataset) -> np.ndarray:

@@ -49,6 +49,7 @@ import numpy as np
 from symrom.data.dataset import Dataset
 from symrom.data.preprocess import DIFF_METHODS, assemble, differentiate
 from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
+from symrom.motions import get_motion
 from symrom.robots import get_robot
 
 
@@ -381,11 +382,13 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 diff_method: str = "savgol") -> Dataset:
     """Read CSV logs (concatenated as consecutive jumps) into a validated dataset.
 
-    robot: ``go1`` or ``a1`` (the wrench uses its URDF); motion: sets the phase
-    rule (``pronk``, ``froggy``); split: see ``parse_split``; diff_method:
-    ``savgol`` or ``central``, used where a log has no acceleration columns.
+    robot: a built-in name or a robot description file (the wrench uses its URDF);
+    motion: a registered motion, whose phase rule labels the samples (``pronk``,
+    ``froggy``); split: see ``parse_split``; diff_method: ``savgol`` or
+    ``central``, used where a log has no acceleration columns.
     """
-    get_robot(robot)
+    robot = get_robot(robot).key
+    get_motion(motion)
     if diff_method not in DIFF_METHODS:
         raise ValueError(f"unknown differentiation method {diff_method!r}; choose from {DIFF_METHODS}")
     if not paths:

@@ -11,7 +11,8 @@ interrupted run resumes where it stopped and datasets are never regenerated):
     go1_proxy/ base/model.json (trained on the noisy Go1 variant),
                model.json (fine-tuned on the proxy training jumps), eval/
     sweep/     sweep.json, cells/, encoders/W_e_l<k>.json
-    summary.json
+    summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
+                   role and files, which the report renders
 
 Experiments: SIM Go1 pronking (l = 2, p = 1), SIM A1 froggy (l = 4, p = 1,
 phases contact / partial / flight), sim-to-real (train on noisy Go1, fine-tune
@@ -43,6 +44,8 @@ from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.outputs import write_evaluation
+from symrom.evaluate.paper import PAPER_TABLE2
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, save_model
@@ -140,11 +143,12 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     path = run / "data" / f"{spec.name}.h5"
     if _done(path):
         return path
-    from symrom.sim.generate import generate
+    from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
 
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
-    generate(robot=spec.robot, motion=spec.motion, n_jumps=spec.jumps, out=path, seed=cfg.seed,
-             workers=cfg.workers, noise=spec.noise, proxy=spec.proxy, resume=True,
+    gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed, proxy=spec.proxy,
+                        noise=NoiseConfig() if spec.noise else None)
+    generate(gc, path, workers=cfg.workers, resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))
     return path
@@ -290,6 +294,46 @@ def run_sweep_step(run: Path, data: Path, cfg: ReproduceConfig, say: Say) -> dic
     return result
 
 
+def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEntry]:
+    """The run's experiments with their roles and files (paths relative to ``run``), for the report."""
+    def rel(*parts: str) -> str:
+        return str(Path(*parts))
+
+    exps, out = summary["experiments"], []
+    for exp in cfg.experiments:
+        data = rel("data", f"{exp.data}.h5")
+        out.append(ManifestEntry(exp.name, LEARNED, paper=exp.name if exp.name in PAPER_TABLE2 else None,
+                                 files={"model": rel(exp.name, "model.json"), "metrics": rel(exp.name, "eval", "metrics.json"),
+                                        "data": data}, facts={"config": exps[exp.name]["config"]}))
+        if "paper_defaults" in exps[exp.name]:
+            d = rel(exp.name, "paper_defaults")
+            out.append(ManifestEntry(f"{exp.name}/paper_defaults", LEARNED, f"{exp.name} with the paper's defaults",
+                                     files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json"),
+                                            "data": data}, of=exp.name,
+                                     facts={"config": {"encoder_components": None, "decoded_weight": 1.0, "alpha": 0.0}}))
+    go1 = exps.get("go1_sim", {})
+    if "aslip" in go1:
+        d = rel("go1_sim", "aslip")
+        out.append(ManifestEntry("go1_sim/aslip", BASELINE, "aSLIP", of="go1_sim", paper="aslip",
+                                 files={"metrics": rel(d, "metrics.json"), "params": rel(d, "params.json"),
+                                        "data": rel("data", "go1_sim.h5")}))
+    for solver, s in go1.get("solvers", {}).items():
+        d = rel("go1_sim", "solvers", solver)
+        out.append(ManifestEntry(f"go1_sim/solvers/{solver}", SOLVER, solver, of="go1_sim",
+                                 files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json")},
+                                 facts={"wall_time_s": s["wall_time_s"]}))
+    if "go1_proxy" in exps:
+        out.append(ManifestEntry("go1_proxy", FINE_TUNED, "proxy Go1, fine-tuned from the noisy Go1 model",
+                                 paper="go1_proxy", files={
+                                     "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
+                                     "data": exps["go1_proxy"]["data"], "source_model": rel("go1_proxy", "base", "model.json"),
+                                     "before": rel("go1_proxy", "base_eval", "metrics.json")},
+                                 facts={"finetune": exps["go1_proxy"]["finetune"]}))
+    out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
+                             files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))
+    return out
+
+
 def _versions() -> dict:
     import numpy
     import scipy
@@ -322,6 +366,7 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     if "go1_noisy" in data and "go1_proxy" in data:
         summary["experiments"]["go1_proxy"] = run_proxy(run, data["go1_noisy"], data["go1_proxy"], cfg, say)
     summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
+    summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)),
                       "wall_time_s": time.perf_counter() - t0}

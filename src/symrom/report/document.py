@@ -66,7 +66,7 @@ th,td{border:1px solid #ccc;padding:.25em .45em;text-align:right;white-space:now
 th{background:#eef1f5}td:first-child,td:nth-child(2){text-align:left}
 caption{caption-side:top;text-align:left;font-weight:600;padding:.3em 0}
 .scroll{overflow-x:auto}
-pre{background:#f6f8fa;border:1px solid #ddd;padding:.6em;overflow-x:auto;font-size:.85em}
+pre{background:#f6f8fa;border:1px solid #ddd;padding:.6em;white-space:pre-wrap;font-size:.85em}
 .note{background:#fff4e0;border-left:4px solid #e69500;padding:.4em .7em}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
 figcaption{font-size:.88em;color:#444}

@@ -118,10 +118,11 @@ def aslip_jump_com(ds: Dataset, jump: int, params: dict, method: str = "lsoda") 
     """Glue to ``symrom.baselines.aslip``: the aSLIP's predicted CoM x, y, z (n, 3), m,
     of ``jump`` (index into ``ds``), full horizon; ``params`` as in params.json
     (k_s N/m, l_0 m, m kg; other keys ignored). NaN rows after a divergence."""
-    from symrom.baselines.aslip import ASlipParams, ASlipRolloutOptions, rollout_aslip
+    from symrom.baselines.aslip import ASlip, ASlipParams
+    from symrom.rollout.integrate import RolloutOptions, rollout
 
     p = ASlipParams(**{k: float(params[k]) for k in ("k_s", "l_0", "m")})
-    return rollout_aslip(p, ds, [int(jump)], ASlipRolloutOptions(method=method)).b_pred[0]
+    return rollout(ASlip(p), ds, [int(jump)], RolloutOptions(method=method)).q_pred[0]
 
 
 def sweep_stats(sweep: dict) -> dict[str, np.ndarray]:

@@ -14,8 +14,10 @@ from pathlib import Path
 
 from symrom import __version__
 from symrom.atomic import OutputExistsError, atomic_dir, write_text_atomic
-from symrom.report import sections as S
-from symrom.report.document import Para, render_html, render_markdown
+from symrom.report.common import data_blocks, experiments_blocks, run_blocks
+from symrom.report.context import Context
+from symrom.report.document import Para, Section, render_html, render_markdown
+from symrom.report.roles import build_sections
 from symrom.report.run import load_run
 
 
@@ -29,10 +31,11 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force:
                  progress: Callable[[str], None] | None = None) -> tuple[Path, Path]:
     """Build the report of ``run_dir`` into ``out_html`` (+ Markdown twin); their paths.
 
-    Existing outputs are replaced atomically; with ``force=False`` (the CLI
-    without --force) ``OutputExistsError`` is raised instead if any exists.
-    Raises ``FileNotFoundError`` if ``run_dir`` is not a directory. Missing parts of
-    the run are noted in the report, never raised.
+    The report shows what the run's manifest lists, each experiment by its role
+    (``symrom.report.roles``). Existing outputs are replaced atomically; with
+    ``force=False`` (the CLI without --force) ``OutputExistsError`` is raised
+    instead if any exists. Raises ``FileNotFoundError`` if ``run_dir`` is not a
+    directory. Missing or unreadable files of the run are noted in the report.
     """
     html_path, md_path, files_dir = report_paths(out_html)
     if not force:
@@ -43,26 +46,16 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force:
     run = load_run(run_dir)
     title = "symrom report: symbolic reduced-order models of quadruped jumping"
     with atomic_dir(files_dir, force=True) as fig_dir:
-        jumps = S.JumpCache(run)
-        say("Table 2")
-        secs = [S.table2_section(run)]
-        say("prediction figures")
-        secs.append(S.predictions_section(run, jumps, fig_dir))
-        say("aSLIP comparison")
-        secs.append(S.aslip_section(run, jumps, fig_dir))
-        say("latent dimension trade-off")
-        secs.append(S.tradeoff_section(run, fig_dir))
-        say("equations and data")
-        secs.append(S.equations_section(run))
-        solvers = S.solvers_section(run)
-        if solvers is not None:
-            secs.append(solvers)
-        secs += [S.data_section(run), S.run_section(run)]
+        say("experiments")
+        secs = [Section("experiments", "Experiments of this run").add(*experiments_blocks(run))]
+        secs += build_sections(run, Context(run, fig_dir))
+        say("data and provenance")
+        secs += [Section("data", "Data summary").add(*data_blocks(run)),
+                 Section("run", "Commands, versions and seeds").add(*run_blocks(run))]
         intro = [Para(f"Run directory: {run.dir.resolve()}. Built {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
                       f"by symrom {__version__}. Reproduces arXiv 2508.06538 (Buriani, Liu et al.): "
-                      "Table 2, the aSLIP comparison, the latent-dimension trade-off and the learned equations.")]
-        if run.missing:
-            intro.append(Para("Not in this run, skipped: " + ", ".join(run.missing) + ".", note=True))
+                      "Table 2, the aSLIP comparison, the latent-dimension trade-off and the learned equations, "
+                      "for whatever experiments this run holds.")]
         intro += [Para(n, note=True) for n in run.notes]
         write_text_atomic(md_path, render_markdown(title, intro, secs, files_dir.name))
         write_text_atomic(html_path, render_html(title, intro, secs))

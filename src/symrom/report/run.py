@@ -1,10 +1,9 @@
-"""Reading a run directory (made by ``symrom reproduce``) for the report.
+"""Reading a run directory for the report, driven by its manifest.
 
-Layout: ``summary.json``; ``data/<name>.h5``; ``<exp>/model.json`` and
-``<exp>/eval/metrics.json`` for exp in go1_sim, a1_sim, go1_proxy;
-``go1_sim/aslip/{metrics,params}.json``; ``sweep/sweep.json`` and optional
-``sweep/encoders/W_e_l<k>.json``. Files take precedence over the copies in
-``summary.json``; anything missing or unreadable becomes a note, never an error.
+``summary.json`` lists the run's experiments in ``manifest`` (``ManifestEntry``:
+name, role, files relative to the run directory). The report reads only what
+the manifest names; a file that is missing or unreadable becomes a visible
+note (``Run.notes``), never an error. Files are read once and cached.
 """
 
 from __future__ import annotations
@@ -12,87 +11,99 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from symrom.data.dataset import Dataset
+from symrom.evaluate.records import ManifestEntry, Metrics, RecordError, read_manifest
 from symrom.model.hybrid import HybridModel
 
-EXPERIMENTS: tuple[str, ...] = ("go1_sim", "a1_sim", "go1_proxy")
-
-
-@dataclass
-class Experiment:
-    """One learned-model experiment of the run; paths absolute, dicts as in the files."""
-
-    name: str
-    summary: dict
-    metrics: dict | None
-    model_path: Path | None
-    data_path: Path | None
-    aslip_metrics: dict | None = None
-    aslip_params: dict | None = None
+# What reading a run's file can raise: missing or unreadable (OSError), or not of its
+# layout (ValueError: DatasetError, ModelFileError, RecordError, JSONDecodeError).
+READ_ERRORS = (OSError, ValueError)
 
 
 @dataclass
 class Run:
+    """A run directory: its summary, its manifest entries and what could not be read."""
+
     dir: Path
     summary: dict
-    experiments: dict[str, Experiment]
-    missing: list[str]
-    sweep: dict | None
+    entries: list[ManifestEntry]
     notes: list[str] = field(default_factory=list)
-    _datasets: dict = field(default_factory=dict)
-    _models: dict = field(default_factory=dict)
+    _cache: dict = field(default_factory=dict)
 
-    def model(self, path: Path) -> HybridModel:
-        """The model file at ``path``, loaded once (validated)."""
+    # ------------------------------------------------------------ entries
+    def entry(self, name: str | None) -> ManifestEntry | None:
+        return next((e for e in self.entries if e.name == name), None)
+
+    def path(self, entry: ManifestEntry, key: str) -> Path | None:
+        """The absolute path of file ``key`` of ``entry``, None if not named or not there."""
+        rel = entry.files.get(key)
+        if rel is None:
+            return None
+        p = Path(rel) if Path(rel).is_absolute() else self.dir / rel
+        if not p.exists():
+            self.note(f"{entry.name}: {key} file {rel} is missing")
+            return None
+        return p
+
+    # ------------------------------------------------------------ files, read once
+    def note(self, text: str) -> None:
+        if text not in self.notes:
+            self.notes.append(text)
+
+    def _read(self, kind: str, path: Path, load) -> Any:
+        key = (kind, str(path.resolve()))
+        if key not in self._cache:
+            try:
+                self._cache[key] = load(path)
+            except READ_ERRORS as e:
+                self.note(f"{path.relative_to(self.dir) if path.is_relative_to(self.dir) else path} is "
+                          f"unreadable ({str(e).replace(str(path), path.name)}); what needs it is skipped")
+                self._cache[key] = None
+        return self._cache[key]
+
+    def metrics(self, entry: ManifestEntry, key: str = "metrics") -> Metrics | None:
+        p = self.path(entry, key)
+        return None if p is None else self._read("metrics", p, Metrics.read)
+
+    def model(self, entry: ManifestEntry, key: str = "model") -> HybridModel | None:
         from symrom.model.persistence import load_model
 
-        key = str(Path(path).resolve())
-        if key not in self._models:
-            self._models[key] = load_model(path)
-        return self._models[key]
+        p = self.path(entry, key)
+        return None if p is None else self._read("model", p, load_model)
 
-    def dataset(self, path: Path) -> Dataset:
-        """The dataset at ``path``, read once (validated)."""
+    def dataset_at(self, path: Path) -> Dataset | None:
         from symrom.data.io import read_dataset
 
-        key = str(Path(path).resolve())
-        if key not in self._datasets:
-            self._datasets[key] = read_dataset(path)
-        return self._datasets[key]
+        return self._read("dataset", path, read_dataset)
+
+    def dataset(self, entry: ManifestEntry, key: str = "data") -> Dataset | None:
+        p = self.path(entry, key)
+        return None if p is None else self.dataset_at(p)
+
+    def json(self, entry: ManifestEntry, key: str) -> dict | None:
+        """A JSON object file of ``entry``."""
+        def load(p: Path) -> dict:
+            d = json.loads(p.read_text())
+            if not isinstance(d, dict):
+                raise RecordError("not a JSON object")
+            return d
+
+        p = self.path(entry, key)
+        return None if p is None else self._read("json", p, load)
 
     def dataset_files(self) -> list[Path]:
-        """Every dataset of the run: ``data/*.h5`` and the experiments' data files."""
+        """Every dataset of the run: ``data/*.h5`` and the files the manifest names as data."""
         files = sorted((self.dir / "data").glob("*.h5")) if (self.dir / "data").is_dir() else []
-        for e in self.experiments.values():
-            if e.data_path is not None and e.data_path.resolve() not in {f.resolve() for f in files}:
-                files.append(e.data_path)
+        known = {f.resolve() for f in files}
+        for e in self.entries:
+            rel = e.files.get("data")
+            p = None if rel is None else (self.dir / rel)
+            if p is not None and p.is_file() and p.resolve() not in known:
+                files.append(p)
+                known.add(p.resolve())
         return files
-
-
-def _json(path: Path, notes: list[str]) -> dict | None:
-    if not path.is_file():
-        return None
-    try:
-        d = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError, OSError) as e:
-        notes.append(f"{path.name} in {path.parent}: unreadable ({e.__class__.__name__}); ignored")
-        return None
-    if not isinstance(d, dict):
-        notes.append(f"{path}: not a JSON object; ignored")
-        return None
-    return d
-
-
-def _existing(run_dir: Path, *candidates) -> Path | None:
-    for c in candidates:
-        if not c:
-            continue
-        p = Path(c)
-        for q in ((p,) if p.is_absolute() else (run_dir / p, p)):
-            if q.is_file():
-                return q
-    return None
 
 
 def load_run(run_dir: str | Path) -> Run:
@@ -100,27 +111,20 @@ def load_run(run_dir: str | Path) -> Run:
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise FileNotFoundError(f"{run_dir}: no such run directory")
-    notes: list[str] = []
-    summary = _json(run_dir / "summary.json", notes)
-    if summary is None:
-        notes.append("summary.json is missing: equations, versions and commands come from the files alone")
-        summary = {}
-    s_exps = summary.get("experiments") or {}
-    experiments, missing = {}, []
-    for name in EXPERIMENTS:
-        se = s_exps.get(name) or {}
-        d = run_dir / name
-        metrics = _json(d / "eval" / "metrics.json", notes) or se.get("metrics")
-        model = _existing(run_dir, d / "model.json", se.get("model"))
-        if metrics is None and model is None and not se:
-            missing.append(name)
-            continue
-        data = _existing(run_dir, se.get("data"), run_dir / "data" / f"{name}.h5",
-                         (metrics or {}).get("data"))
-        exp = Experiment(name, se, metrics, model, data)
-        if name == "go1_sim":
-            exp.aslip_metrics = _json(d / "aslip" / "metrics.json", notes) or se.get("aslip")
-            exp.aslip_params = _json(d / "aslip" / "params.json", notes)
-        experiments[name] = exp
-    sweep = _json(run_dir / "sweep" / "sweep.json", notes) or summary.get("sweep")
-    return Run(run_dir, summary, experiments, missing, sweep, notes)
+    run = Run(run_dir, {}, [])
+    path = run_dir / "summary.json"
+    if not path.is_file():
+        run.note("summary.json is missing: this directory holds no experiments to report")
+        return run
+    try:
+        summary = json.loads(path.read_text())
+        if not isinstance(summary, dict):
+            raise RecordError("not a JSON object")
+        run.summary = summary
+        if "manifest" not in summary:
+            run.note("summary.json has no manifest (a run of an older symrom): run `symrom reproduce` "
+                     "on this directory again to add it; every finished step is reused")
+        run.entries = read_manifest(summary.get("manifest", []))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecordError) as e:
+        run.note(f"summary.json: unreadable ({e}); the report shows no experiments")
+    return run

@@ -38,12 +38,12 @@ class LegKinematics:
     """Forward kinematics and Jacobians of the four legs of one URDF.
 
     joint_names: the 12 URDF joint names in symrom's order (FR FL RR RL x hx hy kn).
-    foot_links: the 4 URDF foot link names. ``foot_offset`` (3,) m is added in
-    the foot link frame (e.g. the contact sphere's centre, usually zero).
+    foot_links: the 4 URDF foot link names. signs (12,): +1 or -1 per joint,
+    symrom angle = sign x URDF angle (a -1 turns the joint's axis around).
     """
 
     def __init__(self, urdf: str | Path, base_link: str, joint_names: list[str],
-                 foot_links: list[str]):
+                 foot_links: list[str], signs: tuple[float, ...] | None = None):
         if len(joint_names) != N_JOINTS or len(foot_links) != N_LEGS:
             raise ValueError("need 12 joint names and 4 foot links")
         root = ET.parse(urdf).getroot()
@@ -75,6 +75,8 @@ class LegKinematics:
                         raise ValueError(f"{urdf}: joint {name!r} on the chain to {foot!r} is not one "
                                          f"of that leg's joints {joint_names[3 * leg:3 * leg + 3]}")
                     col = joint_names.index(name)
+                    if signs is not None:
+                        axis = axis * signs[col]
                 elems.append(_Link(xyz, rpy_to_matrix(rpy)[0], axis))
                 cols.append(col)
                 link = j.find("parent").get("link")
@@ -144,6 +146,19 @@ class LegKinematics:
         for k, col in enumerate(range(3 * leg, 3 * leg + 3)):
             J[:, :, k] = np.cross(axes[col], p - origins[col])
         return p, J
+
+    def segment_lengths(self) -> np.ndarray:
+        """(4, 2) m: per leg, hip flexion (hy) to knee and knee to foot, at zero angles."""
+        out = np.empty((N_LEGS, 2))
+        for leg in range(N_LEGS):
+            R, p, at = np.eye(3), np.zeros(3), {}
+            for el, col in zip(self.chains[leg], self.chain_joint_index[leg]):
+                p = p + R @ el.xyz
+                R = R @ el.rot
+                if col >= 0:
+                    at[col % 3] = p
+            out[leg] = np.linalg.norm(at[2] - at[1]), np.linalg.norm(p - at[2])
+        return out
 
     def foot_positions(self, q_joints: np.ndarray) -> np.ndarray:
         """Feet in the base frame: q_joints (N, 12) rad -> (N, 4, 3) m."""

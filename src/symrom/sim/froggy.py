@@ -16,17 +16,26 @@ body-fixed; during the push they are the planted feet seen from a desired base
 pose moving along the take-off line; in flight they are level, so the legs
 reach plumb down for the landing. Each leg's torques are scaled together into
 the robot's limits (``World.step`` clips as well).
+
+The hip abduction (hx) joints are held at their standing angle by the world
+(``World.hold_joints``), as the paper's froggy jumps held them (its A1 hx
+errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
+Cartesian PD like the other joints. The parameters are the A1's and are not
+scaled to other robots.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
-from symrom.names import JOINTS, N_LEGS, leg_slice
-from symrom.robots import RobotSpec, leg_kinematics
-from symrom.sim.world import RobotState
+from symrom.names import JOINTS, N_LEGS
+from symrom.robots import get_robot, leg_kinematics
+from symrom.robots.stance import nominal_feet, start_pose
+from symrom.sim.checks import longest_run
+from symrom.sim.controller import PlainMotion
+from symrom.sim.world import RobotState, World
 
 FRONT = (0, 1)  # FR, FL
 REAR = (2, 3)  # RR, RL
@@ -45,7 +54,8 @@ class FroggyParams:
     by that times the forward speed at touch-down; a run that has not ended
     by max_time s is cut off (and fails the checks). Gains: kp N/m, kd N s/m;
     xy_ratio softens stance gains horizontally; k_att N m/rad and d_att
-    N m s/rad level the body.
+    N m s/rad level the body. hold_hx: the hip abduction joints are held at
+    their standing angle (the paper's froggy), else driven like the others.
     """
 
     stand_height: float = 0.27
@@ -76,9 +86,7 @@ class FroggyParams:
     xy_ratio: float = 0.4
     k_att: float = 150.0
     d_att: float = 8.0
-
-    def to_dict(self) -> dict:
-        return asdict(self)
+    hold_hx: bool = True
 
 
 def sample_params(rng: np.random.Generator) -> FroggyParams:
@@ -105,32 +113,6 @@ def smooth(s: float) -> float:
 def yaw_matrix(yaw: float) -> np.ndarray:
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def nominal_feet(robot: str) -> np.ndarray:
-    """(4, 3) m: feet straight under the hips at zero joint angles, z zeroed (base frame)."""
-    feet = leg_kinematics(robot).foot_positions(np.zeros(12))[0]
-    feet[:, 2] = 0.0
-    return feet
-
-
-def inverse_kinematics(robot: str, targets: np.ndarray, q0: np.ndarray,
-                       iters: int = 50, tol: float = 1e-7) -> np.ndarray:
-    """Joint angles (12,) rad putting the feet at ``targets`` (4, 3) m, base frame.
-
-    Damped Newton iterations from ``q0`` (12,) on the URDF kinematics.
-    """
-    kin = leg_kinematics(robot)
-    q = np.array(q0, dtype=float)
-    for _ in range(iters):
-        pos, J = kin.foot_positions_and_jacobians(q)
-        err = targets - pos[0]
-        if np.abs(err).max() < tol:
-            break
-        for k in range(N_LEGS):
-            Jk = J[0, k]
-            q[leg_slice(k)] += np.linalg.solve(Jk.T @ Jk + 1e-6 * np.eye(3), Jk.T @ err[k])
-    return q
 
 
 def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
@@ -164,14 +146,13 @@ class FroggyController:
     current stage (settle, crouch, hold, push_all, push_rear, flight, land).
     """
 
-    def __init__(self, spec: RobotSpec, params: FroggyParams,
-                 rng: np.random.Generator | None = None):  # rng: unused, params fix the jump
-        self.spec = spec
+    def __init__(self, robot: str, params: FroggyParams):
+        self.robot = robot
         self.params = params
-        self.kin = leg_kinematics(spec.name)
-        self.limit = np.asarray(spec.torque_limit, dtype=float)  # (12,) N m
-        self.feet0 = nominal_feet(spec.name)  # (4, 3) level-frame xy of each foot
-        self.mass = 12.0  # kg, replaced by the world's true mass in initial_q
+        self.kin = leg_kinematics(robot)
+        self.limit = np.asarray(get_robot(robot).torque_limit, dtype=float)  # (12,) N m
+        self.feet0 = nominal_feet(robot) * [1.0, 1.0, 0.0]  # (4, 3) level-frame xy of each foot
+        self.mass = 12.0  # kg, replaced by the world's true mass in reset
         self.phase = "settle"
         self.t_flight = None  # time the flight stage began
         self.t_land = None
@@ -182,13 +163,16 @@ class FroggyController:
         self._t_fly = self._t_rear + p.t_push_rear
 
     # --------------------------------------------------------------- set-up
-    def initial_q(self, world) -> np.ndarray:
-        """Standing configuration (18,) at ``stand_height`` on ``world``'s ground."""
-        targets = self.feet0 + np.array([0.0, 0.0, -self.params.stand_height])
-        q0 = np.tile([0.0, 0.8, -1.6], 4)  # knee-back stance guess of the Unitree legs
-        qj = inverse_kinematics(self.spec.name, targets, q0)
+    def reset(self, world: World) -> np.ndarray:
+        """Standing configuration (18,), base ``stand_height`` above the foot centres; holds
+        the hx joints there unless ``params.hold_hx`` is off."""
         self.mass = world.mass
-        return world.standing_q(qj)
+        if self.params.hold_hx:
+            world.hold_joints([0, 3, 6, 9])
+        return start_pose(self.robot, self.params.stand_height + get_robot(self.robot).foot_radius)
+
+    def diagnostics(self) -> dict:
+        return {}
 
     # -------------------------------------------------------------- control
     def _stage(self, s: RobotState) -> str:
@@ -303,3 +287,31 @@ class FroggyController:
     def done(self, s: RobotState) -> bool:
         """True once the robot has stood for ``t_after_land`` s after touch-down."""
         return self.t_land is not None and s.t - self.t_land >= self.params.t_after_land
+
+
+class FroggyMotion(PlainMotion):
+    """The froggy plug-in (registry entry ``froggy``): rear-only push right before the flight."""
+
+    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> FroggyParams:
+        return sample_params(rng)
+
+    def make_controller(self, robot: str, params: FroggyParams) -> FroggyController:
+        return FroggyController(robot, params)
+
+    def check(self, log: dict[str, np.ndarray], dt: float, checks) -> list[str]:
+        """At least ``checks.min_rear_only`` s on the rear feet alone right before the flight."""
+        contact = log["contact"]
+        airborne = contact.sum(axis=1) == 0
+        if not airborne.any():
+            return []  # the common checks report the missing flight
+        a = longest_run(airborne)[0]
+        rear_only = (contact[:, 0] == 0) & (contact[:, 1] == 0) & (contact[:, 2:].sum(axis=1) > 0)
+        n = 0
+        while a - n - 1 >= 0 and rear_only[a - n - 1]:
+            n += 1
+        if n * dt < checks.min_rear_only - 1e-9:
+            return [f"rear-only contact {n * dt:.3f} s before flight"]
+        return []
+
+
+MOTION = FroggyMotion()

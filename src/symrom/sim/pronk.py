@@ -27,37 +27,43 @@ of the foot velocity relative to the body) softens the impact and holds legs
 that have not touched down yet. (5) *Settle*: ``done`` turns true once the
 landing has lasted ``settle_time`` and the base is nearly at rest.
 
-Use (what the runner does; ``World`` from ``symrom.sim.world``)::
+Any robot. The gains and the jump's heights were tuned on the Go1; for another
+robot they are scaled by its mass and leg length relative to the Go1's
+(``scales``, ``PronkGains.scaled``): heights and distances with leg length,
+forces with mass, joint stiffness and damping with mass x length, Cartesian
+stiffness with mass / length, times of the landing reference with the square
+root of length. For the Go1 both ratios are exactly 1.
 
-    params = sample_params(rng, proxy=False)      # PronkParams, asdict() is JSON-ready
-    world = World("go1", config)
-    if params.proxy is not None:                  # source = "proxy"
-        world = proxy.ProxyWorld(world, params.proxy)
-    ctrl = PronkController(get_robot("go1"), params)
-    world.reset(initial_state(spec, params))
+Use: ``MOTION`` is the plug-in the runner drives (``symrom.sim.controller``)::
+
+    params = sample_params(rng, proxy=False, robot="go1")   # PronkParams
+    ctrl = PronkController("go1", params)
+    world.reset(ctrl.reset(world))
     while not ctrl.done(s := world.state()):
         applied = world.step(ctrl.torque(s))      # one 1 kHz tick
     np.median(ctrl.mpc_solve_times)               # s, for the benchmark
 
-A jump lasts about 1.4-1.5 s (crouch and push ~0.6 s, flight ~0.25 s,
+A Go1 jump lasts about 1.4-1.5 s (crouch and push ~0.6 s, flight ~0.25 s,
 landing and settling >= 0.6 s), i.e. ~730 samples at 500 Hz.
 Units: m, s, rad, N, N m. ``RobotState`` as in ``symrom.sim.world``.
 """
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
-from functools import cache
 
 import numpy as np
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
-from symrom.robots import RobotSpec, leg_kinematics
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
+from symrom.robots import get_robot, leg_kinematics
+from symrom.robots.stance import leg_length, standing_joints, start_pose
+from symrom.sim.controller import PlainMotion
+from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
-from symrom.sim.proxy import ProxyConfig, sample_proxy
+from symrom.sim.proxy import ProxyConfig, ProxyWorld, sample_proxy
+from symrom.sim.world import World, WorldConfig
 
-GRAVITY = 9.81
+REFERENCE_ROBOT = "go1"  # the robot the gains and heights were tuned on
 
 
 @dataclass
@@ -114,198 +120,41 @@ class PronkGains:
     brake_time: float = 0.12
     takeoff_boost: float = 1.2
 
+    @classmethod
+    def scaled(cls, mass: float, length: float) -> PronkGains:
+        """The Go1's gains for a robot ``mass`` times as heavy with legs ``length`` times as long."""
+        g, root = cls(), np.sqrt(length)
+        ml = mass * length
+        return cls(mpc=MPCConfig(fz_max=g.mpc.fz_max * mass, alpha=g.mpc.alpha / mass ** 2),
+                   mpc_hz=g.mpc_hz, kp_flight=g.kp_flight * ml, kd_flight=g.kd_flight * ml,
+                   kp_hx=g.kp_hx * ml, kd_hx=g.kd_hx * ml, kd_stance=g.kd_stance * ml,
+                   k_land=g.k_land * mass / length, d_land=g.d_land * mass / root,
+                   foot_forward=g.foot_forward * root, land_omega=g.land_omega / root,
+                   brake_time=g.brake_time * root, takeoff_boost=g.takeoff_boost)
 
-def sample_params(rng: np.random.Generator, proxy: bool = False) -> PronkParams:
-    """A random jump: distance 0.1-0.4 m, apex 0.41-0.45 m, small crouch/timing spread.
+
+def scales(robot: str) -> tuple[float, float]:
+    """(mass, leg length) of ``robot`` as ratios to the Go1's; exactly (1, 1) for the Go1."""
+    ref = REFERENCE_ROBOT
+    return (get_robot(robot).mass / get_robot(ref).mass, leg_length(robot) / leg_length(ref))
+
+
+def sample_params(rng: np.random.Generator, proxy: bool = False, robot: str = REFERENCE_ROBOT) -> PronkParams:
+    """A random jump: for the Go1 a distance of 0.1-0.4 m, apex 0.41-0.45 m, small
+    crouch/timing spread; lengths scale with the robot's leg length (``scales``).
 
     With ``proxy`` the hardware-like perturbations are drawn too (see
     ``symrom.sim.proxy``).
     """
+    length = scales(robot)[1]
     return PronkParams(
-        distance=float(rng.uniform(0.1, 0.4)),
-        apex_height=float(rng.uniform(0.41, 0.45)),
-        crouch_height=float(rng.uniform(0.205, 0.225)),
+        distance=float(rng.uniform(0.1, 0.4)) * length,
+        apex_height=float(rng.uniform(0.41, 0.45)) * length,
+        crouch_height=float(rng.uniform(0.205, 0.225)) * length,
+        takeoff_height=PronkParams.takeoff_height * length,
         crouch_time=float(rng.uniform(0.35, 0.45)),
         proxy=sample_proxy(rng) if proxy else None,
     )
-
-
-@dataclass(frozen=True)
-class BodyModel:
-    """Rigid-body summary of the robot in its standing pose.
-
-    mass kg; com_base (3,) m, CoM in the base frame; inertia (3, 3) kg m^2
-    about the CoM, base frame, of the whole robot; inertia_upper (3, 3) the same
-    for the links that turn with the trunk while the feet are planted (trunk,
-    hips, rotors up to the hip-flexion joints), the inertia the body shows in
-    stance; foot_radius m.
-    """
-
-    mass: float
-    com_base: np.ndarray
-    inertia: np.ndarray
-    inertia_upper: np.ndarray
-    foot_radius: float
-
-
-@cache
-def body_model(spec: RobotSpec) -> BodyModel:
-    """Mass, CoM and composite inertia of ``spec`` standing, from its URDF (via PyBullet)."""
-    import pybullet as p
-
-    cid = p.connect(p.DIRECT)
-    try:
-        rob = p.loadURDF(str(spec.urdf_path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
-        names = {p.getJointInfo(rob, i, physicsClientId=cid)[1].decode(): i
-                 for i in range(p.getNumJoints(rob, physicsClientId=cid))}
-        q = _stand_joints(spec)
-        for k, n in enumerate(spec.joint_names):
-            p.resetJointState(rob, names[n], q[k], physicsClientId=cid)
-        p.resetBasePositionAndOrientation(rob, [0, 0, 0], [0, 0, 0, 1], physicsClientId=cid)
-        dyn0 = p.getDynamicsInfo(rob, -1, physicsClientId=cid)
-        base_in = np.asarray(dyn0[3])
-        ms, coms, inertias = [dyn0[0]], [base_in], [
-            (np.asarray(p.getMatrixFromQuaternion(dyn0[4])).reshape(3, 3), np.asarray(dyn0[2]))]
-        # The reset put the base's inertial frame at the origin, so the base link frame sits at
-        # -base_in: shift link CoMs by +base_in to express them in the base link frame.
-        upper = [True]
-        lower_joints = {names[n] for k, n in enumerate(spec.joint_names) if k % 3 != 0}
-        for i in range(p.getNumJoints(rob, physicsClientId=cid)):
-            parent = p.getJointInfo(rob, i, physicsClientId=cid)[16]
-            upper.append(i not in lower_joints and upper[parent + 1])
-            d = p.getDynamicsInfo(rob, i, physicsClientId=cid)
-            ls = p.getLinkState(rob, i, computeForwardKinematics=1, physicsClientId=cid)
-            ms.append(d[0])
-            coms.append(np.asarray(ls[0]) + base_in)
-            inertias.append((np.asarray(p.getMatrixFromQuaternion(ls[1])).reshape(3, 3),
-                             np.asarray(d[2])))
-    finally:
-        p.disconnect(cid)
-    ms_a, coms_a = np.asarray(ms), np.asarray(coms)
-    mass = float(ms_a.sum())
-    com = (ms_a[:, None] * coms_a).sum(0) / mass
-    inertia, inertia_upper = np.zeros((3, 3)), np.zeros((3, 3))
-    for m, c, (Rl, Id), up in zip(ms_a, coms_a, inertias, upper):
-        r = c - com
-        term = Rl @ np.diag(Id) @ Rl.T + m * (r @ r * np.eye(3) - np.outer(r, r))
-        inertia += term
-        if up:
-            inertia_upper += term
-    return BodyModel(mass=mass, com_base=com, inertia=inertia, inertia_upper=inertia_upper,
-                     foot_radius=_foot_radius(spec))
-
-
-class LegGravity:
-    """Joint torques (12,) N m that hold the legs' own weight, for a given base orientation.
-
-    The convex MPC treats the legs as massless, but Go1's thighs and calves carry
-    about a third of its mass; without this term the feet push with less than the
-    planned force. Uses a private fixed-base PyBullet copy of the robot (its
-    inverse dynamics at zero velocity and acceleration, gravity turned into the
-    base frame).
-    """
-
-    def __init__(self, spec: RobotSpec):
-        import pybullet as p
-
-        self._p = p
-        self.cid = p.connect(p.DIRECT)
-        self.rob = p.loadURDF(str(spec.urdf_path), useFixedBase=True,
-                              flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.cid)
-        names = {p.getJointInfo(self.rob, i, physicsClientId=self.cid)[1].decode(): i
-                 for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))}
-        movable = [i for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))
-                   if p.getJointInfo(self.rob, i, physicsClientId=self.cid)[2] != p.JOINT_FIXED]
-        # inverse dynamics orders the movable joints by index; map to symrom's order
-        self._order = [movable.index(names[n]) for n in spec.joint_names]
-        self._inv = np.argsort(self._order)
-        self._zeros = [0.0] * len(movable)
-
-    def torques(self, q_joints: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """(12,) N m for joint angles (12,) rad and base orientation R (3, 3) base -> world."""
-        p = self._p
-        g_base = R.T @ np.array([0.0, 0.0, -GRAVITY])
-        p.setGravity(*g_base, physicsClientId=self.cid)
-        q = np.asarray(q_joints, dtype=float)[self._inv]
-        tau = p.calculateInverseDynamics(self.rob, q.tolist(), self._zeros, self._zeros,
-                                         physicsClientId=self.cid)
-        return np.asarray(tau)[self._order]
-
-    def close(self) -> None:
-        if self.cid >= 0:
-            try:
-                self._p.disconnect(self.cid)
-            except self._p.error:
-                pass
-            self.cid = -1
-
-    def __del__(self) -> None:
-        self.close()
-
-
-def _foot_radius(spec: RobotSpec) -> float:
-    """Radius (m) of the first foot link's collision sphere, read from the URDF."""
-    root = ET.parse(spec.urdf_path).getroot()
-    for link in root.findall("link"):
-        if link.get("name") == spec.foot_links[0]:
-            sphere = link.find("collision/geometry/sphere")
-            if sphere is not None:
-                return float(sphere.get("radius"))
-    return 0.0
-
-
-def leg_ik(spec: RobotSpec, feet_base: np.ndarray, q_guess: np.ndarray | None = None,
-           iters: int = 30) -> np.ndarray:
-    """Joint angles (12,) rad putting the feet at ``feet_base`` (4, 3) m (base frame).
-
-    Damped Newton iterations on the URDF kinematics; angles are kept inside the
-    usual working range of a pronking leg (knee bent backwards).
-    """
-    kin = leg_kinematics(spec.name)
-    q = np.tile([0.0, 0.8, -1.6], N_LEGS) if q_guess is None else np.array(q_guess, dtype=float)
-    for _ in range(iters):
-        p, J = kin.foot_positions_and_jacobians(q[None])
-        err = feet_base - p[0]
-        if np.max(np.abs(err)) < 1e-7:
-            break
-        for k in range(N_LEGS):
-            Jk = J[0, k]
-            q[3 * k:3 * k + 3] += np.linalg.solve(Jk.T @ Jk + 1e-6 * np.eye(3), Jk.T @ err[k])
-        q[2::3] = np.clip(q[2::3], -2.8, -0.3)
-    return q
-
-
-def _nominal_feet(spec: RobotSpec) -> np.ndarray:
-    """(4, 3) m: feet straight below the thigh joints' line (legs at zero angles), base frame."""
-    return leg_kinematics(spec.name).foot_positions(np.zeros((1, N_JOINTS)))[0]
-
-
-def _stand_joints(spec: RobotSpec, height: float | None = None, dx: float = 0.0) -> np.ndarray:
-    """(12,) joint angles for the base at ``height`` (default start height) with level feet.
-
-    dx: m, feet shifted forward of the nominal stance (base frame).
-    """
-    h = spec.start_height if height is None else height
-    feet = _nominal_feet(spec).copy()
-    feet[:, 0] += dx
-    feet[:, 2] = -(h - _foot_radius(spec))
-    return leg_ik(spec, feet)
-
-
-FOOT_PRELOAD = 5e-4  # m the feet start inside the ground, so contact exists from t = 0
-
-
-def initial_state(spec: RobotSpec, params: PronkParams) -> np.ndarray:
-    """q (18,): standing pose at the start height, base at x = y = 0, heading params.yaw.
-
-    The legs reach ``FOOT_PRELOAD`` below the ground (as loaded foot pads would),
-    so a collision pass right after the reset already finds the four contacts.
-    """
-    q = np.zeros(N_Q)
-    q[JOINTS] = _stand_joints(spec, spec.start_height + FOOT_PRELOAD)
-    q[BASE_POS] = (0.0, 0.0, spec.start_height)
-    q[BASE_RPY] = (0.0, 0.0, params.yaw)
-    return q
 
 
 @dataclass(frozen=True)
@@ -346,27 +195,35 @@ class PronkController:
     wall times of all MPC solves so far.
     """
 
-    def __init__(self, spec: RobotSpec, params: PronkParams, gains: PronkGains | None = None):
-        self.spec, self.params = spec, params
-        self.gains = gains or PronkGains()
-        self.body = body_model(spec)
-        self.kin = leg_kinematics(spec.name)
+    def __init__(self, robot: str, params: PronkParams, gains: PronkGains | None = None):
+        self.robot, self.spec, self.params = robot, get_robot(robot), params
+        self.gains = gains or PronkGains.scaled(*scales(robot))
+        self.body = body_model(robot)
+        self.kin = leg_kinematics(robot)
         self.mpc = ConvexMPC(self.body.mass, self.body.inertia_upper, self.gains.mpc)
-        self.leg_gravity = LegGravity(spec)
+        self.leg_gravity = LegGravity(robot)
         self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
-        self.torque_limit = np.asarray(spec.torque_limit, dtype=float)
+        self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
         self.phase = "crouch"
         self._x0: np.ndarray | None = None  # base position at the first call
         self._forces = np.zeros((N_LEGS, 3))
         self._last_solve = -np.inf
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
-        self._q_stand = _stand_joints(spec)
+        self._q_stand = standing_joints(robot)
         self._q_land: np.ndarray | None = None
 
     @property
     def mpc_solve_times(self) -> list[float]:
         return self.mpc.solve_times
+
+    def reset(self, world: World) -> np.ndarray:
+        """The start pose (18,): standing at the start height, heading ``params.yaw``."""
+        return start_pose(self.robot, yaw=self.params.yaw)
+
+    def diagnostics(self) -> dict:
+        """Wall times (s) of all MPC solves so far."""
+        return {"mpc_solve_times": [float(x) for x in self.mpc_solve_times]}
 
     # -------------------------------------------------------------- references
     def _com_offset(self) -> np.ndarray:
@@ -497,8 +354,8 @@ class PronkController:
             e = self._heading()
             v_fwd = float(state.dq[BASE_POS] @ e)
             # landing leg length: the planned take-off height (legs fairly extended)
-            self._q_land = _stand_joints(self.spec, self.params.takeoff_height,
-                                         dx=g.foot_forward * v_fwd)
+            self._q_land = standing_joints(self.robot, self.params.takeoff_height,
+                                           dx=g.foot_forward * v_fwd)
             self._p_land = self.kin.foot_positions(self._q_land[None])[0]
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         return g.kp_flight * (self._q_land - qj) - g.kd_flight * dqj
@@ -533,3 +390,23 @@ class PronkController:
             return False
         settled = (np.linalg.norm(state.dq[BASE_POS]) < 0.15 and np.linalg.norm(state.omega) < 0.6)
         return state.t - self._t_td >= self.params.settle_time and settled
+
+
+class PronkMotion(PlainMotion):
+    """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world."""
+
+    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> PronkParams:
+        return sample_params(rng, proxy=proxy, robot=robot)
+
+    def make_world(self, robot: str, config: WorldConfig, params: PronkParams) -> World:
+        world = World(robot, config)
+        return world if params.proxy is None else ProxyWorld(world, params.proxy)
+
+    def make_controller(self, robot: str, params: PronkParams) -> PronkController:
+        return PronkController(robot, params)
+
+    def source(self, params: PronkParams) -> str:
+        return "sim" if params.proxy is None else "proxy"
+
+
+MOTION = PronkMotion()

@@ -194,6 +194,7 @@ class ProxyWorld:
 
         w = self.world
         jv = np.array([js[1] for js in p.getJointStates(w.robot, w.joint_ids, physicsClientId=w.client)])
+        jv = jv * w.signs  # symrom's joint signs, as the torques
         return self.world.step(self.motors.apply(tau, jv))
 
     def apply_base_force(self, force_world: np.ndarray) -> None:

@@ -3,8 +3,10 @@
 Each ``World`` owns its own PyBullet client in DIRECT mode (no GUI), so several
 worlds can live in one process and worker processes never share state. The
 robot's base pose is reported for the URDF base link frame (the frame the leg
-kinematics use), not PyBullet's inertial frame. Joint order, foot links and
-torque limits come from ``symrom.robots``.
+kinematics use), not PyBullet's inertial frame. Joint order, signs, foot links
+and torque limits come from the robot's description (``symrom.robots``): joint
+angles, rates and torques cross this boundary as symrom angle = sign x URDF
+angle.
 
 Coordinates (see ``symrom.names``): ``q`` (18,) = 12 joint angles (rad,
 FR FL RR RL x hx hy kn), base x y z (m, world), roll pitch yaw (rad, ZYX);
@@ -21,7 +23,7 @@ import pybullet as p
 import pybullet_data
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
-from symrom.robots import RobotSpec, get_robot
+from symrom.robots import RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
 
 
@@ -107,15 +109,18 @@ def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
 class World:
     """One robot on a plane in its own DIRECT PyBullet client.
 
-    robot: a name known to ``symrom.robots.get_robot`` (``a1``, ``go1``).
+    robot: a built-in name or a description file (``symrom.robots.get_robot``).
     The joints' default velocity motors are disabled, so ``step`` drives the
-    robot purely by torque.
+    robot purely by torque; ``hold_joints`` locks chosen joints instead.
     """
 
     def __init__(self, robot: str, config: WorldConfig = WorldConfig()):
-        self.spec: RobotSpec = get_robot(robot)
+        self.spec: RobotDescription = get_robot(robot)
         self.config = config
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        self.signs = self.spec.signs  # (12,) symrom angle = sign x URDF angle
+        self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
+        self._driven = list(range(N_JOINTS))  # joints driven by torque: all but the held ones
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
         self._pending_force: np.ndarray | None = None
@@ -151,6 +156,7 @@ class World:
         except KeyError as e:
             raise ValueError(f"robot {self.spec.name!r}: URDF {urdf} has no joint/link {e}") from None
         self._foot_leg = {fid: k for k, fid in enumerate(self.foot_ids)}
+        self._driven_ids = list(self.joint_ids)
         # Default velocity motors would fight the torques: switch them off.
         p.setJointMotorControlArray(self.robot, self.joint_ids, p.VELOCITY_CONTROL,
                                     forces=[0.0] * N_JOINTS, physicsClientId=c)
@@ -182,8 +188,15 @@ class World:
         if q.shape != (N_Q,) or dq.shape != (N_Q,):
             raise ValueError(f"q and dq must have shape ({N_Q},), got {q.shape} and {dq.shape}")
         c = self.client
+        qj, dqj = q[JOINTS] * self.signs, dq[JOINTS] * self.signs
         for k, jid in enumerate(self.joint_ids):
-            p.resetJointState(self.robot, jid, q[k], dq[k], physicsClientId=c)
+            p.resetJointState(self.robot, jid, qj[k], dqj[k], physicsClientId=c)
+        if self.held.size:
+            p.setJointMotorControlArray(self.robot, [self.joint_ids[k] for k in self.held],
+                                        p.POSITION_CONTROL, targetPositions=qj[self.held].tolist(),
+                                        targetVelocities=[0.0] * self.held.size,
+                                        positionGains=[1.0] * self.held.size,
+                                        forces=self.torque_limit[self.held].tolist(), physicsClientId=c)
         rpy = q[BASE_RPY]
         R = rpy_to_matrix(rpy)[0]
         orn = p.getQuaternionFromEuler(rpy.tolist())
@@ -210,7 +223,7 @@ class World:
         q[BASE_POS] = (*xy, 0.0)
         from symrom.data.preprocess import foot_positions_world  # the one kinematics source
 
-        lowest = foot_positions_world(self.spec.name, q[None])[0, :, 2].min()
+        lowest = foot_positions_world(self.spec.key, q[None])[0, :, 2].min()
         q[BASE_POS.start + 2] = self.foot_radius - lowest - penetration
         return q
 
@@ -230,6 +243,8 @@ class World:
         dq = np.empty(N_Q)
         q[JOINTS] = [s[0] for s in js]
         dq[JOINTS] = [s[1] for s in js]
+        q[JOINTS] *= self.signs
+        dq[JOINTS] *= self.signs
         q[BASE_POS], q[BASE_RPY] = pos, rpy
         dq[BASE_POS] = v_base
         dq[BASE_RPY] = np.linalg.solve(euler_rate_matrix(rpy), omega)
@@ -262,8 +277,8 @@ class World:
         if tau.shape != (N_JOINTS,) or not np.all(np.isfinite(tau)):
             raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
         c = self.client
-        p.setJointMotorControlArray(self.robot, self.joint_ids, p.TORQUE_CONTROL,
-                                    forces=tau.tolist(), physicsClientId=c)
+        p.setJointMotorControlArray(self.robot, self._driven_ids, p.TORQUE_CONTROL,
+                                    forces=(tau * self.signs)[self._driven].tolist(), physicsClientId=c)
         if self._pending_force is not None:
             com_pos, _ = p.getBasePositionAndOrientation(self.robot, physicsClientId=c)
             p.applyExternalForce(self.robot, -1, self._pending_force.tolist(), com_pos,
@@ -271,7 +286,19 @@ class World:
             self._pending_force = None
         p.stepSimulation(physicsClientId=c)
         self.t += self.config.dt
+        if self.held.size:  # what the solver's motors applied to hold them
+            js = p.getJointStates(self.robot, [self.joint_ids[k] for k in self.held], physicsClientId=c)
+            tau = tau.copy()
+            tau[self.held] = np.array([s[3] for s in js]) * self.signs[self.held]
         return tau
+
+    def hold_joints(self, joints: list[int]) -> None:
+        """Hold the joints ``joints`` (indices into the 12, symrom order) at the angles of each
+        ``reset``: PyBullet's position motors lock them within the torque limits, the torques
+        given to ``step`` for them are ignored, and ``step`` returns the torques that held them."""
+        self.held = np.asarray(sorted(set(int(k) for k in joints)), dtype=int)
+        self._driven = [k for k in range(N_JOINTS) if k not in set(self.held.tolist())]
+        self._driven_ids = [self.joint_ids[k] for k in self._driven]
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         """Push the base's centre of mass with ``force_world`` (3,) N during the next tick only."""

@@ -1,0 +1,229 @@
+"""Typed records of a run: metrics (``metrics.json``) and the manifest of ``summary.json``.
+
+``Metrics.from_dict`` reads the metrics layout of docs/design.md and fails
+with one ``RecordError`` naming the key; fields it does not know are kept and
+written back by ``to_dict``. It accepts what later versions add: per horizon
+an optional ``diverged`` list (``{"jump": int, "t": float}``, the time in s at
+which a diverged rollout left its bound) and components that are a subset of
+the 18 (a baseline reports only ``x, y, z``).
+
+``ManifestEntry`` is one experiment of a run: its name, its role (what kind of
+result it is, which decides how the report shows it) and its files.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+
+class RecordError(ValueError):
+    """A metrics or manifest record breaks its layout; the message names the key."""
+
+
+def _key(where: str, key: str) -> str:
+    return f"{where}.{key}" if where else key
+
+
+def _get(d: Any, key: str, where: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
+    """``d[key]`` checked to be of ``kind`` (ints pass as floats); ``where`` is d's own key."""
+    if not isinstance(d, dict):
+        raise RecordError(f"{where or 'record'}: expected an object, got {type(d).__name__}")
+    if key not in d:
+        if default is ...:
+            raise RecordError(f"{_key(where, key)}: missing")
+        return default
+    v = d[key]
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if not isinstance(v, kind) or (isinstance(v, bool) and kind is not bool):
+        raise RecordError(f"{_key(where, key)}: expected {getattr(kind, '__name__', 'a string or null')}, got {v!r}")
+    return v
+
+
+def _rest(d: dict, known: tuple[str, ...]) -> dict:
+    return {k: v for k, v in d.items() if k not in known}
+
+
+# ------------------------------------------------------------------ metrics
+@dataclass(frozen=True)
+class ComponentStats:
+    """Signed error predicted - true of one component over a split: mean, std, MAE, RMSE
+    (units of the component)."""
+
+    mean: float
+    std: float
+    mae: float
+    rmse: float
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str) -> ComponentStats:
+        return cls(*(_get(d, k, where, float) for k in ("mean", "std", "mae", "rmse")))
+
+    def to_dict(self) -> dict[str, float]:
+        return {"mean": self.mean, "std": self.std, "mae": self.mae, "rmse": self.rmse}
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """A rollout of jump ``jump`` left its bound ``t`` s after the jump's first sample."""
+
+    jump: int
+    t: float
+
+
+@dataclass(frozen=True)
+class Horizon:
+    """One horizon's results: jumps lost to divergence (excluded from the stats) and the
+    per-component stats (empty when every jump diverged)."""
+
+    diverged_jumps: int
+    components: dict[str, ComponentStats]
+    diverged: tuple[Divergence, ...] = ()
+    extra: dict = field(default_factory=dict)
+
+    _KEYS = ("diverged_jumps", "components", "diverged")
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str) -> Horizon:
+        comps = _get(d, "components", where, dict)
+        div = _get(d, "diverged", where, list, [])
+        return cls(diverged_jumps=_get(d, "diverged_jumps", where, int),
+                   components={c: ComponentStats.from_dict(s, _key(where, f"components.{c}"))
+                               for c, s in comps.items()},
+                   diverged=tuple(Divergence(_get(x, "jump", _key(where, f"diverged[{i}]"), int),
+                                             _get(x, "t", _key(where, f"diverged[{i}]"), float))
+                                  for i, x in enumerate(div)),
+                   extra=_rest(d, cls._KEYS))
+
+    def to_dict(self) -> dict:
+        return {"diverged_jumps": self.diverged_jumps,
+                "diverged": [{"jump": x.jump, "t": x.t} for x in self.diverged],
+                "components": {c: s.to_dict() for c, s in self.components.items()}} | self.extra
+
+    def stat(self, component: str, name: str) -> float | None:
+        """One statistic (``mean``, ``std``, ``mae``, ``rmse``) of a component, None if absent."""
+        s = self.components.get(component)
+        return None if s is None else getattr(s, name)
+
+
+@dataclass(frozen=True)
+class Metrics:
+    """The contents of a ``metrics.json`` (docs/design.md, "Metrics file").
+
+    horizons: ``full`` and reset periods in s as text (``0.1``), in file order.
+    """
+
+    n_jumps: int
+    horizons: dict[str, Horizon]
+    split: str = "test"
+    model: str = ""
+    data: str = ""
+    integrator: str | None = None
+    extra: dict = field(default_factory=dict)
+
+    _KEYS = ("n_jumps", "horizons", "split", "model", "data", "integrator")
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "metrics") -> Metrics:
+        hs = _get(d, "horizons", where, dict)
+        return cls(n_jumps=_get(d, "n_jumps", where, int),
+                   horizons={k: Horizon.from_dict(h, _key(where, f"horizons.{k}")) for k, h in hs.items()},
+                   split=_get(d, "split", where, str, "test"), model=_get(d, "model", where, str, ""),
+                   data=_get(d, "data", where, str, ""),
+                   integrator=_get(d, "integrator", where, (str, type(None)), None), extra=_rest(d, cls._KEYS))
+
+    @classmethod
+    def read(cls, path: str | os.PathLike) -> Metrics:
+        """A metrics file; ``RecordError`` naming the file and the key if it is not one."""
+        try:
+            d = json.loads(Path(path).read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+            raise RecordError(f"{path}: unreadable ({e.__class__.__name__})") from None
+        try:
+            return cls.from_dict(d, "")
+        except RecordError as e:
+            raise RecordError(f"{path}: key {e}") from None
+
+    def to_dict(self) -> dict:
+        d = {"model": self.model, "data": self.data, "split": self.split, "n_jumps": self.n_jumps}
+        if self.integrator is not None:
+            d["integrator"] = self.integrator
+        d["horizons"] = {k: h.to_dict() for k, h in self.horizons.items()}
+        return d | self.extra
+
+    @property
+    def any_diverged(self) -> bool:
+        return any(h.diverged_jumps for h in self.horizons.values())
+
+    def diverged_text(self, label=lambda key: key) -> str:
+        """One line naming the diverged jumps per horizon, e.g. 'full: 0 of 6, 0.1: 1 of 6'."""
+        return ", ".join(f"{label(k)}: {h.diverged_jumps} of {self.n_jumps}" for k, h in self.horizons.items())
+
+
+# ------------------------------------------------------------------ manifest
+# Roles of the experiments a run may hold; the report has a renderer per role.
+LEARNED = "learned"  # a model trained on a dataset and evaluated on its test split
+BASELINE = "baseline"  # a reference model (aSLIP ...) evaluated on the same jumps as ``of``
+FINE_TUNED = "fine_tuned"  # a learned model adapted to new data; ``files.before``: the source model's metrics
+SWEEP = "sweep"  # the latent-dimension trade-off; ``files.result``: sweep.json
+SOLVER = "solver"  # one solver's training of the ``of`` experiment, for the solver comparison
+
+
+@dataclass(frozen=True)
+class ManifestEntry:
+    """One experiment of a run (an item of ``summary.json``'s ``manifest``).
+
+    name: unique in the run (``go1_sim``, ``go1_sim/aslip``); role: what kind of
+    result it is (``LEARNED`` ... or a role added later); title: for people;
+    files: named paths relative to the run directory (``metrics``, ``model``,
+    ``data``, ``params`` ...); of: the experiment it belongs to or is compared
+    with; paper: the key of the paper's published numbers it is compared with;
+    facts: small JSON-ready facts (training options, wall time ...).
+    """
+
+    name: str
+    role: str
+    title: str = ""
+    files: dict[str, str] = field(default_factory=dict)
+    of: str | None = None
+    paper: str | None = None
+    facts: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "manifest") -> ManifestEntry:
+        files = _get(d, "files", where, dict, {})
+        for k, v in files.items():
+            if not isinstance(v, str):
+                raise RecordError(f"{where}.files.{k}: expected a path, got {v!r}")
+        return cls(name=_get(d, "name", where, str), role=_get(d, "role", where, str),
+                   title=_get(d, "title", where, str, ""), files=dict(files),
+                   of=_get(d, "of", where, (str, type(None)), None),
+                   paper=_get(d, "paper", where, (str, type(None)), None),
+                   facts=_get(d, "facts", where, dict, {}))
+
+    def to_dict(self) -> dict:
+        d: dict[str, Any] = {"name": self.name, "role": self.role, "title": self.title or self.name,
+                             "files": dict(self.files)}
+        for k in ("of", "paper"):
+            if getattr(self, k) is not None:
+                d[k] = getattr(self, k)
+        if self.facts:
+            d["facts"] = self.facts
+        return d
+
+
+def read_manifest(items: Any, where: str = "summary.json: manifest") -> list[ManifestEntry]:
+    """The manifest list of a ``summary.json``; names must be unique."""
+    if not isinstance(items, list):
+        raise RecordError(f"{where}: expected a list")
+    entries = [ManifestEntry.from_dict(x, f"{where}[{i}]") for i, x in enumerate(items)]
+    seen: set[str] = set()
+    for e in entries:
+        if e.name in seen:
+            raise RecordError(f"{where}: name {e.name!r} appears twice")
+        seen.add(e.name)
+    return entries

@@ -1,0 +1,188 @@
+"""Renderers of learned and fine-tuned models: Table 2, a test jump's prediction, equations.
+
+An entry with ``paper`` is set beside the paper's numbers for that row; an entry
+that belongs to another (``of``, e.g. the paper-default variant) gets our rows
+only, and no figure or equations of its own.
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+from symrom.evaluate.paper import PAPER_LABELS, implied_rmse, paper_row
+from symrom.evaluate.records import ManifestEntry, Metrics
+from symrom.names import Q_UNITS, TABLE2_COMPONENTS
+from symrom.report import figures
+from symrom.report.context import Context
+from symrom.report.document import Figure, Para, Pre, Table
+from symrom.report.format import DASH, diverged_text, fmt, horizon_label, ms
+from symrom.report.run import Run
+
+# Table 2 split by group so that each table fits the page.
+GROUPS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("joints", TABLE2_COMPONENTS[:6]), ("base pose", TABLE2_COMPONENTS[6:]))
+EQUATION_WIDTH = 96  # characters of a printed equation line before it wraps
+
+
+def heading(entry: ManifestEntry) -> str:
+    title = entry.title if entry.title and entry.title != entry.name else ""
+    paper = f"paper row: {PAPER_LABELS[entry.paper]}" if entry.paper in PAPER_LABELS else ""
+    return " — ".join(x for x in (entry.name, title, paper) if x)
+
+
+# --------------------------------------------------------------------------- Table 2
+def table2_rows(paper_key: str | None, metrics: Metrics,
+                components: tuple[str, ...]) -> tuple[list[list[str]], dict[str, int]]:
+    """Rows of the comparison (the paper's beside ours when ``paper_key`` names a row) and,
+    per horizon, the count of ``components`` where our RMSE <= the paper's implied RMSE."""
+    rows, wins = [], {}
+    blank = [""] * (len(components) - 1)
+    for key in dict.fromkeys(["full", "0.1", *metrics.horizons]):
+        ours, paper = metrics.horizons.get(key), paper_row(paper_key, key) if paper_key else None
+        if ours is None and paper is None:
+            continue
+        lab = horizon_label(key)
+        if paper:
+            rows.append([lab, "paper mean±std"] + [f"{fmt(paper[c][0])}±{fmt(paper[c][1])}" for c in components])
+        if ours is None:
+            rows.append([lab, "ours", "not evaluated"] + blank)
+            continue
+        if not ours.components:
+            rows.append([lab, "ours", f"all {ours.diverged_jumps} jumps diverged"] + blank)
+            continue
+        div = ours.diverged_jumps
+        rows.append([lab, f"ours mean±std ({div} diverged)" if div else "ours mean±std"]
+                    + [ms(ours.components.get(c)) for c in components])
+        if paper:
+            rows.append([lab, "paper RMSE √(mean²+std²)"] + [fmt(implied_rmse(*paper[c])) for c in components])
+        rmse = [ours.stat(c, "rmse") for c in components]
+        rows.append([lab, "ours RMSE"] + [DASH if r is None else fmt(r) for r in rmse])
+        if paper:
+            marks = ["✓" if r is not None and r <= implied_rmse(*paper[c]) else "✗" for r, c in zip(rmse, components)]
+            wins[key] = marks.count("✓")
+            rows.append([lab, "ours ≤ paper RMSE"] + marks)
+    return rows, wins
+
+
+def _floor(run: Run, entry: ManifestEntry, metrics: Metrics) -> dict[str, float] | None:
+    """The reconstruction floor of the entry's model on its evaluation split."""
+    from symrom.evaluate.metrics import reconstruction_floor
+
+    model, ds = run.model(entry), run.dataset(entry)
+    return None if model is None or ds is None else reconstruction_floor(model, ds, metrics.split)
+
+
+def _tables(entry: ManifestEntry, metrics: Metrics, paper_key: str | None, caption: str,
+            floor: dict[str, float] | None = None, ours_only: bool = False) -> tuple[list, dict[str, int]]:
+    """One table per component group; the wins summed over the groups."""
+    blocks, wins = [], {}
+    for group, comps in GROUPS:
+        rows, w = table2_rows(paper_key, metrics, comps)
+        if ours_only:
+            rows = [r for r in rows if r[1].startswith("ours")]
+        if floor is not None:
+            rows.append(["any", "reconstruction floor RMSE"] + [fmt(floor[c]) for c in comps])
+        header = ["horizon", "row"] + [f"{c} [{Q_UNITS[c]}]" for c in comps]
+        blocks.append(Table(header, rows, caption=f"{caption} — {group}"))
+        for k, v in w.items():
+            wins[k] = wins.get(k, 0) + v
+    return blocks, wins
+
+
+def _options(entry: ManifestEntry) -> list:
+    cfg = entry.facts.get("config")
+    if not isinstance(cfg, dict):
+        return []
+    comps = cfg.get("encoder_components")
+    return [Para("Training options: encoder reads " + (", ".join(comps) if comps else "all 18 components")
+                 + f"; decoded-acceleration weight {cfg.get('decoded_weight', 1.0):g}"
+                 + f"; standardised ridge alpha {cfg.get('alpha', 0.0):g}.")]
+
+
+def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
+    blocks: list = []
+    for e in entries:
+        blocks.append(heading(e))
+        metrics = run.metrics(e)
+        if metrics is None:
+            blocks.append(Para(f"{e.name}: no metrics; skipped.", note=True))
+            continue
+        floor = _floor(run, e, metrics)
+        caption = f"{e.name}, {metrics.split} jumps: {metrics.n_jumps}"
+        tables, wins = _tables(e, metrics, e.paper, caption, floor)
+        blocks += _options(e) + tables
+        blocks.append(Para(f"Diverged {metrics.split} jumps — {diverged_text(metrics)}.", note=metrics.any_diverged))
+        if wins:
+            blocks.append(Para("Ours ≤ paper RMSE in " + ", ".join(
+                f"{w} of {len(TABLE2_COMPONENTS)} components ({horizon_label(k)})" for k, w in wins.items()) + "."))
+        p = paper_row(e.paper, "0.1") if e.paper else None
+        blocked = [c for c in TABLE2_COMPONENTS if floor is not None and p and floor[c] > implied_rmse(*p[c])]
+        if blocked:
+            blocks.append(Para("The reconstruction floor (decode∘encode of the true configurations, the error "
+                               "of a rollout with exact latent dynamics) is above the paper's 0.1 s RMSE for "
+                               + ", ".join(blocked) + ": with this encoder no latent model can reach the "
+                               "paper's value there.", note=True))
+        before = run.metrics(e, "before") if "before" in e.files else None
+        if before is not None:
+            tables, _ = _tables(e, before, None, f"{e.name} before fine-tuning (the source model on the same "
+                                                 f"{before.split} jumps)", ours_only=True)
+            blocks += tables
+    return blocks
+
+
+# --------------------------------------------------------------------------- predictions
+def predictions_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
+    blocks: list = []
+    for e in entries:
+        if e.of is not None:
+            continue
+        got = ctx.jumps.get(e)
+        if got is None:
+            blocks.append(Para(f"{e.name}: model, data or metrics missing; no prediction figure.", note=True))
+            continue
+        ds, j, ros = got
+        path = figures.jump_figure(ds, ros, j, ctx.fig_dir / f"jump_{ctx.slug(e)}.png",
+                                   title=f"{e.name}: {ds.motion}, test jump {j}")
+        blocks.append(Figure(path, f"{e.name}: test jump {j}, truth vs prediction"))
+        start = ds.jump_bounds()[j][0]
+        div = [f"{horizon_label(k)} diverged at t = {ds.t[start + r.diverged_at[0]]:.3f} s"
+               for k, r in ros.items() if r.diverged[0]]
+        if div:
+            blocks.append(Para(f"{e.name}, jump {j}: " + "; ".join(div) + " (the curve stops there).", note=True))
+    return blocks
+
+
+# --------------------------------------------------------------------------- equations
+def wrap_equation(lhs: str, rhs: str, width: int = EQUATION_WIDTH) -> str:
+    """``lhs = rhs`` broken between terms into lines of at most ``width`` characters
+    (a single longer term keeps its line), continuation lines under the first term."""
+    head = f"{lhs} = "
+    terms = rhs.replace(" - ", " + -").split(" + ")
+    lines, line = [], head + terms[0]
+    for t in terms[1:]:
+        sign, t = ("- ", t[1:]) if t.startswith("-") else ("+ ", t)
+        if len(line) + 1 + len(sign) + len(t) > width:
+            lines.append(line)
+            line = " " * len(head) + sign + t
+        else:
+            line += " " + sign + t
+    return "\n".join(lines + [line])
+
+
+def equations_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
+    blocks: list = [Para("Latent accelerations ddxi_j as sparse combinations of the library Θ(ξ, dξ, ν) "
+                         "(xi: latent position, dxi: latent velocity, nu: latent input).")]
+    for e in entries:
+        if e.of is not None:
+            continue
+        model = run.model(e)
+        if model is None:
+            blocks.append(Para(f"{e.name}: no model file; no equations.", note=True))
+            continue
+        terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
+        text = "\n".join(f"[{phase}]\n" + "\n".join(textwrap.indent(wrap_equation(f"ddxi{j}", str(rhs)), "  ")
+                                                     for j, rhs in enumerate(eqs, 1))
+                         for phase, eqs in model.equations(3).items())
+        blocks.append(Pre(text, caption=f"{e.name}: l = {model.latent_dim}, p = {model.library.poly_order}, "
+                                        f"candidates: {model.library.n_features}; active terms: {terms}"))
+    return blocks

@@ -1,0 +1,225 @@
+"""The robot description file: a URDF plus the few facts symrom needs beyond it.
+
+A description (TOML, ``format = 1``) names which URDF joints and links play
+symrom's roles (legs FR FL RR RL x joints hx hy kn, four feet), the sign that
+turns each URDF joint angle into symrom's convention (hx about +x, hy and kn
+about +y of the base), a standing pose and the actuator torque limits.
+Geometry, masses and inertias stay in the URDF, the one source of them.
+
+Every problem is reported as one ``RobotDescriptionError`` naming the file and
+the key. docs/design.md, "Robot description file", is the reference.
+"""
+
+from __future__ import annotations
+
+import tomllib
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from symrom.names import LEG_JOINTS, LEGS
+
+FORMAT = 1
+PYBULLET_DATA = "pybullet_data:"  # urdf prefix: a path inside the pybullet_data package
+
+_KEYS: dict[str, tuple[str, ...] | None] = {  # top-level key -> allowed sub-keys (None: a value)
+    "format": None, "name": None, "urdf": None, "base_link": None,
+    "legs": LEGS, "joints": LEG_JOINTS, "feet": ("link",), "signs": LEG_JOINTS,
+    "stance": ("height", "joints", "knee"), "limits": ("torque",),
+}
+
+
+class RobotDescriptionError(ValueError):
+    """A robot description file is unreadable or wrong; the message names the file and key."""
+
+
+def pybullet_data_path(rel: str) -> Path:
+    """Absolute path of ``rel`` inside the installed ``pybullet_data`` package."""
+    import pybullet_data
+
+    return Path(pybullet_data.getDataPath()) / rel
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """One robot, as read from its description file (arrays in symrom's joint order).
+
+    key: what names the robot in a dataset's ``robot`` attribute (a built-in
+    name, else the description file's absolute path); urdf_path: the URDF;
+    joint_names (12) and foot_links (4): URDF names, FR FL RR RL x hx hy kn;
+    joint_signs (12): +1 or -1, symrom angle = sign x URDF angle (and the same
+    for rates and torques); stance_joints (12) rad: a standing leg posture
+    where the leg IK starts; knee_range (2,) rad: the range the leg IK keeps
+    the knees in; start_height m: base height standing; torque_limit (12) N m.
+    """
+
+    key: str
+    name: str
+    urdf_path: Path
+    base_link: str
+    joint_names: tuple[str, ...]
+    foot_links: tuple[str, ...]
+    joint_signs: tuple[float, ...]
+    stance_joints: tuple[float, ...]
+    knee_range: tuple[float, float]
+    start_height: float
+    torque_limit: tuple[float, ...]
+    source: Path = field(compare=False)
+
+    @cached_property
+    def mass(self) -> float:
+        """Total mass, kg: the sum of every link's ``<inertial><mass>`` in the URDF."""
+        root = ET.parse(self.urdf_path).getroot()
+        masses = [float(m.get("value")) for m in root.findall("link/inertial/mass") if m.get("value") is not None]
+        if not masses:
+            raise RobotDescriptionError(f"{self.source}: the URDF {self.urdf_path} declares no link masses")
+        return float(sum(masses))
+
+    @cached_property
+    def foot_radius(self) -> float:
+        """Radius (m) of the first foot link's collision sphere in the URDF (0 if not a sphere)."""
+        root = ET.parse(self.urdf_path).getroot()
+        for link in root.findall("link"):
+            if link.get("name") == self.foot_links[0]:
+                sphere = link.find("collision/geometry/sphere")
+                if sphere is not None:
+                    return float(sphere.get("radius"))
+        return 0.0
+
+    @property
+    def signs(self) -> np.ndarray:
+        """(12,) joint signs as an array."""
+        return np.asarray(self.joint_signs, dtype=float)
+
+
+def _fail(path: Path, key: str, what: str) -> RobotDescriptionError:
+    return RobotDescriptionError(f"robot description {path}: key {key!r}: {what}")
+
+
+def _number(path: Path, key: str, v) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise _fail(path, key, f"expected a number, got {v!r}")
+    return float(v)
+
+
+def _numbers(path: Path, key: str, v, sizes: tuple[int, ...]) -> list[float]:
+    """A list of numbers of one of ``sizes``; a lone number counts as size 1."""
+    items = v if isinstance(v, list) else [v]
+    if len(items) not in sizes:
+        raise _fail(path, key, f"expected {' or '.join(map(str, sizes))} numbers, got {v!r}")
+    return [_number(path, key, x) for x in items]
+
+
+def _per_joint(values: list[float]) -> list[float]:
+    """Values given per joint kind (3: hx hy kn) or per joint (12) -> 12 values, symrom order."""
+    return values * len(LEGS) if len(values) == len(LEG_JOINTS) else values
+
+
+def _text(path: Path, key: str, v) -> str:
+    if not isinstance(v, str) or not v.strip():
+        raise _fail(path, key, f"expected a non-empty string, got {v!r}")
+    return v
+
+
+def _template(path: Path, key: str, v, leg: str) -> str:
+    try:
+        return _text(path, key, v).format(leg=leg)
+    except (KeyError, IndexError, ValueError):
+        raise _fail(path, key, f"{v!r} may hold only the placeholder {{leg}}") from None
+
+
+def _urdf(path: Path, v) -> Path:
+    v = _text(path, "urdf", v)
+    urdf = pybullet_data_path(v[len(PYBULLET_DATA):]) if v.startswith(PYBULLET_DATA) else path.parent / v
+    if not urdf.is_file():
+        raise _fail(path, "urdf", f"no such file {urdf}")
+    return urdf.resolve()
+
+
+def _check_keys(path: Path, doc: dict) -> None:
+    for k in doc:
+        if k not in _KEYS:
+            raise _fail(path, k, f"unknown key; known: {', '.join(_KEYS)}")
+    for k, subs in _KEYS.items():
+        if k not in doc:
+            raise _fail(path, k, "missing")
+        if subs is None:
+            continue
+        if not isinstance(doc[k], dict):
+            raise _fail(path, k, "expected a table")
+        for s in doc[k]:
+            if s not in subs:
+                raise _fail(path, f"{k}.{s}", f"unknown key; known: {', '.join(subs)}")
+        for s in subs:
+            if s not in doc[k]:
+                raise _fail(path, f"{k}.{s}", "missing")
+
+
+def _check_urdf(path: Path, urdf: Path, base_link: str, joints: list[str], feet: list[str]) -> None:
+    """Every named joint and link exists in the URDF (a wrong name is caught here, by key)."""
+    try:
+        root = ET.parse(urdf).getroot()
+    except ET.ParseError as e:
+        raise _fail(path, "urdf", f"{urdf} is not valid XML ({e})") from None
+    links = {link.get("name") for link in root.findall("link")}
+    kinds = {j.get("name"): j.get("type") for j in root.findall("joint")}
+    if base_link not in links:
+        raise _fail(path, "base_link", f"no link {base_link!r} in {urdf.name}")
+    for i, name in enumerate(joints):
+        key = f"joints.{LEG_JOINTS[i % 3]}"
+        if name not in kinds:
+            raise _fail(path, key, f"no joint {name!r} in {urdf.name}")
+        if kinds[name] not in ("revolute", "continuous"):
+            raise _fail(path, key, f"joint {name!r} is {kinds[name]}, not revolute")
+    for name in feet:
+        if name not in links:
+            raise _fail(path, "feet.link", f"no link {name!r} in {urdf.name}")
+
+
+def load_description(path: str | Path, key: str | None = None) -> RobotDescription:
+    """Read and check the description file ``path``; ``key`` names the robot in datasets
+    (default: the file's absolute path)."""
+    path = Path(path).resolve()
+    try:
+        doc = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise RobotDescriptionError(f"robot description {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise RobotDescriptionError(f"robot description {path}: unreadable ({e.__class__.__name__})") from None
+    except tomllib.TOMLDecodeError as e:
+        raise RobotDescriptionError(f"robot description {path}: not valid TOML ({e})") from None
+    _check_keys(path, doc)
+    if doc["format"] != FORMAT:
+        raise _fail(path, "format", f"{doc['format']!r} is not supported (this symrom reads {FORMAT})")
+    urdf = _urdf(path, doc["urdf"])
+    prefixes = [_text(path, f"legs.{leg}", doc["legs"][leg]) for leg in LEGS]
+    joints = [_template(path, f"joints.{j}", doc["joints"][j], p) for p in prefixes for j in LEG_JOINTS]
+    feet = [_template(path, "feet.link", doc["feet"]["link"], p) for p in prefixes]
+    base_link = _text(path, "base_link", doc["base_link"])
+    _check_urdf(path, urdf, base_link, joints, feet)
+    signs = []
+    for j in LEG_JOINTS:
+        s = _numbers(path, f"signs.{j}", doc["signs"][j], (1, 4))
+        if any(x not in (1.0, -1.0) for x in s):
+            raise _fail(path, f"signs.{j}", f"each sign must be 1 or -1, got {doc['signs'][j]!r}")
+        signs.append(s * 4 if len(s) == 1 else s)
+    stance = doc["stance"]
+    height = _number(path, "stance.height", stance["height"])
+    if height <= 0:
+        raise _fail(path, "stance.height", f"must be positive, got {height}")
+    knee = _numbers(path, "stance.knee", stance["knee"], (2,))
+    if knee[0] >= knee[1]:
+        raise _fail(path, "stance.knee", f"expected [lower, upper] with lower < upper, got {knee}")
+    torque = _numbers(path, "limits.torque", doc["limits"]["torque"], (3, 12))
+    if min(torque) <= 0:
+        raise _fail(path, "limits.torque", f"limits must be positive, got {torque}")
+    return RobotDescription(
+        key=str(path) if key is None else key, name=_text(path, "name", doc["name"]), urdf_path=urdf,
+        base_link=base_link, joint_names=tuple(joints), foot_links=tuple(feet),
+        joint_signs=tuple(signs[k][leg] for leg in range(4) for k in range(3)),
+        stance_joints=tuple(_per_joint(_numbers(path, "stance.joints", stance["joints"], (3, 12)))),
+        knee_range=(knee[0], knee[1]), start_height=height,
+        torque_limit=tuple(_per_joint(torque)), source=path)

@@ -1,0 +1,72 @@
+"""Standing poses from a robot's description: leg inverse kinematics and the start pose.
+
+One way to stand a robot, shared by every motion: feet level under the hips
+(their positions at zero joint angles), the base at a given height, joint
+angles from damped Newton steps on the URDF kinematics that start at the
+description's standing leg posture and keep the knees in its range.
+Units: m, rad; base-frame feet (4, 3); joint angles (12,) in symrom's order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.robots import get_robot, leg_kinematics
+
+# m the feet start inside the ground (as loaded foot pads would), so contact exists from t = 0
+FOOT_PRELOAD = 5e-4
+
+
+def leg_ik(robot: str, feet_base: np.ndarray, q_guess: np.ndarray | None = None,
+           iters: int = 30) -> np.ndarray:
+    """Joint angles (12,) rad putting the feet at ``feet_base`` (4, 3) m (base frame).
+
+    Damped Newton iterations on the URDF kinematics from ``q_guess`` (default the
+    description's standing posture); knees are kept in the description's range.
+    """
+    desc, kin = get_robot(robot), leg_kinematics(robot)
+    q = np.array(desc.stance_joints if q_guess is None else q_guess, dtype=float)
+    for _ in range(iters):
+        p, J = kin.foot_positions_and_jacobians(q[None])
+        err = feet_base - p[0]
+        if np.max(np.abs(err)) < 1e-7:
+            break
+        for k in range(N_LEGS):
+            Jk = J[0, k]
+            q[3 * k:3 * k + 3] += np.linalg.solve(Jk.T @ Jk + 1e-6 * np.eye(3), Jk.T @ err[k])
+        q[2::3] = np.clip(q[2::3], *desc.knee_range)
+    return q
+
+
+def nominal_feet(robot: str) -> np.ndarray:
+    """(4, 3) m: the feet at zero joint angles (legs straight), base frame."""
+    return leg_kinematics(robot).foot_positions(np.zeros((1, N_JOINTS)))[0]
+
+
+def standing_joints(robot: str, height: float | None = None, dx: float = 0.0) -> np.ndarray:
+    """(12,) joint angles for the base at ``height`` m (default: the start height) above
+    level ground, feet under the hips shifted ``dx`` m forward (base frame)."""
+    desc = get_robot(robot)
+    h = desc.start_height if height is None else height
+    feet = nominal_feet(robot).copy()
+    feet[:, 0] += dx
+    feet[:, 2] = -(h - desc.foot_radius)
+    return leg_ik(robot, feet)
+
+
+def start_pose(robot: str, height: float | None = None, yaw: float = 0.0) -> np.ndarray:
+    """q (18,): standing at ``height`` m (default: the start height), base at x = y = 0,
+    heading ``yaw`` rad. The legs reach ``FOOT_PRELOAD`` below the ground, so a
+    collision pass right after the reset already finds the four contacts."""
+    h = get_robot(robot).start_height if height is None else height
+    q = np.zeros(N_Q)
+    q[JOINTS] = standing_joints(robot, h + FOOT_PRELOAD)
+    q[BASE_POS] = (0.0, 0.0, h)
+    q[BASE_RPY] = (0.0, 0.0, yaw)
+    return q
+
+
+def leg_length(robot: str) -> float:
+    """Mean over the legs of thigh plus calf length, m (hip flexion axis to foot centre)."""
+    return float(leg_kinematics(robot).segment_lengths().sum(axis=1).mean())

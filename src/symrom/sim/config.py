@@ -1,0 +1,77 @@
+"""The configuration of a generated file: everything that determines its jumps.
+
+``GenerateConfig`` is recorded whole in the file's ``generator`` attribute;
+its ``fingerprint`` ties resumed part files to the options that made them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from symrom.sim.checks import JumpChecks
+from symrom.sim.world import WorldConfig
+
+GENERATOR_VERSION = 1
+
+
+@dataclass(frozen=True)
+class NoiseConfig:
+    """Noise of the ``--noise`` variant (standard deviations, SI units).
+
+    Initial configuration: q0_joint rad on the joint angles, q0_xy m on base
+    x/y, q0_rp rad on roll/pitch (the base is then put back on the ground).
+    Readings (what the controller sees and what is logged): q_joint rad,
+    q_base_pos m, q_rpy rad, dq_joint rad/s, dq_base_lin m/s, dq_rpy rad/s.
+    External push on the CoM: a constant force ~ N(0, force_std) N per world
+    axis, held for force_duration s from a start time uniform in force_start s.
+    """
+
+    q0_joint: float = 0.02
+    q0_xy: float = 0.005
+    q0_rp: float = 0.01
+    q_joint: float = 0.002
+    q_base_pos: float = 0.002
+    q_rpy: float = 0.005
+    dq_joint: float = 0.05
+    dq_base_lin: float = 0.02
+    dq_rpy: float = 0.05
+    force_std: tuple[float, float, float] = (15.0, 15.0, 10.0)
+    force_duration: float = 0.2
+    force_start: tuple[float, float] = (0.2, 1.2)
+
+
+@dataclass(frozen=True)
+class GenerateConfig:
+    """Everything that determines a generated file (recorded in its ``generator``).
+
+    robot: a built-in name or the key of a description file (its absolute path,
+    ``symrom.robots.robot_key``); motion: a name in ``symrom.motions.MOTIONS``;
+    n_jumps; seed; proxy: the motion's hardware-like variant; noise: the noisy
+    variant or None; world, checks: physics and the kept-jump checks;
+    max_attempts: tries per jump before generation fails.
+    """
+
+    robot: str
+    motion: str
+    n_jumps: int
+    seed: int = 0
+    proxy: bool = False
+    noise: NoiseConfig | None = None
+    world: WorldConfig = field(default_factory=WorldConfig)
+    checks: JumpChecks = field(default_factory=JumpChecks)
+    max_attempts: int = 8
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["noise"] = None if self.noise is None else asdict(self.noise)
+        return d
+
+    def fingerprint(self) -> str:
+        """Hash of what makes each jump (not the jump count), to match resumed parts."""
+        d = self.to_dict()
+        d.pop("n_jumps")
+        d["version"] = GENERATOR_VERSION
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]

@@ -1,0 +1,82 @@
+"""What a motion plug-in provides: a ``Controller`` per jump and the ``Motion`` that makes it.
+
+A motion's registry entry (``symrom.motions``) names its plug-in as
+``"module:attribute"``; ``load_motion`` imports it only here, in the
+simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
+
+    params = motion.sample_params(rng, robot, proxy)   # a dataclass with max_time (s)
+    world = motion.make_world(robot, world_config, params)
+    ctrl = motion.make_controller(robot, params)
+    q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
+    while not ctrl.done(s := world.state()):
+        world.step(ctrl.torque(s))                     # (12,) N m per physics tick
+    motion.check(log, dt, checks)                      # the motion's own checks, reasons
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from symrom.motions import get_motion
+from symrom.sim.world import RobotState, World, WorldConfig
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """One jump's controller: the same three methods for every motion."""
+
+    def reset(self, world: World) -> np.ndarray:
+        """The start configuration q (18,) of the jump on ``world``, which the runner then
+        resets to; a controller may also configure the world here (e.g. hold joints)."""
+
+    def torque(self, state: RobotState) -> np.ndarray:
+        """Joint torques (12,) N m for ``state``, called every physics tick."""
+
+    def done(self, state: RobotState) -> bool:
+        """Whether the jump is over (settled after landing, or out of time)."""
+
+    def diagnostics(self) -> dict[str, Any]:
+        """JSON-ready facts of the run for benchmarks (e.g. MPC solve times, s); not stored."""
+
+
+class Motion(Protocol):
+    """A kind of jump, as its plug-in module exports it."""
+
+    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> Any:
+        """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s."""
+
+    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
+        """The world the jump runs in (e.g. a hardware-like proxy of it)."""
+
+    def make_controller(self, robot: str, params: Any) -> Controller:
+        """A fresh controller for one jump."""
+
+    def source(self, params: Any) -> str:
+        """The dataset's ``source`` for jumps with ``params``: ``sim`` or ``proxy``."""
+
+    def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
+        """Reasons the logged jump fails this motion's own checks (beyond ``JumpChecks``)."""
+
+
+@dataclass(frozen=True)
+class PlainMotion:
+    """Defaults for a ``Motion``: the nominal world, source ``sim``, no checks of its own."""
+
+    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
+        return World(robot, config)
+
+    def source(self, params: Any) -> str:
+        return "sim"
+
+    def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
+        return []
+
+
+def load_motion(name: str) -> Motion:
+    """The plug-in of motion ``name``, imported from its registry entry."""
+    module, _, attr = get_motion(name).plugin.partition(":")
+    return getattr(importlib.import_module(module), attr)

@@ -1,0 +1,55 @@
+"""Part files: each finished jump saved at once, so an interrupted generation resumes.
+
+``OUT.parts/jump_00012.npz`` holds one jump's log arrays and a JSON ``meta``
+string (the options' fingerprint and the jump's record); plain npz, no pickle,
+written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+LOG_KEYS = ("t", "q", "dq", "tau", "contact", "foot_pos")
+
+
+def jsonable(x: Any) -> Any:
+    """``x`` with numpy arrays and scalars turned into lists and Python numbers."""
+    if isinstance(x, dict):
+        return {str(k): jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def parts_dir(out: str | os.PathLike) -> Path:
+    """Sidecar folder of per-jump part files of ``out``."""
+    return Path(str(out) + ".parts")
+
+
+def part_path(parts: Path, jump: int) -> Path:
+    return parts / f"jump_{jump:05d}.npz"
+
+
+def write_part(path: Path, log: dict[str, np.ndarray], record: dict, fingerprint: str) -> None:
+    """Write one jump's part atomically (npz, no pickle)."""
+    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
+    meta = json.dumps({"fingerprint": fingerprint, "record": jsonable(record)}, sort_keys=True)
+    np.savez(tmp, meta=np.array(meta), **log)
+    os.replace(tmp, path)
+
+
+def read_part(path: Path) -> tuple[dict[str, np.ndarray], dict, str]:
+    """(log, record, fingerprint) of a part file."""
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(str(z["meta"]))
+        log = {k: z[k] for k in LOG_KEYS}
+    return log, meta["record"], meta["fingerprint"]

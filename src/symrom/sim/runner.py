@@ -1,0 +1,127 @@
+"""Running one jump: a fresh world and controller of the motion, logged, checked, retried.
+
+One jump: the motion's world (1 kHz physics) and controller (``Controller``:
+``reset``, ``torque``, ``done``), logged every ``physics_hz / log_hz`` ticks
+(500 Hz, dt = 0.002 s): t (s), q and dq (18,), the applied torque tau (12,)
+N m, contact (4,) and foot_pos (4, 3) m. A failed jump is re-run with a fresh
+seed derived from (seed, jump, attempt), so a file never depends on the
+order or the number of workers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
+from symrom.sim.checks import check_jump
+from symrom.sim.config import GenerateConfig, NoiseConfig
+from symrom.sim.controller import load_motion
+from symrom.sim.parts import LOG_KEYS, jsonable
+from symrom.sim.world import RobotState
+
+
+class GenerationError(RuntimeError):
+    """A generation request cannot be carried out (bad options, stale parts, no valid jump)."""
+
+
+def jump_seed(seed: int, jump: int, attempt: int) -> np.random.SeedSequence:
+    """The seed of attempt ``attempt`` of jump ``jump``: independent of workers and order."""
+    return np.random.SeedSequence(seed, spawn_key=(jump, attempt))
+
+
+def _noisy(s: RobotState, noise: NoiseConfig, rng: np.random.Generator) -> RobotState:
+    """A reading of ``s`` with Gaussian noise on q and dq (other fields exact)."""
+    q, dq = s.q.copy(), s.dq.copy()
+    q[JOINTS] += rng.normal(0.0, noise.q_joint, N_JOINTS)
+    q[BASE_POS] += rng.normal(0.0, noise.q_base_pos, 3)
+    q[BASE_RPY] += rng.normal(0.0, noise.q_rpy, 3)
+    dq[JOINTS] += rng.normal(0.0, noise.dq_joint, N_JOINTS)
+    dq[BASE_POS] += rng.normal(0.0, noise.dq_base_lin, 3)
+    dq[BASE_RPY] += rng.normal(0.0, noise.dq_rpy, 3)
+    return RobotState(t=s.t, q=q, dq=dq, omega=s.omega, R=s.R, contact=s.contact,
+                      foot_pos=s.foot_pos, foot_vel=s.foot_vel)
+
+
+def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str, np.ndarray], dict]:
+    """Simulate one jump; return its log and a JSON-ready info dict.
+
+    Log arrays (n rows at log_hz): t (n,) s, q, dq (n, 18), tau (n, 12) N m
+    applied, contact (n, 4) uint8, foot_pos (n, 4, 3) m. info: params, source,
+    push force, whether the controller finished (``done``) in time, and the
+    controller's diagnostics (not stored in the file).
+    """
+    params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
+    motion = load_motion(cfg.motion)
+    params = motion.sample_params(params_rng, cfg.robot, cfg.proxy)
+    world = motion.make_world(cfg.robot, cfg.world, params)
+    ctrl = motion.make_controller(cfg.robot, params)
+    q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
+    info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
+    force = None
+    if cfg.noise is not None:
+        n = cfg.noise
+        q0[JOINTS] += noise_rng.normal(0.0, n.q0_joint, N_JOINTS)
+        xy = q0[BASE_POS][:2] + noise_rng.normal(0.0, n.q0_xy, 2)
+        rpy = q0[BASE_RPY] + np.r_[noise_rng.normal(0.0, n.q0_rp, 2), 0.0]
+        q0 = world.standing_q(q0[JOINTS], tuple(xy), tuple(rpy))  # back on the ground
+        f = noise_rng.normal(0.0, np.asarray(n.force_std))
+        t0 = float(noise_rng.uniform(*n.force_start))
+        force = (f, t0, t0 + n.force_duration)
+        info["push"] = {"force": f.tolist(), "t_start": t0, "t_end": t0 + n.force_duration}
+    log: dict[str, list] = {k: [] for k in LOG_KEYS}
+    every = cfg.world.log_every
+    finished = False
+    try:
+        world.reset(q0)
+        for tick in range(int(round(params.max_time * cfg.world.physics_hz)) + 1):
+            s = world.state()
+            if cfg.noise is not None:
+                s = _noisy(s, cfg.noise, noise_rng)
+            if ctrl.done(s):
+                finished = True
+                break
+            tau = ctrl.torque(s)
+            if force is not None and force[1] <= s.t < force[2]:
+                world.apply_base_force(force[0])
+            applied = world.step(tau)
+            if tick % every == 0:
+                log["t"].append(tick * cfg.world.dt)
+                log["q"].append(s.q)
+                log["dq"].append(s.dq)
+                log["tau"].append(applied)
+                log["contact"].append(s.contact)
+                log["foot_pos"].append(s.foot_pos)
+    finally:
+        world.close()
+    info["finished"] = finished
+    info["diagnostics"] = ctrl.diagnostics()
+    arrays = {"t": np.asarray(log["t"], float), "q": np.asarray(log["q"], float).reshape(-1, N_Q),
+              "dq": np.asarray(log["dq"], float).reshape(-1, N_Q),
+              "tau": np.asarray(log["tau"], float).reshape(-1, N_JOINTS),
+              "contact": np.asarray(log["contact"], np.uint8).reshape(-1, 4),
+              "foot_pos": np.asarray(log["foot_pos"], float).reshape(-1, 4, 3)}
+    return arrays, info
+
+
+def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarray], dict]:
+    """Run jump ``jump`` until it passes the checks (at most ``cfg.max_attempts`` tries).
+
+    Returns the log and a JSON-ready record: jump, attempt, spawn_key, failed
+    attempts with reasons, params, source.
+    """
+    motion = load_motion(cfg.motion)
+    dt = cfg.world.dt * cfg.world.log_every
+    failures = []
+    for attempt in range(cfg.max_attempts):
+        log, info = run_jump(cfg, jump_seed(cfg.seed, jump, attempt))
+        bad = check_jump(log, cfg.robot, dt, cfg.checks, info["finished"]) + motion.check(log, dt, cfg.checks)
+        if not bad:
+            record = {"jump": jump, "attempt": attempt, "spawn_key": [jump, attempt],
+                      "retries": failures, "samples": int(log["t"].shape[0]), **info}
+            return log, record
+        failures.append({"attempt": attempt, "reasons": bad})
+    raise GenerationError(f"jump {jump}: no valid jump in {cfg.max_attempts} attempts "
+                          f"(last: {'; '.join(failures[-1]['reasons'])})")
