@@ -51,3 +51,24 @@ def test_shorter_horizon_is_more_accurate(model_and_data):
     full = np.mean([c["rmse"] for c in metrics["horizons"]["full"]["components"].values()])
     short = np.mean([c["rmse"] for c in metrics["horizons"]["0.1"]["components"].values()])
     assert short < full
+
+
+@pytest.mark.parametrize("reset", [None, 0.1])
+def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset):
+    from dataclasses import replace
+
+    from symrom.model.training import TrainConfig, train
+
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    names = model.library.feature_names
+    Xi = model.Xi.copy()
+    Xi[0, names.index("dxi1"), 0] = 60.0  # a fast unstable mode, so some rollouts diverge
+    bad = replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
+    for m in (model, bad):
+        a = rollout(m, ds, None, RolloutOptions("rk4", reset=reset, backend="compiled"))
+        b = rollout(m, ds, None, RolloutOptions("rk4", reset=reset, backend="numpy"))
+        np.testing.assert_array_equal(a.diverged_at, b.diverged_at)
+        for x, y in zip(a.q_pred, b.q_pred):
+            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
+    assert rollout(bad, ds, None, RolloutOptions("rk4", backend="compiled")).diverged.any()

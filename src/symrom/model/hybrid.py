@@ -220,9 +220,11 @@ class HybridModel:
         def acceleration(drive: dict[str, np.ndarray], xs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
 
+        from symrom.model.kernel import compiled_rollout
+
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
-                             lambda i, X: ae.decode(X))
+                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi))
 
     # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:

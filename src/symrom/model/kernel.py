@@ -230,8 +230,90 @@ def kernels():
                         S[:, :] = 0.0
                         break
 
-    _KERNELS.update(features=features, rk4_windows=rk4_windows)
+    @njit
+    def rk4_rollout(x_true, v_true, nu, phase, lens, resets, Xi, kind, var, power, count, active, n_active,
+                    dt, substeps, limit, X, V, div_at):
+        """J jumps from their true start, reset to the truth where ``resets``; the
+        semantics of ``symrom.rollout.integrate.integrate_rk4`` (NaN from the first
+        bad sample on, whose index goes to div_at)."""
+        J, n_max, l = x_true.shape
+        p = kind.shape[0]
+        h = dt / substeps
+        theta = np.empty(p)
+        dtheta = np.zeros((p, 2 * l))
+        dummy_S = np.zeros((2 * l, 0))
+        dummy_i = np.zeros(0, dtype=np.int64)
+        s, st = np.empty(2 * l), np.empty(2 * l)
+        k1, k2, k3, k4 = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
+        for j in range(J):
+            div_at[j] = -1
+            for k in range(lens[j]):
+                if k == 0 or resets[k]:
+                    for d in range(l):
+                        s[d], s[l + d] = x_true[j, k, d], v_true[j, k, d]
+                ok = True
+                for d in range(2 * l):
+                    if not (np.abs(s[d]) <= limit[j, d]):
+                        ok = False
+                if not ok:
+                    div_at[j] = k
+                    break
+                for d in range(l):
+                    X[j, k, d], V[j, k, d] = s[d], s[l + d]
+                if k == lens[j] - 1:
+                    break
+                ph = phase[j, k]
+                u = nu[j, k]
+                for _ in range(substeps):
+                    field(s, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
+                          active, n_active, theta, dtheta, k1, dummy_S, False)
+                    for d in range(2 * l):
+                        st[d] = s[d] + 0.5 * h * k1[d]
+                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
+                          active, n_active, theta, dtheta, k2, dummy_S, False)
+                    for d in range(2 * l):
+                        st[d] = s[d] + 0.5 * h * k2[d]
+                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
+                          active, n_active, theta, dtheta, k3, dummy_S, False)
+                    for d in range(2 * l):
+                        st[d] = s[d] + h * k3[d]
+                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
+                          active, n_active, theta, dtheta, k4, dummy_S, False)
+                    for d in range(2 * l):
+                        s[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+
+    _KERNELS.update(features=features, rk4_windows=rk4_windows, rk4_rollout=rk4_rollout)
     return _KERNELS
+
+
+def compiled_rollout(library: Library, Xi: np.ndarray):
+    """An integrator of the hybrid latent model with coefficients Xi (P, p, l) for
+    ``symrom.rollout.integrate`` (``RolloutSystem.compiled``), or None if the
+    library has no term table or numba is not installed."""
+    table = term_table(library)
+    if table is None:
+        return None
+    try:
+        k = kernels()["rk4_rollout"]
+    except ImportError:
+        return None
+    Xi = np.ascontiguousarray(Xi, dtype=float)
+    active, n_active = active_terms(Xi != 0)
+
+    def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
+        """Padded (J, n_max, l) truth, drive {nu (J, n_max, l), phase (J, n_max)} ->
+        X, V (J, n_max, l) with NaN after a divergence, div_at (J,)."""
+        J, n_max, l = x_true.shape
+        X, V = np.full((J, n_max, l), np.nan), np.full((J, n_max, l), np.nan)
+        div_at = np.full(J, -1, dtype=np.int64)
+        k(np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
+          np.ascontiguousarray(drive["nu"], dtype=float), np.ascontiguousarray(drive["phase"], dtype=np.int64),
+          np.asarray(lens, dtype=np.int64), np.asarray(resets, dtype=np.bool_), Xi, table.kind, table.var,
+          table.power, table.count, active, n_active, float(dt), int(substeps),
+          np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
+        return X, V, div_at
+
+    return integrate
 
 
 def active_terms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -34,23 +34,29 @@ from symrom.data.dataset import Dataset
 from symrom.rollout.system import Rollable
 
 METHODS = ("lsoda", "rk4")
+BACKENDS = ("auto", "compiled", "numpy")
 
 
 @dataclass
 class RolloutOptions:
     """method: ``lsoda`` or ``rk4``; reset: s between resets (None = full horizon);
     substeps: RK4 steps per sample; max_steps: LSODA step budget per sample;
-    bound: divergence bound as a multiple of the model's yardstick."""
+    bound: divergence bound as a multiple of the model's yardstick; backend (rk4):
+    ``auto`` (compiled when the model offers it), ``compiled`` or ``numpy`` (the
+    reference)."""
 
     method: str = "lsoda"
     reset: float | None = None
     substeps: int = 2
     max_steps: int = 2000
     bound: float = 50.0
+    backend: str = "auto"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown integrator {self.method!r}; choose from {METHODS}")
+        if self.backend not in BACKENDS:
+            raise ValueError(f"unknown rollout backend {self.backend!r}; choose from {BACKENDS}")
         if self.reset is not None and not self.reset > 0:
             raise ValueError(f"reset must be a positive duration in s, got {self.reset}")
 
@@ -195,9 +201,17 @@ def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None =
     else:
         lens = np.array([x.shape[0] for x in sysm.x])
         drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
-        Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
-            {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
-            lens, reset_mask(int(lens.max()), options.reset, ds.dt), limit, ds.dt, options.substeps)
+        resets = reset_mask(int(lens.max()), options.reset, ds.dt)
+        if options.backend == "compiled" and sysm.compiled is None:
+            raise ValueError("this model has no compiled integrator; use backend 'numpy'")
+        if sysm.compiled is not None and options.backend != "numpy":
+            X, V, div_at = sysm.compiled(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit,
+                                         ds.dt, options.substeps)
+            Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]
+        else:
+            Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
+                {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
+                lens, resets, limit, ds.dt, options.substeps)
         if progress:
             progress(len(jumps), len(jumps))
     q_pred = [sysm.observe(i, X) for i, X in enumerate(Xs)]

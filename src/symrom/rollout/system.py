@@ -33,7 +33,10 @@ class RolloutSystem:
     reset values); drive: per name, per jump (n_j, ...) inputs held over each
     sample; scale: (J, 2d) the yardstick of |[x, v]|: a rollout has diverged once
     it leaves ``bound`` (``RolloutOptions``) times it; acceleration: see ``Acceleration``; observe(i, X): the model's
-    prediction (n, C) of its ``components`` from its path X (n, d) on jump i.
+    prediction (n, C) of its ``components`` from its path X (n, d) on jump i;
+    compiled: optionally, a compiled fixed-step RK4 integrator of this system
+    (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
+    ``rk4`` unless the NumPy reference is asked for.
     """
 
     x: list[np.ndarray]
@@ -42,6 +45,7 @@ class RolloutSystem:
     scale: np.ndarray
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
+    compiled: Callable | None = None
 
     @property
     def n_jumps(self) -> int:
