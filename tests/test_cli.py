@@ -49,7 +49,11 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     assert f"report: {out / 'report.html'}" in r.output.replace("\n", "")
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["experiments"]) == {"go1_sim"}
-    assert summary["experiments"]["go1_sim"]["aslip"]["horizons"]["full"]["components"]
+    go1 = summary["experiments"]["go1_sim"]
+    for name in ("aslip", "aslip_rollout", "newton"):
+        assert set(go1["baselines"][name]["horizons"]["full"]["components"]) == {"x", "y", "z"}
+    table = json.loads((out / "go1_sim" / "selection" / "selection.json").read_text())
+    assert table["chosen"] is not None and table["rows"][table["chosen"]]["score"] is not None
     assert (out / "go1_sim" / "equations.txt").read_text().startswith("[contact]")
     assert "Table 2" in (out / "report.md").read_text()
     before = (out / "go1_sim" / "model.json").read_text()

@@ -271,7 +271,7 @@ def test_figures_from_arrays(tmp_path):
     t = np.linspace(0, 0.5, 50)
     com = np.c_[t, 0 * t, 0.3 + 0.1 * np.sin(6 * t)]
     phase = (t > 0.2).astype(int)
-    p = figures.aslip_figure(t, com, com + 0.01, None, phase, ["contact", "flight"], tmp_path / "a.png")
+    p = figures.com_figure(t, com, com + 0.01, {}, phase, ["contact", "flight"], tmp_path / "a.png")
     assert p.read_bytes()[:4] == b"\x89PNG"
     with pytest.raises(ValueError, match="columns"):
         figures.encoder_heatmap(np.ones((2, 5)), tmp_path / "h.png")

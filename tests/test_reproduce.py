@@ -41,23 +41,31 @@ def test_summary_follows_the_contract(run):
             assert key in exp, (name, key)
         assert set(exp["metrics"]["horizons"]) == {"full", "0.1"}
         assert set(exp["active_terms"]) == set(exp["equations"])
-    assert on_disk["experiments"]["go1_sim"]["n_candidates"] == 15
-    assert on_disk["experiments"]["a1_sim"]["n_candidates"] == 29
     assert set(on_disk["experiments"]["a1_sim"]["active_terms"]) == {"contact", "partial", "flight"}
-    aslip = on_disk["experiments"]["go1_sim"]["aslip"]
-    assert set(aslip["horizons"]["full"]["components"]) <= {"x", "y", "z"}
+    for name in ("go1_sim", "a1_sim"):
+        for b in ("aslip", "aslip_rollout", "newton"):
+            assert set(on_disk["experiments"][name]["baselines"][b]["horizons"]["full"]["components"]) == {"x", "y", "z"}
     assert set(on_disk["experiments"]["go1_sim"]["solvers"]) == {"exact", "adam"}
     sweep = on_disk["sweep"]
     assert sweep["latent_dims"] == [1, 2] and len(sweep["E_dec"]) == 2 and len(sweep["E_dec"][0]) == 2
     assert sweep["best_latent_dim"] in (1, 2) and len(sweep["L_mod"]) == 2
     assert {p.name: p.stat().st_mtime for p in (d / "data").iterdir()} == before  # reused
     go1 = on_disk["experiments"]["go1_sim"]
-    assert go1["config"]["encoder_components"] == ["x", "y", "z"]
     assert set(go1["paper_defaults"]["metrics"]["horizons"]) == {"full", "0.1"}
     from symrom.model.persistence import load_model
 
-    W_e = load_model(d / go1["model"]).autoencoder.W_e
-    assert abs(W_e[:, :12]).max() == 0 and abs(W_e[:, 15:]).max() == 0  # reads x, y, z only
+    # The summary states the settings the validation selection chose, and the model file has them.
+    table = json.loads((d / "go1_sim" / "selection" / "selection.json").read_text())
+    chosen = table["rows"][table["chosen"]]
+    assert {k: go1["config"][k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")} == \
+        {k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")}
+    model = load_model(d / go1["model"])
+    assert model.latent_dim == chosen["latent_dim"] and model.info["selection"]["encoder"] == chosen["encoder"]
+    if chosen["encoder"] == "base_position":
+        assert abs(model.autoencoder.W_e[:, :12]).max() == 0 and abs(model.autoencoder.W_e[:, 15:]).max() == 0
+    paper = load_model(d / go1["paper_defaults"]["model"])
+    assert paper.library.n_features == 15 and paper.latent_dim == 2  # the paper's Table 1
+    assert load_model(d / "a1_sim" / "paper_defaults" / "model.json").library.n_features == 29
 
 
 def test_manifest_lists_every_experiment_with_its_role(run):
@@ -66,10 +74,12 @@ def test_manifest_lists_every_experiment_with_its_role(run):
     d, summary, *_ = run
     entries = read_manifest(json.loads((d / "summary.json").read_text())["manifest"])
     roles = {e.name: e.role for e in entries}
-    assert roles == {"go1_sim": "learned", "go1_sim/paper_defaults": "learned", "a1_sim": "learned",
-                     "a1_sim/paper_defaults": "learned", "go1_sim/aslip": "baseline",
-                     "go1_sim/solvers/exact": "solver", "go1_sim/solvers/adam": "solver",
-                     "go1_proxy": "fine_tuned", "sweep": "sweep"}
+    expected = {"go1_sim/solvers/exact": "solver", "go1_sim/solvers/adam": "solver",
+                "go1_proxy": "fine_tuned", "sweep": "sweep"}
+    for name in ("go1_sim", "a1_sim"):
+        expected |= {name: "learned", f"{name}/paper_defaults": "learned", f"{name}/selection": "selection",
+                     f"{name}/aslip": "baseline", f"{name}/aslip_rollout": "baseline", f"{name}/newton": "baseline"}
+    assert roles == expected
     for e in entries:
         for key, rel in e.files.items():
             assert (d / rel).exists(), (e.name, key, rel)
@@ -103,5 +113,6 @@ def test_report_builds_from_the_run(run):
     md_text = md.read_text()
     # one floor row per table: joints and base pose of the 5 learned and fine-tuned models
     assert "with the paper's defaults" in md_text and md_text.count("reconstruction floor RMSE") == 10
-    assert "go1_sim model, whose encoder reads x, y, z" in md_text
+    assert "the go1_sim model (encoder: " in md_text
+    assert "Model selection on the validation split" in md_text and "stability of each phase" in md_text
     assert "go1_proxy before fine-tuning" in md_text and "| exact |" in md_text and "| adam |" in md_text

@@ -137,9 +137,14 @@ def train_cmd(
         "--encoder-scaling", help="none, or spread: standardise components before step (a).")] = "none",
     trig: Annotated[bool, typer.Option("--trig/--no-trig", help="Trigonometric terms in the library.")] = True,
     refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
+    select: Annotated[bool, typer.Option(
+        "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
+                         "split (the options above are then not used).")] = False,
+    select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
+    workers: Annotated[int, typer.Option("--workers", help="Worker processes of --select.")] = 1,
     force: Force = False,
 ) -> None:
-    """Train a hybrid symbolic model on the dataset's train split."""
+    """Train a hybrid symbolic model on the dataset's train split (or select it on val)."""
     from symrom.atomic import atomic_dir, check_output_file
     from symrom.data.io import read_dataset
     from symrom.model.persistence import save_model
@@ -149,6 +154,8 @@ def train_cmd(
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
+    if select:
+        return _train_select(data, out, select_dims, workers, force)
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
@@ -166,6 +173,37 @@ def train_cmd(
     out_console.print(f"model: {out / 'model.json'}  (l={latent_dim}, p={poly_order}, "
                       f"{model.library.n_features} candidates; active terms: {terms})")
     _model_warnings(model)
+
+
+def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: bool) -> None:
+    """``train --select``: the validation selection, its table and the chosen model."""
+    from symrom.atomic import atomic_dir
+    from symrom.data.io import read_dataset
+    from symrom.experiments.select import SelectionConfig, select, write_selection
+    from symrom.experiments.sweep import parse_latent_dims
+    from symrom.model.persistence import save_model
+
+    cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=workers)
+    ds = read_dataset(data)
+    with progress_bar() as bar:
+        task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
+        sel = select(ds, cfg, progress=lambda done, total, what: bar.update(
+            task, completed=done, total=total, description=f"selection: {what}"))
+    with atomic_dir(out, force) as tmp:
+        write_selection(sel, tmp)
+        if sel.model is not None:
+            sel.model.info["data_path"] = str(data)
+            save_model(sel.model, tmp / "model.json")
+            (tmp / "equations.txt").write_text(sel.model.equations_text() + "\n")
+    if sel.model is None:
+        raise ValueError(f"every one of the {len(sel.rows)} candidates diverged on a validation jump; "
+                         f"the table is in {out / 'selection.json'}")
+    r = sel.rows[sel.chosen]
+    out_console.print(f"chosen of {len(sel.rows)} candidates: encoder {r['encoder']}, l={r['latent_dim']}, "
+                      f"{r['library']}, threshold {r['threshold']:g}, refined {'yes' if r['refine'] else 'no'}; "
+                      f"{r['active_terms']} active terms, val score {r['score']:.3g} ({sel.seconds:.0f} s)\n"
+                      f"model: {out / 'model.json'}  table: {out / 'selection.json'}", highlight=False, soft_wrap=True)
+    _model_warnings(sel.model)
 
 
 def _model_warnings(model) -> None:

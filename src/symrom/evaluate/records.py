@@ -171,6 +171,7 @@ BASELINE = "baseline"  # a reference model (aSLIP ...) evaluated on the same jum
 FINE_TUNED = "fine_tuned"  # a learned model adapted to new data; ``files.before``: the source model's metrics
 SWEEP = "sweep"  # the latent-dimension trade-off; ``files.result``: sweep.json
 SOLVER = "solver"  # one solver's training of the ``of`` experiment, for the solver comparison
+SELECTION = "selection"  # the validation selection of the ``of`` experiment; ``files.table``: selection.json
 
 
 @dataclass(frozen=True)

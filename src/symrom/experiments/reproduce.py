@@ -4,27 +4,29 @@ Layout of ``DIR`` (every step is skipped when its output exists, so an
 interrupted run resumes where it stopped and datasets are never regenerated):
 
     data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
-    go1_sim/   model.json, eval/, aslip/ (metrics.json, params.json),
-               solvers/{exact,adam}/ (model.json, eval/, timing.json),
-               paper_defaults/ (model.json, eval/)
-    a1_sim/    model.json, eval/, paper_defaults/
-    go1_proxy/ base/model.json (trained on the noisy Go1 variant),
-               model.json (fine-tuned on the proxy training jumps), eval/
+    <exp>/     model.json (the selected model), eval/, selection/selection.json,
+               paper_defaults/ (model.json, eval/),
+               aslip/, aslip_rollout/, newton/ (metrics.json, params.json)
+    go1_sim/solvers/{exact,adam}/ (model.json, eval/)
+    go1_proxy/ base/model.json (trained on the noisy Go1 variant with the settings
+               selected on SIM Go1), model.json (fine-tuned on the proxy training
+               jumps), eval/, base_eval/
     sweep/     sweep.json, cells/, encoders/W_e_l<k>.json
     summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
                    role and files, which the report renders
 
-Experiments: SIM Go1 pronking (l = 2, p = 1), SIM A1 froggy (l = 4, p = 1,
-phases contact / partial / flight), sim-to-real (train on noisy Go1, fine-tune
-on the proxy's training jumps, evaluate on its test jump), aSLIP vs learned on
-Go1, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
+Experiments: SIM Go1 pronking, SIM A1 froggy (phases contact / partial /
+flight), sim-to-real (train on noisy Go1, fine-tune on the proxy's training
+jumps, evaluate on its test jump), the baselines (aSLIP fitted to acceleration
+residuals and to rollouts, Newton on the measured force) beside each SIM
+model, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
 
-The SIM experiments use an encoder that reads the floating-base pose, the
-latent-acceleration term of the SINDy loss alone and a small standardised ridge
-(``ExperimentSpec``). The paper's defaults (encoder over all 18 components,
-decoded-acceleration term at weight 1, no ridge) are trained and evaluated
-beside them under ``paper_defaults``, so the effect of that choice is measured
-in every run (README, "Reproducing the paper").
+Every SIM model's settings are chosen by the validation selection
+(``symrom.experiments.select``: encoder, latent dimension, library, sparsity,
+refinement; the test split is read only by the evaluation). The paper's
+defaults (its latent dimension, encoder over all 18 components,
+decoded-acceleration term at weight 1, no ridge, |Xi| < 0.01 dropped) are
+trained and evaluated beside each under ``paper_defaults``.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import json
 import platform
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,11 +47,13 @@ from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.outputs import write_evaluation
 from symrom.evaluate.paper import PAPER_TABLE2
-from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, save_model
+from symrom.experiments.select import Selection, SelectionConfig, select, write_selection
 from symrom.model.training import AdamConfig, TrainConfig, train
+from symrom.rollout.integrate import RolloutOptions
 
 Say = Callable[..., None]  # say(message, transient=False); transient = a progress count
 
@@ -66,31 +70,19 @@ class DatasetSpec:
     proxy: bool = False
 
 
-BASE_POSITION = ("x", "y", "z")
-BASE_POSE = ("x", "y", "z", "roll", "pitch", "yaw")
-
-
 @dataclass(frozen=True)
 class ExperimentSpec:
-    """One learned-model experiment; ``encoder_components``, ``decoded_weight`` and
-    ``alpha`` as in ``TrainConfig`` (None, 1 and 0 are the paper's defaults)."""
+    """One learned-model experiment on dataset ``data``: its settings are selected on the
+    train/val splits over ``latent_dims`` (and the rest of ``ReproduceConfig.selection``);
+    ``paper_latent_dim`` is the l of the paper's defaults, trained beside it."""
 
     name: str
     data: str
-    latent_dim: int
-    poly_order: int = 1
-    encoder_components: tuple[str, ...] | None = None
-    decoded_weight: float = 1.0
-    alpha: float = 0.0
+    paper_latent_dim: int
+    latent_dims: tuple[int, ...] = (2, 3, 4)
 
-    def train_config(self, seed: int = 0, **kw) -> TrainConfig:
-        return TrainConfig(self.latent_dim, self.poly_order, seed=seed,
-                           encoder_components=self.encoder_components,
-                           decoded_weight=self.decoded_weight, alpha=self.alpha, **kw)
-
-    @property
-    def paper_defaults(self) -> bool:
-        return self.encoder_components is None and self.decoded_weight == 1.0 and self.alpha == 0.0
+    def paper_config(self, seed: int = 0) -> TrainConfig:
+        return TrainConfig(self.paper_latent_dim, 1, seed=seed)
 
 
 @dataclass
@@ -104,10 +96,10 @@ class ReproduceConfig:
         DatasetSpec("go1_proxy", "go1", "pronk", 15, proxy=True),
     )
     experiments: tuple[ExperimentSpec, ...] = (
-        ExperimentSpec("go1_sim", "go1_sim", 2, encoder_components=BASE_POSITION, decoded_weight=0.0,
-                       alpha=1e-3),
-        ExperimentSpec("a1_sim", "a1_sim", 4, encoder_components=BASE_POSE, decoded_weight=0.0, alpha=1e-3),
+        ExperimentSpec("go1_sim", "go1_sim", 2, (2, 3, 4)),
+        ExperimentSpec("a1_sim", "a1_sim", 4, (3, 4, 5, 6)),
     )
+    selection: SelectionConfig = field(default_factory=SelectionConfig)
     finetune: FineTuneConfig = field(default_factory=FineTuneConfig)
     sweep_dims: tuple[int, ...] = tuple(range(1, 19))
     sweep_seeds: int = 5
@@ -118,19 +110,25 @@ class ReproduceConfig:
     workers: int = 2
     integrator: str = "lsoda"
 
-    def go1(self) -> ExperimentSpec:
-        """The SIM Go1 experiment, whose settings the sim-to-real and solver runs share."""
-        return next(e for e in self.experiments if e.name == "go1_sim")
+    def selection_for(self, exp: ExperimentSpec) -> SelectionConfig:
+        return replace(self.selection, latent_dims=exp.latent_dims, workers=self.workers)
 
     @classmethod
     def quick(cls) -> ReproduceConfig:
-        """A reduced run: few jumps per dataset, a short sweep, a short adam run."""
+        """A reduced run: few jumps per dataset, a small selection grid, a short sweep and adam run."""
         return cls(
             datasets=(DatasetSpec("go1_sim", "go1", "pronk", 10), DatasetSpec("a1_sim", "a1", "froggy", 8),
                       DatasetSpec("go1_noisy", "go1", "pronk", 8, noise=True),
                       DatasetSpec("go1_proxy", "go1", "pronk", 5, proxy=True)),
-            sweep_dims=(1, 2, 4, 6, 18), sweep_seeds=2,
+            experiments=(ExperimentSpec("go1_sim", "go1_sim", 2, (2,)), ExperimentSpec("a1_sim", "a1_sim", 4, (3,))),
+            selection=QUICK_SELECTION, sweep_dims=(1, 2, 4, 6, 18), sweep_seeds=2,
             adam=AdamConfig(epochs=20, refine_epochs=5, threshold_every=10), integrator="rk4")
+
+
+# A small grid for quick runs and the demo: the two encoders that matter most on
+# jumping data, two sparsity levels, one refined candidate.
+QUICK_SELECTION = SelectionConfig(encoders=("base_position", "standardised"), libraries=("poly1+inputs",),
+                                  thresholds=(1e-3, 1e-2), refine_top=1)
 
 
 # ------------------------------------------------------------------ helpers
@@ -193,49 +191,99 @@ def _train_evaluate(ds: Dataset, d: Path, tc: TrainConfig, cfg: ReproduceConfig,
     return model, _evaluate_into(model, ds, d / "eval", cfg, title)
 
 
+def _selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig, say: Say
+              ) -> tuple[HybridModel, dict]:
+    """The experiment's model chosen by the validation selection, and the selection table."""
+    d = run / exp.name
+    table = d / "selection" / "selection.json"
+    if _done(table) and _done(d / "model.json"):
+        return load_model(d / "model.json"), json.loads(table.read_text())
+    sel: Selection = select(ds, cfg.selection_for(exp), progress=lambda done, total, what: say(
+        f"{exp.name}: selection {done}/{total} ({what})", transient=True))
+    if sel.model is None:
+        raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
+    write_selection(sel, d / "selection")
+    save_model(sel.model, d / "model.json")
+    return sel.model, sel.to_dict()
+
+
 def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig, say: Say) -> dict:
-    """Train (exact) and evaluate one experiment, and its paper-default variant; its
-    summary entry."""
+    """Select, train and evaluate one experiment, and its paper-default variant and
+    baselines; its summary entry."""
     ds = read_dataset(data)
     d = run / exp.name
-    say(f"{exp.name}: training (l={exp.latent_dim}, p={exp.poly_order})")
-    model, metrics = _train_evaluate(ds, d, exp.train_config(cfg.seed), cfg, f"SIM {exp.name}", say)
+    d.mkdir(parents=True, exist_ok=True)
+    say(f"{exp.name}: selecting the settings on the validation split")
+    model, table = _selected(run, exp, ds, cfg, say)
+    mpath = d / "eval" / "metrics.json"
+    if _done(mpath):
+        metrics = json.loads(mpath.read_text())
+    else:
+        say(f"{exp.name}: evaluating on the test split")
+        metrics = _evaluate_into(model, ds, d / "eval", cfg, f"SIM {exp.name}")
     entry = _experiment_entry(model, metrics, run, data, d / "model.json")
-    entry["config"] = {"encoder_components": exp.encoder_components, "decoded_weight": exp.decoded_weight,
-                       "alpha": exp.alpha}
-    if not exp.paper_defaults:
-        say(f"{exp.name}: training with the paper's defaults")
-        base, bm = _train_evaluate(ds, d / "paper_defaults", TrainConfig(exp.latent_dim, exp.poly_order, seed=cfg.seed),
-                                   cfg, f"SIM {exp.name} (paper defaults)", say)
-        entry["paper_defaults"] = {"active_terms": base.active_terms(), "metrics": bm,
-                                   "model": str((d / "paper_defaults" / "model.json").relative_to(run))}
+    chosen = table["rows"][table["chosen"]]
+    entry["config"] = {**{k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")},
+                       **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight")},
+                       "selection_score": chosen["score"], "candidates": len(table["rows"])}
+    say(f"{exp.name}: training with the paper's defaults")
+    base, bm = _train_evaluate(ds, d / "paper_defaults", exp.paper_config(cfg.seed), cfg,
+                               f"SIM {exp.name} (paper defaults)", say)
+    entry["paper_defaults"] = {"active_terms": base.active_terms(), "metrics": bm,
+                               "model": str((d / "paper_defaults" / "model.json").relative_to(run))}
+    entry["baselines"] = run_baselines(run, exp, ds, cfg, say)
     return entry
 
 
-def run_aslip(run: Path, data: Path, say: Say) -> dict:
-    """Fit the aSLIP on Go1's training split and evaluate it on the test split."""
-    from symrom.baselines.aslip import ASlip, fit_aslip
-    from symrom.rollout.integrate import RolloutOptions
-
-    d = run / "go1_sim" / "aslip"
-    if _done(d / "metrics.json"):
-        return json.loads((d / "metrics.json").read_text())
-    say("aSLIP: fitting k_s, l_0 on the training split")
-    ds = read_dataset(data)
-    params = fit_aslip(ds, ds.rows_of("train"))
-    metrics, _ = evaluate(ASlip(params), ds, "test", options=RolloutOptions("lsoda"), model_name="aslip")
-    d.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(d / "params.json", json.dumps(asdict(params), indent=1))
-    write_text_atomic(d / "metrics.json", json.dumps(metrics, indent=1))
-    return metrics
+BASELINES = ("aslip", "aslip_rollout", "newton")
 
 
-def run_proxy(run: Path, noisy: Path, proxy: Path, cfg: ReproduceConfig, say: Say) -> dict:
-    """Sim-to-real: train on the noisy Go1 variant, fine-tune on the proxy jumps."""
+def run_baselines(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig, say: Say) -> dict:
+    """The aSLIP (residual fit and rollout fit) and Newton beside ``exp``, fitted on its
+    training split and evaluated on its test split; their metrics by name."""
+    from symrom.baselines.aslip import ASlip, fit_aslip, fit_aslip_rollout
+    from symrom.baselines.newton import Newton
+
+    out = {}
+    residual = None
+    for name in BASELINES:
+        d = run / exp.name / name
+        if _done(d / "metrics.json"):
+            out[name] = json.loads((d / "metrics.json").read_text())
+            continue
+        say(f"{exp.name}: baseline {name}")
+        if name == "newton":
+            model = Newton.of(ds)
+            params = {"model": "newton", "m": model.m, "source": "the robot's total mass; nothing fitted"}
+        else:
+            residual = residual or fit_aslip(ds, ds.rows_of("train"))
+            p, extra = residual, {"source": "fitted on the train split (acceleration residual)"}
+            if name == "aslip_rollout":
+                p, fit = fit_aslip_rollout(ds, m=residual.m, start=residual)
+                extra = {"source": "fitted on the train split (CoM rollout error, multiple shooting)",
+                         "stages": fit.stages}
+            model, params = ASlip(p), {"model": "aslip", **asdict(p), **extra}
+        metrics, _ = evaluate(model, ds, "test", (None, 0.1), RolloutOptions(cfg.integrator), model_name=name,
+                              data_name=f"data/{exp.data}.h5")
+        d.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(d / "params.json", json.dumps(params, indent=1))
+        write_text_atomic(d / "metrics.json", json.dumps(metrics, indent=1))
+        out[name] = metrics
+    return out
+
+
+def selected_config(model: HybridModel, **changes) -> TrainConfig:
+    """The training configuration a selected model was made with, ``changes`` applied."""
+    return replace(TrainConfig(**model.info["training"]), **changes)
+
+
+def run_proxy(run: Path, noisy: Path, proxy: Path, settings: TrainConfig, cfg: ReproduceConfig, say: Say) -> dict:
+    """Sim-to-real: train on the noisy Go1 variant with the ``settings`` selected on SIM
+    Go1, fine-tune on the proxy jumps."""
     d = run / "go1_proxy"
     (d / "base").mkdir(parents=True, exist_ok=True)
     say("go1_proxy: training on the noisy Go1 variant")
-    base, _ = _train_or_load(d / "base" / "model.json", read_dataset(noisy), cfg.go1().train_config(cfg.seed))
+    base, _ = _train_or_load(d / "base" / "model.json", read_dataset(noisy), settings)
     ds = read_dataset(proxy)
     if _done(d / "model.json"):
         model = load_model(d / "model.json")
@@ -254,24 +302,25 @@ def run_proxy(run: Path, noisy: Path, proxy: Path, cfg: ReproduceConfig, say: Sa
     return entry
 
 
-def run_solvers(run: Path, data: Path, cfg: ReproduceConfig, say: Say) -> dict:
-    """Both solvers on SIM Go1 (l = 2, p = 1): accuracy, active terms, wall time."""
+def run_solvers(run: Path, data: Path, settings: TrainConfig, cfg: ReproduceConfig, say: Say) -> dict:
+    """Both solvers on SIM Go1 with its selected encoder, latent dimension and library,
+    without the refinement (which applies to the exact solver only): accuracy, active
+    terms, wall time. adam thresholds |Xi| at the paper's 0.01."""
     ds = read_dataset(data)
     out = {}
     for solver in ("exact", "adam"):
         d = run / "go1_sim" / "solvers" / solver
         d.mkdir(parents=True, exist_ok=True)
         say(f"solvers: training with {solver}")
-        tc = cfg.go1().train_config(cfg.seed, solver=solver, adam=cfg.adam)
+        tc = (replace(settings, refine=False) if solver == "exact" else
+              replace(settings, solver="adam", refine=False, threshold=0.01, adam=cfg.adam))
         model, wall = _train_or_load(d / "model.json", ds, tc)
         wall = model.info.get("wall_time_s", wall)
         mpath = d / "eval" / "metrics.json"
         metrics = (json.loads(mpath.read_text()) if _done(mpath)
                    else _evaluate_into(model, ds, d / "eval", cfg, f"SIM Go1 ({solver})"))
         out[solver] = {"wall_time_s": wall, "active_terms": model.active_terms(), "metrics": metrics,
-                       "config": asdict(tc) if solver == "adam" else {"threshold": tc.threshold,
-                                                                          "decoded_weight": tc.decoded_weight,
-                                                                          "alpha": tc.alpha}}
+                       "config": asdict(tc)}
     return out
 
 
@@ -302,21 +351,27 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
     exps, out = summary["experiments"], []
     for exp in cfg.experiments:
         data = rel("data", f"{exp.data}.h5")
+        entry = exps[exp.name]
         out.append(ManifestEntry(exp.name, LEARNED, paper=exp.name if exp.name in PAPER_TABLE2 else None,
                                  files={"model": rel(exp.name, "model.json"), "metrics": rel(exp.name, "eval", "metrics.json"),
-                                        "data": data}, facts={"config": exps[exp.name]["config"]}))
-        if "paper_defaults" in exps[exp.name]:
-            d = rel(exp.name, "paper_defaults")
-            out.append(ManifestEntry(f"{exp.name}/paper_defaults", LEARNED, f"{exp.name} with the paper's defaults",
-                                     files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json"),
-                                            "data": data}, of=exp.name,
-                                     facts={"config": {"encoder_components": None, "decoded_weight": 1.0, "alpha": 0.0}}))
+                                        "data": data}, facts={"config": entry["config"]}))
+        out.append(ManifestEntry(f"{exp.name}/selection", SELECTION, f"{exp.name}: selection on the validation split",
+                                 of=exp.name, files={"table": rel(exp.name, "selection", "selection.json")}))
+        d = rel(exp.name, "paper_defaults")
+        out.append(ManifestEntry(f"{exp.name}/paper_defaults", LEARNED, f"{exp.name} with the paper's defaults",
+                                 files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json"),
+                                        "data": data}, of=exp.name,
+                                 facts={"config": {"encoder": "all", "latent_dim": exp.paper_latent_dim,
+                                                   "library": "poly1+trig+inputs", "threshold": 0.01,
+                                                   "measure": "coefficient", "decoded_weight": 1.0, "alpha": 0.0,
+                                                   "refine": False}}))
+        for name in entry.get("baselines", {}):
+            d = rel(exp.name, name)
+            out.append(ManifestEntry(f"{exp.name}/{name}", BASELINE, BASELINE_TITLES[name], of=exp.name,
+                                     paper="aslip" if name.startswith("aslip") and exp.name == "go1_sim" else None,
+                                     files={"metrics": rel(d, "metrics.json"), "params": rel(d, "params.json"),
+                                            "data": data}))
     go1 = exps.get("go1_sim", {})
-    if "aslip" in go1:
-        d = rel("go1_sim", "aslip")
-        out.append(ManifestEntry("go1_sim/aslip", BASELINE, "aSLIP", of="go1_sim", paper="aslip",
-                                 files={"metrics": rel(d, "metrics.json"), "params": rel(d, "params.json"),
-                                        "data": rel("data", "go1_sim.h5")}))
     for solver, s in go1.get("solvers", {}).items():
         d = rel("go1_sim", "solvers", solver)
         out.append(ManifestEntry(f"go1_sim/solvers/{solver}", SOLVER, solver, of="go1_sim",
@@ -332,6 +387,10 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
     out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
                              files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))
     return out
+
+
+BASELINE_TITLES = {"aslip": "aSLIP (residual fit)", "aslip_rollout": "aSLIP (rollout fit)",
+                   "newton": "Newton, b'' = g + F/m"}
 
 
 def _versions() -> dict:
@@ -359,12 +418,12 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     for exp in cfg.experiments:
         summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
     go1 = summary["experiments"].get("go1_sim")
-    if go1 is not None:
-        go1["aslip"] = run_aslip(run, data["go1_sim"], say)
-        if cfg.compare_solvers:
-            go1["solvers"] = run_solvers(run, data["go1_sim"], cfg, say)
-    if "go1_noisy" in data and "go1_proxy" in data:
-        summary["experiments"]["go1_proxy"] = run_proxy(run, data["go1_noisy"], data["go1_proxy"], cfg, say)
+    settings = selected_config(load_model(run / "go1_sim" / "model.json")) if go1 is not None else None
+    if go1 is not None and cfg.compare_solvers:
+        go1["solvers"] = run_solvers(run, data["go1_sim"], settings, cfg, say)
+    if settings is not None and "go1_noisy" in data and "go1_proxy" in data:
+        summary["experiments"]["go1_proxy"] = run_proxy(run, data["go1_noisy"], data["go1_proxy"], settings,
+                                                         cfg, say)
     summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},

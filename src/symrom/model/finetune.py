@@ -32,10 +32,11 @@ from symrom.model.regressors.prior import FineTune
 @dataclass(frozen=True)
 class FineTuneConfig:
     """prior_weight: pull towards the source model, relative to mean(diag ThetaᵀTheta)
-    per phase (and to mean(xi²) for the decoder); threshold as in training."""
+    per phase (and to mean(xi²) for the decoder); threshold: as in training, in the
+    source's sparsity measure (None: the source's own threshold)."""
 
     prior_weight: float = 0.01
-    threshold: float = 0.01
+    threshold: float | None = None
     refit_decoder: bool = True
 
 
@@ -71,7 +72,8 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
                                 np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt)
-    regressor = FineTune(config.prior_weight, config.threshold, trained.get("measure", "coefficient"),
+    threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
+    regressor = FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
                          float(trained.get("alpha", 0.0)))
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
     info = dict(model.info)

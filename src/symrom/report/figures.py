@@ -3,8 +3,9 @@
 - ``encoder_heatmap``: W_e^T (18 x l), the paper's encoder figures (l = 2, 18);
 - ``jump_figure``: truth vs rollouts of one jump (delegates to
   ``evaluate.plots.plot_jump``), the paper's joint-angle / CoM-pose figures;
-- ``aslip_figure``: CoM x and z of one jump, truth vs learned vs aSLIP;
-- ``tradeoff_figure``: accuracy vs complexity over latent dimensions.
+- ``com_figure``: CoM x and z of one jump, truth vs learned vs the baselines;
+- ``tradeoff_figure``: accuracy vs complexity over latent dimensions;
+- ``selection_figure``: validation score vs active terms of a selection's candidates.
 
 Every function takes plain arrays (or the evaluation objects it plots) and a
 path, and returns the path written.
@@ -82,13 +83,12 @@ def jump_figure(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str 
     return Path(path)
 
 
-def aslip_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, aslip: np.ndarray | None,
-                 phase: np.ndarray, phase_names: list[str], path: str | os.PathLike,
-                 title: str = "") -> Path:
-    """CoM x and z of one jump: truth, learned model and aSLIP (full horizon).
+def com_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, baselines: dict[str, np.ndarray],
+               phase: np.ndarray, phase_names: list[str], path: str | os.PathLike, title: str = "") -> Path:
+    """CoM x and z of one jump: truth, the learned model and each baseline (full horizon).
 
-    t (n,) s; true, learned, aslip (n, 3) CoM x, y, z in m (aslip may be None);
-    phase (n,) indices into ``phase_names``. NaN rows (a diverged rollout) are gaps.
+    t (n,) s; true, learned and each baseline (n, 3) CoM x, y, z in m, baselines by
+    label; phase (n,) indices into ``phase_names``. NaN rows (a diverged rollout) are gaps.
     """
     plt = _pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.4), sharex=True)
@@ -97,8 +97,8 @@ def aslip_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, aslip: np
         shade_phases(ax, t, np.asarray(phase), phase_names, seen)
         ax.plot(t, true[:, c], color="k", lw=1.8, label="true")
         ax.plot(t, learned[:, c], color="C3", lw=1.3, label="learned (symbolic)")
-        if aslip is not None:
-            ax.plot(t, aslip[:, c], color="C0", lw=1.3, ls="--", label="aSLIP")
+        for i, (label, pred) in enumerate(baselines.items()):
+            ax.plot(t, pred[:, c], color=f"C{i}", lw=1.2, ls=("--", ":", "-.")[i % 3], label=label)
         ax.set_xlabel("time [s]")
         ax.set_ylabel(f"CoM {name} [m]")
         ax.grid(alpha=0.3)
@@ -108,21 +108,21 @@ def aslip_figure(t: np.ndarray, true: np.ndarray, learned: np.ndarray, aslip: np
             if lab not in labels:
                 handles.append(h)
                 labels.append(lab)
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=9, frameon=False)
-    fig.suptitle(title or "CoM position: learned model vs aSLIP (full horizon)", fontsize=11)
-    fig.tight_layout(rect=(0, 0.08, 1, 0.95))
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 5), fontsize=9, frameon=False)
+    fig.suptitle(title or "CoM position: learned model vs baselines (full horizon)", fontsize=11)
+    fig.tight_layout(rect=(0, 0.1, 1, 0.95))
     return _save(fig, path)
 
 
-def aslip_jump_com(ds: Dataset, jump: int, params: dict, method: str = "lsoda") -> np.ndarray:
-    """Glue to ``symrom.baselines.aslip``: the aSLIP's predicted CoM x, y, z (n, 3), m,
-    of ``jump`` (index into ``ds``), full horizon; ``params`` as in params.json
-    (k_s N/m, l_0 m, m kg; other keys ignored). NaN rows after a divergence."""
-    from symrom.baselines.aslip import ASlip, ASlipParams
+def baseline_jump_com(ds: Dataset, jump: int, params: dict, method: str = "lsoda") -> np.ndarray | None:
+    """The CoM x, y, z (n, 3), m, a baseline described by ``params`` (params.json) predicts
+    for ``jump`` (index into ``ds``), full horizon; NaN rows after a divergence; None if
+    the parameters describe no known baseline."""
+    from symrom.baselines import from_params
     from symrom.rollout.integrate import RolloutOptions, rollout
 
-    p = ASlipParams(**{k: float(params[k]) for k in ("k_s", "l_0", "m")})
-    return rollout(ASlip(p), ds, [int(jump)], RolloutOptions(method=method)).q_pred[0]
+    model = from_params(params)
+    return None if model is None else rollout(model, ds, [int(jump)], RolloutOptions(method=method)).q_pred[0]
 
 
 def sweep_stats(sweep: dict) -> dict[str, np.ndarray]:
@@ -197,5 +197,41 @@ def tradeoff_figure(sweep: dict, path: str | os.PathLike, title: str = "") -> Pa
     labels = sum((a.get_legend_handles_labels()[1] for a in (ax, ax2, ax3)), [])
     ax.legend(handles, labels, loc="upper center", fontsize=8, ncol=4, frameon=False)
     ax.set_title(title or "Accuracy vs complexity over latent dimensions", fontsize=11)
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLike, title: str = "") -> Path:
+    """Validation score (lower is better) vs active terms of every candidate row of a
+    selection table (``selection.json``): a colour per encoder, open markers for the
+    refined ones, rejected candidates (a diverged validation jump) at the top with
+    their 0.1 s score, the chosen one starred."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    encoders = list(dict.fromkeys(r["encoder"] for r in rows))
+    ok = [r["score"] for r in rows if r["score"] is not None]
+    top = 1.15 * max(ok) if ok else 1.0
+    for i, enc in enumerate(encoders):
+        for refined in (False, True):
+            pick = [r for r in rows if r["encoder"] == enc and r["refine"] == refined]
+            if not pick:
+                continue
+            x = [r["active_terms"] for r in pick]
+            y = [r["score"] if r["score"] is not None else top for r in pick]
+            ax.scatter(x, y, s=28 if not refined else 60, marker="o" if not refined else "D",
+                       facecolors="none" if refined else f"C{i}", edgecolors=f"C{i}",
+                       label=f"{enc}{' (refined)' if refined else ''}")
+    if chosen is not None:
+        r = rows[chosen]
+        ax.plot([r["active_terms"]], [r["score"]], marker="*", ms=18, color="k", ls="none", label="chosen")
+    if ok:
+        ax.axhline(top, color="0.6", ls=":", lw=1)
+        ax.text(ax.get_xlim()[1], top, " rejected (diverged)", va="bottom", ha="right", fontsize=8, color="0.4")
+    ax.set_xlabel("active terms (all phases)")
+    ax.set_ylabel("validation score (mean RMSE / spread)")
+    ax.set_xscale("log")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, ncol=2, frameon=False)
+    ax.set_title(title or "Selection: accuracy vs complexity", fontsize=11)
     fig.tight_layout()
     return _save(fig, path)

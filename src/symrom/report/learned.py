@@ -90,13 +90,13 @@ def _tables(entry: ManifestEntry, metrics: Metrics, paper_key: str | None, capti
 
 
 def _options(entry: ManifestEntry) -> list:
+    """One line of the settings the entry's model was trained with (as its manifest states)."""
     cfg = entry.facts.get("config")
     if not isinstance(cfg, dict):
         return []
-    comps = cfg.get("encoder_components")
-    return [Para("Training options: encoder reads " + (", ".join(comps) if comps else "all 18 components")
-                 + f"; decoded-acceleration weight {cfg.get('decoded_weight', 1.0):g}"
-                 + f"; standardised ridge alpha {cfg.get('alpha', 0.0):g}.")]
+    parts = [f"{k.replace('_', ' ')} {v:g}" if isinstance(v, float) else f"{k.replace('_', ' ')} {v}"
+             for k, v in cfg.items() if v is not None and not isinstance(v, (dict, list))]
+    return [Para("Settings: " + "; ".join(parts) + ".")]
 
 
 def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
@@ -185,4 +185,24 @@ def equations_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
                          for phase, eqs in model.equations(3).items())
         blocks.append(Pre(text, caption=f"{e.name}: l = {model.latent_dim}, p = {model.library.poly_order}, "
                                         f"candidates: {model.library.n_features}; active terms: {terms}"))
+        blocks += stability_blocks(e.name, model)
+    return blocks
+
+
+def stability_blocks(name: str, model) -> list:
+    """Per phase, the eigenvalues of the latent dynamics linearised at the phase's training
+    mean, the growth of the fastest mode over a typical stay, and a warning if it is fast."""
+    stab = model.stability()
+    if not stab:
+        return []
+    rows = [[st.phase, ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}"
+                                 for z in sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag))),
+             DASH if st.duration_s is None else f"{st.duration_s:.3g}",
+             DASH if st.growth is None else f"{st.growth:.3g}", "fast unstable" if st.fast_unstable else ""]
+            for st in stab]
+    blocks: list = [Table(["phase", "eigenvalues [1/s]", "typical stay [s]", "growth of the fastest mode", ""],
+                          rows, caption=f"{name}: stability of each phase's dynamics at its training mean")]
+    warnings = [st.warning() for st in stab if st.warning()]
+    if warnings:
+        blocks.append(Para(" ".join(w[0].upper() + w[1:] + "." for w in warnings), note=True))
     return blocks

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
 from symrom.report.baselines import baseline_blocks
 from symrom.report.context import Context
 from symrom.report.document import Para, Section, Table
 from symrom.report.format import DASH, fmt, horizon_label
 from symrom.report.learned import equations_blocks, predictions_blocks, table2_blocks
 from symrom.report.run import Run
+from symrom.report.selection import selection_blocks
 from symrom.report.solvers import solver_blocks
 from symrom.report.tradeoff import sweep_blocks
 
@@ -28,6 +29,7 @@ Renderer = Callable[[Run, list[ManifestEntry], Context], list]
 SECTIONS: dict[str, str] = {
     "table2": "Table 2 — prediction errors, paper vs ours",
     "predictions": "Predictions of a test jump",
+    "selection": "Model selection on the validation split",
     "baselines": "Learned model vs baselines",
     "tradeoff": "Latent dimension: encoder weights and accuracy vs complexity",
     "equations": "Learned equations per phase",
@@ -41,6 +43,7 @@ ROLES: dict[str, list[tuple[str, Renderer]]] = {
     BASELINE: [("baselines", baseline_blocks)],
     SWEEP: [("tradeoff", sweep_blocks)],
     SOLVER: [("solvers", solver_blocks)],
+    SELECTION: [("selection", selection_blocks)],
 }
 
 INTROS: dict[str, str] = {

@@ -91,14 +91,14 @@ def sweep_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
 
 
 def _experiment_encoder(run: Run, e: ManifestEntry, ctx: Context) -> list:
-    """The swept experiment's own encoder, when it reads only some components."""
+    """The swept experiment's own encoder (the one its selection chose)."""
     swept = run.entry(e.of)
-    comps = (swept.facts.get("config") or {}).get("encoder_components") if swept else None
-    model = run.model(swept) if comps and "model" in swept.files else None
+    model = run.model(swept) if swept is not None and "model" in swept.files else None
     if model is None:
         return []
+    encoder = (swept.facts.get("config") or {}).get("encoder", "as trained")
     W = model.autoencoder.W_e
     path = figures.encoder_heatmap(W, ctx.fig_dir / f"encoder_{ctx.slug(swept)}.png",
                                    title=rf"$W_e^T$, {swept.name} model, l = {W.shape[0]}")
-    return [Figure(path, f"Heatmap of W_e^T of the {swept.name} model, whose encoder reads " + ", ".join(comps)
-                         + " (the heatmaps above are the paper's default encoder)")]
+    return [Figure(path, f"Heatmap of W_e^T of the {swept.name} model (encoder: {encoder}; the heatmaps above "
+                         "are the paper's default encoder)")]

@@ -1,0 +1,60 @@
+"""Renderer of a validation selection: accuracy versus active terms of every candidate.
+
+The selection table (``selection.json``, ``symrom.experiments.select``) holds one
+row per candidate. The report draws all of them (validation score against
+active terms), states the rule and the chosen row, and lists, per encoder and
+latent dimension, the best candidate next to the chosen one.
+"""
+
+from __future__ import annotations
+
+from symrom.evaluate.records import ManifestEntry
+from symrom.report import figures
+from symrom.report.context import Context
+from symrom.report.document import Figure, Para, Table
+from symrom.report.format import DASH
+from symrom.report.run import Run
+
+HEADER = ["encoder", "l", "library", "threshold", "refined", "active terms", "val score full",
+          "val score 0.1 s", "diverged val jumps (full, 0.1 s)", "chosen"]
+
+
+def _row(r: dict, chosen: bool) -> list[str]:
+    h = r["horizons"]
+    score = lambda k: DASH if h[k]["score"] is None else f"{h[k]['score']:.3g}"  # noqa: E731
+    return [r["encoder"], str(r["latent_dim"]), r["library"], f"{r['threshold']:g}", "yes" if r["refine"] else "no",
+            str(r["active_terms"]), score("full"), score("0.1"),
+            f"{h['full']['diverged_jumps']}, {h['0.1']['diverged_jumps']}", "★" if chosen else ""]
+
+
+def best_rows(rows: list[dict], chosen: int | None) -> list[int]:
+    """Indices of the best-scoring row of each (encoder, latent dim), and the chosen row."""
+    best: dict[tuple, int] = {}
+    for i, r in enumerate(rows):
+        key = (r["encoder"], r["latent_dim"])
+        s = r["score"] if r["score"] is not None else float("inf")
+        if key not in best or s < (rows[best[key]]["score"] or float("inf")):
+            best[key] = i
+    picked = sorted(set(best.values()) | ({chosen} if chosen is not None else set()))
+    return picked
+
+
+def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
+    blocks: list = []
+    for e in entries:
+        blocks.append(e.title or e.name)
+        table = run.json(e, "table") if "table" in e.files else None
+        if not table or not isinstance(table.get("rows"), list):
+            blocks.append(Para(f"{e.name}: no selection table; skipped.", note=True))
+            continue
+        rows, chosen = table["rows"], table.get("chosen")
+        blocks.append(Para(f"{len(rows)} candidates in {table.get('seconds', 0):.0f} s. Rule: {table.get('rule', '')}."))
+        if chosen is None:
+            blocks.append(Para("No candidate survived: every one diverged on a validation jump.", note=True))
+        path = figures.selection_figure(rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
+                                        title=f"{e.of or e.name}: validation score vs active terms")
+        blocks.append(Figure(path, f"{e.of or e.name}: every candidate of the selection (lower is better)"))
+        blocks.append(Table(HEADER, [_row(rows[i], i == chosen) for i in best_rows(rows, chosen)],
+                            caption="The best candidate per encoder and latent dimension, and the chosen one "
+                                    f"(the full table: {e.files['table']})"))
+    return blocks
