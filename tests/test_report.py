@@ -194,13 +194,13 @@ def test_a_new_experiment_of_a_known_role_appears_and_an_unknown_role_falls_back
     files = {"model": "go1_sim/model.json", "metrics": "go1_sim/eval/metrics.json", "data": "data/go1_sim.h5"}
     _summary(run, [ManifestEntry("go1_sim", LEARNED, files=files),
                    ManifestEntry("go1_sim/retrained", LEARNED, "a second training", files=files, of="go1_sim"),
-                   ManifestEntry("go1_sim/selection", "selection", files={"metrics": files["metrics"]}),
+                   ManifestEntry("go1_sim/ablation", "ablation", files={"metrics": files["metrics"]}),
                    ManifestEntry("notes", "diary", files={})])
     html = render_html("t", [], build_sections(load_run(run), Context(load_run(run), tmp_path)))
     assert "go1_sim/retrained — a second training" in html
     assert html.count("go1_sim/retrained, test jumps") == 2  # its joints and base-pose tables
-    assert '<section id="other">' in html and "go1_sim/selection (selection)" in html
-    assert "go1_sim/selection: RMSE per component" in html and "No renderer for role &#x27;diary&#x27;" in html
+    assert '<section id="other">' in html and "go1_sim/ablation (ablation)" in html
+    assert "go1_sim/ablation: RMSE per component" in html and "No renderer for role &#x27;diary&#x27;" in html
 
 
 def test_missing_files_and_a_missing_manifest_become_notes(run_dir, tmp_path):

@@ -179,12 +179,13 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: 
     """``train --select``: the validation selection, its table and the chosen model."""
     from symrom.atomic import atomic_dir
     from symrom.data.io import read_dataset
-    from symrom.experiments.select import SelectionConfig, select, write_selection
+    from symrom.experiments.select import SelectionConfig, check_splits, select, write_selection
     from symrom.experiments.sweep import parse_latent_dims
     from symrom.model.persistence import save_model
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=workers)
     ds = read_dataset(data)
+    check_splits(ds)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
         sel = select(ds, cfg, progress=lambda done, total, what: bar.update(

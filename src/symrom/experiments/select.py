@@ -237,11 +237,16 @@ class Selection:
                 "rows": self.rows}
 
 
+def check_splits(ds: Dataset) -> None:
+    """ValueError unless ``ds`` has the train and val jumps a selection needs."""
+    if ds.jumps_in("train").size == 0 or ds.jumps_in("val").size == 0:
+        raise ValueError("selection needs 'train' and 'val' jumps (the test split is never read)")
+
+
 def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
            progress: SelectProgress | None = None) -> Selection:
     """Run the grid on ``ds`` (train and val splits only) and return the selection."""
-    if ds.jumps_in("train").size == 0 or ds.jumps_in("val").size == 0:
-        raise ValueError("selection needs 'train' and 'val' jumps (the test split is never read)")
+    check_splits(ds)
     t0 = time.perf_counter()
     say = progress or (lambda done, total, what: None)
     cells = cfg.cells()

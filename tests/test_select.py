@@ -1,0 +1,85 @@
+"""Selection on validation data: the test split is never read, the rule is applied as stated."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from symrom.cli import app
+from symrom.data.io import write_dataset
+from symrom.experiments.select import SelectionConfig, choose, parse_library, select
+from conftest import one_line_error
+
+GRID = SelectionConfig(encoders=("all", "base_position"), latent_dims=(2,), libraries=("poly1+trig+inputs",),
+                       thresholds=(1e-3, 1e-2), refine_top=1)
+
+
+@pytest.fixture(scope="module")
+def selected(planted_block):
+    ds, _ = planted_block
+    return ds, select(ds, GRID)
+
+
+def test_selection_table_and_choice(selected):
+    ds, sel = selected
+    # 2 encoders x 1 dim x 1 library x 2 thresholds, then 1 refined
+    assert len(sel.rows) == 5 and sum(r["refine"] for r in sel.rows) == 1
+    assert sel.chosen is not None and sel.model is not None
+    r = sel.rows[sel.chosen]
+    assert r["encoder"] == "all"  # base_position cannot see the planted latents
+    assert sel.model.info["selection"]["encoder"] == "all"
+    ok = [x for x in sel.rows if x["score"] is not None]
+    best = min(x["score"] for x in ok)
+    assert r["score"] <= (1 + GRID.tolerance) * best
+    assert r["active_terms"] == min(x["active_terms"] for x in ok if x["score"] <= (1 + GRID.tolerance) * best)
+    d = sel.to_dict()
+    assert d["chosen"] == sel.chosen and "within 5% of the best" in d["rule"]
+
+
+def test_selection_never_reads_the_test_split(selected):
+    ds, sel = selected
+    test = ds.rows_of("test")
+    blind = replace(ds, **{k: np.where(test[:, None] if getattr(ds, k).ndim == 2 else test,
+                                       np.nan, getattr(ds, k)) for k in ("t", "q", "dq", "ddq", "tau", "u")})
+    assert np.isnan(blind.q[test]).all()
+    again = select(blind, GRID)
+    assert again.chosen == sel.chosen
+    for a, b in zip(again.rows, sel.rows):
+        assert (a["encoder"], a["threshold"], a["refine"], a["active_terms"]) == \
+               (b["encoder"], b["threshold"], b["refine"], b["active_terms"])
+        assert a["score"] == b["score"] or (a["score"] is None and b["score"] is None)
+    np.testing.assert_array_equal(again.model.Xi, sel.model.Xi)
+
+
+def test_rule_rejects_diverged_and_prefers_sparse():
+    rows = [{"score": None, "active_terms": 3}, {"score": 1.0, "active_terms": 40},
+            {"score": 1.04, "active_terms": 20}, {"score": 1.2, "active_terms": 5}]
+    assert choose(rows, 0.05) == 2
+    assert choose(rows, 0.0) == 1
+    assert choose([{"score": None, "active_terms": 1}], 0.05) is None
+
+
+def test_bad_grids_are_named():
+    with pytest.raises(ValueError, match="unknown encoder"):
+        SelectionConfig(encoders=("joints",))
+    with pytest.raises(ValueError, match="unknown block 'cubic'"):
+        parse_library("poly1+cubic")
+    with pytest.raises(ValueError, match="needs a poly"):
+        parse_library("trig+inputs")
+    assert parse_library("poly2+inputs") == {"poly_order": 2, "trig": False, "inputs": True}
+
+
+def test_cli_train_select(planted_block, tmp_path):
+    ds, _ = planted_block
+    data = tmp_path / "d.h5"
+    write_dataset(ds, data)
+    r = CliRunner().invoke(app, ["train", str(data), "--select", "--select-dims", "2", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output
+    assert {p.name for p in (tmp_path / "m").iterdir()} == {"model.json", "selection.json", "equations.txt"}
+    assert "chosen of" in r.output
+    no_val = tmp_path / "noval.h5"
+    write_dataset(replace(ds, split=np.where(ds.split == "val", "train", ds.split)), no_val)
+    one_line_error(CliRunner().invoke(app, ["train", str(no_val), "--select", "--out", str(tmp_path / "n")]),
+                   "'val'")
+    assert not (tmp_path / "n").exists()
