@@ -52,12 +52,21 @@ def test_selection_never_reads_the_test_split(selected):
     np.testing.assert_array_equal(again.model.Xi, sel.model.Xi)
 
 
+def _r(score, terms, worst=(None, None)):
+    return {"score": score, "active_terms": terms,
+            "horizons": {"full": {"worst": worst[0], "score": score}, "0.1": {"worst": worst[1], "score": score}}}
+
+
 def test_rule_rejects_diverged_and_prefers_sparse():
-    rows = [{"score": None, "active_terms": 3}, {"score": 1.0, "active_terms": 40},
-            {"score": 1.04, "active_terms": 20}, {"score": 1.2, "active_terms": 5}]
+    rows = [_r(None, 3), _r(1.0, 40), _r(1.04, 20), _r(1.2, 5)]
     assert choose(rows, 0.05) == 2
     assert choose(rows, 0.0) == 1
-    assert choose([{"score": None, "active_terms": 1}], 0.05) is None
+    assert choose([_r(None, 1)], 0.05) is None
+    # With a reference: the sparsest that meets it on every component at both horizons.
+    rows = [_r(0.5, 60, (0.9, 0.8)), _r(0.7, 12, (0.99, 0.95)), _r(0.3, 8, (1.4, 0.5)), _r(0.2, 90, (0.6, 0.5))]
+    assert choose(rows, 0.05, reference=True) == 1
+    assert choose(rows, 0.05) == 3  # without: the best score (no other within 5 %)
+    assert choose([_r(0.3, 8, (1.4, 0.5))], 0.05, reference=True) == 0  # none meets it: the tolerance rule
 
 
 def test_bad_grids_are_named():

@@ -46,7 +46,7 @@ from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.outputs import write_evaluation
-from symrom.evaluate.paper import PAPER_TABLE2
+from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.hybrid import HybridModel
@@ -97,9 +97,10 @@ class ReproduceConfig:
     )
     experiments: tuple[ExperimentSpec, ...] = (
         ExperimentSpec("go1_sim", "go1_sim", 2, (2, 3, 4)),
-        ExperimentSpec("a1_sim", "a1_sim", 4, (3, 4, 5, 6)),
+        ExperimentSpec("a1_sim", "a1_sim", 4, (4, 5, 6)),
     )
     selection: SelectionConfig = field(default_factory=SelectionConfig)
+    paper_reference: bool = True
     finetune: FineTuneConfig = field(default_factory=FineTuneConfig)
     sweep_dims: tuple[int, ...] = tuple(range(1, 19))
     sweep_seeds: int = 5
@@ -111,7 +112,10 @@ class ReproduceConfig:
     integrator: str = "lsoda"
 
     def selection_for(self, exp: ExperimentSpec) -> SelectionConfig:
-        return replace(self.selection, latent_dims=exp.latent_dims, workers=self.workers)
+        """The selection of ``exp``: its latent dimensions and, for an experiment with a row in
+        the paper's Table 2 (and ``paper_reference``), the paper's implied RMSE as the bar."""
+        ref = paper_reference(exp.name) if self.paper_reference else None
+        return replace(self.selection, latent_dims=exp.latent_dims, workers=self.workers, reference=ref)
 
     @classmethod
     def quick(cls) -> ReproduceConfig:
@@ -123,6 +127,14 @@ class ReproduceConfig:
             experiments=(ExperimentSpec("go1_sim", "go1_sim", 2, (2,)), ExperimentSpec("a1_sim", "a1_sim", 4, (3,))),
             selection=QUICK_SELECTION, sweep_dims=(1, 2, 4, 6, 18), sweep_seeds=2,
             adam=AdamConfig(epochs=20, refine_epochs=5, threshold_every=10), integrator="rk4")
+
+
+def paper_reference(experiment: str) -> dict[str, dict[str, float]] | None:
+    """Per horizon and Table 2 component, the RMSE the paper's mean and std imply for
+    ``experiment`` (None if it has no row)."""
+    if experiment not in PAPER_TABLE2:
+        return None
+    return {h: {c: implied_rmse(*ms) for c, ms in row.items()} for h, row in PAPER_TABLE2[experiment].items()}
 
 
 # A small grid for quick runs and the demo: the two encoders that matter most on

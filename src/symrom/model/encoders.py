@@ -17,8 +17,13 @@ all training configurations (step (b): decoder refit with the encoder frozen).
 (b) With xi fixed the loss is linear least squares in (W_d, B_d).
 Options: ``components`` restricts the encoder to the named configuration
 components (their reconstruction is then minimised, the decoder still maps to
-all 18); ``scaling="spread"`` divides each component by its standard deviation
-over the contact rows first, so radians and metres weigh alike.
+all 18); ``base_latents`` makes it block-diagonal, that many latents from the
+principal directions of the base pose and the others from those of the joints,
+so some latents are the body's motion and the rest leg synergies;
+``scaling="spread"`` divides each component by its standard deviation
+over the contact rows first (at least 5 % of the largest of its unit, so that a
+joint held still is not blown up from its jitter), so radians and metres weigh
+alike.
 
 ``AdamAutoencoder`` is the paper's gradient training of both steps (needs torch).
 """
@@ -32,9 +37,22 @@ import numpy as np
 
 from symrom.model.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.names import N_Q, Q_NAMES
+from symrom.names import BASE_NAMES, JOINT_NAMES, N_Q, Q_NAMES, Q_UNITS
 
 SCALINGS = ("none", "spread")
+SPREAD_FLOOR = 0.05  # a component's spread counts as at least this share of the largest of its unit
+
+
+def unit_floored(std: np.ndarray, floor: float = SPREAD_FLOOR) -> np.ndarray:
+    """(18,) spreads ``std`` of the configuration components, each raised to at least
+    ``floor`` times the largest among the components of the same unit (rad or m)."""
+    std = np.asarray(std, dtype=float)
+    units = np.array([Q_UNITS[n] for n in Q_NAMES])
+    out = std.copy()
+    for u in set(units):
+        same = units == u
+        out[same] = np.maximum(std[same], floor * std[same].max())
+    return np.maximum(out, 1e-12)
 
 
 def varimax(W: np.ndarray, max_iter: int = 500, tol: float = 1e-13) -> np.ndarray:
@@ -122,33 +140,48 @@ def check_components(components: tuple[str, ...] | None, latent_dim: int) -> tup
 @dataclass(frozen=True)
 class PCAEncoder:
     """The exact steps (a) and (b) (module docstring). components: names the encoder
-    reads (None = all 18, the paper); scaling: ``none`` (the paper) or ``spread``."""
+    reads (None = all 18, the paper); scaling: ``none`` (the paper) or ``spread``;
+    base_latents: None (one PCA, the paper) or the number of latents taken from the
+    base pose, the rest from the joints."""
 
     components: tuple[str, ...] | None = None
     scaling: str = "none"
+    base_latents: int | None = None
 
     def __post_init__(self) -> None:
         if self.scaling not in SCALINGS:
             raise ValueError(f"encoder scaling must be one of {SCALINGS}, got {self.scaling!r}")
         if self.components is not None:
             object.__setattr__(self, "components", tuple(self.components))
+        if self.base_latents is not None and self.base_latents < 1:
+            raise ValueError(f"base_latents must be >= 1, got {self.base_latents}")
 
     def fit(self, q_contact: np.ndarray, q_all: np.ndarray, latent_dim: int) -> LinearAutoencoder:
         """q_contact (Nc, 18), q_all (N, 18) configurations -> the autoencoder."""
         check_components(self.components, latent_dim)
         mask = component_mask(self.components)
-        scale = np.ones(q_contact.shape[1])
-        if self.scaling == "spread":
-            std = q_contact.std(axis=0)
-            # A component that never moves (a locked joint) must not be blown up from rounding.
-            scale = np.maximum(std, 1e-6 * max(float(std[mask].max()), 1e-300))
-        W_e = principal_encoder(q_contact / scale, latent_dim, mask) / scale
+        scale = unit_floored(q_contact.std(axis=0)) if self.scaling == "spread" else np.ones(q_contact.shape[1])
+        qs = q_contact / scale
+        if self.base_latents is None:
+            W = principal_encoder(qs, latent_dim, mask)
+        else:
+            if not self.base_latents < latent_dim:
+                raise ValueError(f"base_latents {self.base_latents} leaves no latent for the joints "
+                                 f"(latent_dim {latent_dim})")
+            base = mask & component_mask(BASE_NAMES)
+            joints = mask & component_mask(JOINT_NAMES)
+            k = latent_dim - self.base_latents
+            if base.sum() < self.base_latents or joints.sum() < k:
+                raise ValueError(f"encoder: {int(base.sum())} base and {int(joints.sum())} joint components "
+                                 f"cannot span {self.base_latents} + {k} latents")
+            W = np.vstack([principal_encoder(qs, self.base_latents, base), principal_encoder(qs, k, joints)])
+        W_e = W / scale
         W_d, B_d = fit_decoder(q_all @ W_e.T, q_all)
         return LinearAutoencoder(W_e, np.zeros(latent_dim), W_d, B_d)
 
     def to_dict(self) -> dict[str, Any]:
         return {"name": "PCAEncoder", "components": None if self.components is None else list(self.components),
-                "scaling": self.scaling}
+                "scaling": self.scaling, "base_latents": self.base_latents}
 
 
 @dataclass

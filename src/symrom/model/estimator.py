@@ -137,55 +137,73 @@ class SymbolicROM:
         zero and rollouts through it are refused); ``model_.trained_phases()`` lists
         the others. ``info`` is merged into the model's record.
         """
+        say = progress or (lambda stage, frac: None)
+        prepared = self._prepare(ds, rows, say, getattr(self.regressor, "needs_trajectories", False))
+        self.model_ = self._finish(prepared, self.regressor, info, say)
+        return self
+
+    def fit_variants(self, ds: Dataset, regressors: list[Regressor], rows: np.ndarray | None = None,
+                     info: dict | None = None) -> list[HybridModel]:
+        """One model per regressor, all on this estimator's encoder and library fitted once to
+        the same rows (what a sparsity path or a selection grid needs); ``model_`` unchanged."""
+        say = lambda stage, frac: None  # noqa: E731
+        prepared = self._prepare(ds, rows, say, any(getattr(r, "needs_trajectories", False) for r in regressors))
+        return [self._finish(prepared, r, info, say) for r in regressors]
+
+    def _prepare(self, ds: Dataset, rows: np.ndarray | None, say: Progress, with_trajectories: bool) -> dict:
+        """Steps (a) and (b), and the regression problem of step (c)."""
         rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
         if rows.shape != (ds.n_samples,):
             raise ValueError(f"rows: shape {rows.shape}, expected ({ds.n_samples},)")
         if not rows.any():
             raise ValueError("no training rows (the dataset has no 'train' jumps)")
-        say = progress or (lambda stage, frac: None)
         l = int(self.latent_dim)
         lib = self.library.bind(l)
         say("encoder (contact phase)", 0.0)
         ae = self.encoder.fit(ds.q[contact_rows(ds, rows, self.contact_phase)], ds.q[rows], l)
         say("dynamics", 0.5)
-        nu_all = ae.encode_input(ds.u[rows])
         ddxi_all = ae.encode_derivative(ds.ddq[rows])
         val_rows = ds.rows_of("val") & ~rows
         problem = RegressionProblem(
             lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
             target_spread=np.maximum(ddxi_all.std(axis=0), 1e-12), dt=ds.dt,
-            trajectories=trajectories(ds, rows, ae) if getattr(self.regressor, "needs_trajectories", False) else [],
+            trajectories=trajectories(ds, rows, ae) if with_trajectories else [],
             validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
-        regressor = self.regressor
+        xi, dxi, nu = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]), ae.encode_input(ds.u[rows])
+        phases = []
+        for k in range(len(ds.phase_names)):
+            r = ds.phase[rows] == k
+            phases.append((int(r.sum()), np.concatenate([xi[r].mean(0), dxi[r].mean(0), nu[r].mean(0)])
+                           if r.any() else None, _median_stay(ds, rows, k)))
+        record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
+                  "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
+                  "n_train_jumps": int(np.unique(ds.jump[rows]).size), "encoder": self.encoder.to_dict(),
+                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight}
+        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record,
+                "phase_names": list(ds.phase_names),
+                "scale": np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)}
+
+    def _finish(self, prep: dict, regressor: Regressor, info: dict | None, say: Progress) -> HybridModel:
+        """Step (c) with ``regressor`` on a prepared problem: the fitted model."""
         if isinstance(regressor, Adam) and isinstance(self.encoder, AdamAutoencoder):
             # One torch stream for the whole run, as in the paper's training.
             regressor = replace(regressor, generator=self.encoder.generator_)
+        problem = prep["problem"]
         coefs = regressor.fit(problem)
         paths = (regressor.path(problem, self.path_thresholds)
                  if self.path_thresholds and isinstance(regressor, STLSQ) else {})
-        xi, dxi = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows])
         phase_info = {}
-        for k, name in enumerate(ds.phase_names):
-            r = ds.phase[rows] == k
+        for name, (n_rows, op, stay) in zip(prep["phase_names"], prep["phases"]):
             report = dict(coefs.report.get(name, {}))
             if name in paths:
                 report["path"] = paths[name]
-            trained = bool(r.any())
-            phase_info[name] = PhaseInfo(
-                trained=trained, n_rows=int(r.sum()),
-                operating_point=np.concatenate([xi[r].mean(0), dxi[r].mean(0), nu_all[r].mean(0)]) if trained else None,
-                duration_s=_median_stay(ds, rows, k), report=report)
-        scale = np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)
-        record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
-                  "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
-                  "n_train_jumps": int(np.unique(ds.jump[rows]).size),
-                  "encoder": self.encoder.to_dict(), "regressor": regressor.to_dict(),
-                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight,
-                  "untrained_phases": [n for n, p in phase_info.items() if not p.trained]}
-        record.update(info or {})
+            phase_info[name] = PhaseInfo(trained=n_rows > 0, n_rows=n_rows, operating_point=op,
+                                         duration_s=stay, report=report)
+        record = {**prep["record"], "regressor": regressor.to_dict(),
+                  "untrained_phases": [n for n, p in phase_info.items() if not p.trained], **(info or {})}
         say("done", 1.0)
-        self.model_ = HybridModel(ae, lib, list(ds.phase_names), coefs.Xi, coefs.mask, scale, record, phase_info)
-        return self
+        return HybridModel(prep["ae"], prep["lib"], list(prep["phase_names"]), coefs.Xi, coefs.mask,
+                           prep["scale"].copy(), record, phase_info)
 
     # ------------------------------------------------------------------ use
     @property

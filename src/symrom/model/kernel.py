@@ -159,76 +159,90 @@ def kernels():
                 dS[l + pj[t], t] += theta[pp[t]]
 
     @njit
-    def rk4_windows(xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                    dt, substeps, limit, stride, want_sens, X, V, S_out, alive):
-        W, L, l = xi.shape
+    def axpy(out, a, h, y):
+        """out = a + h * y elementwise over 2-D arrays (no temporaries)."""
+        for i in range(out.shape[0]):
+            for t in range(out.shape[1]):
+                out[i, t] = a[i, t] + h * y[i, t]
+
+    @njit
+    def one_window(w, xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                   dt, substeps, limit, stride, want_sens, X, V, S_out, alive):
+        L, l = xi.shape[1], xi.shape[2]
         p = kind.shape[0]
         n = pk.shape[0]
         h = dt / substeps
         theta = np.empty(p)
         dtheta = np.zeros((p, 2 * l))
-        s = np.empty(2 * l)
-        S = np.zeros((2 * l, n))
-        st, Sst = np.empty(2 * l), np.empty((2 * l, n))
+        s, st, s_new = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
+        S, Sst, S_new = np.zeros((2 * l, n)), np.zeros((2 * l, n)), np.zeros((2 * l, n))
         k1, k2, k3, k4 = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
         K1, K2, K3, K4 = (np.zeros((2 * l, n)), np.zeros((2 * l, n)), np.zeros((2 * l, n)),
                           np.zeros((2 * l, n)))
-        s_new, S_new = np.empty(2 * l), np.empty((2 * l, n))
-        for w in range(W):
+        for j in range(l):
+            s[j], s[l + j] = xi[w, 0, j], dxi[w, 0, j]
+        ok = True
+        for k in range(L):
             for j in range(l):
-                s[j], s[l + j] = xi[w, 0, j], dxi[w, 0, j]
-            S[:, :] = 0.0
-            ok = True
-            for k in range(L):
-                for j in range(l):
-                    X[w, k, j], V[w, k, j] = s[j], s[l + j]
-                if want_sens and k % stride == 0:
-                    S_out[w, k // stride] = S
-                alive[w, k] = ok
-                if k == L - 1:
+                X[w, k, j], V[w, k, j] = s[j], s[l + j]
+            if want_sens and k % stride == 0:
+                S_out[w, k // stride] = S
+            alive[w, k] = ok
+            if k == L - 1:
+                break
+            if not ok:  # left the bound: state held, sensitivities zero
+                continue
+            ph = phase[w, k]
+            u = nu[w, k]
+            for _ in range(substeps):
+                field(s, S, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                      theta, dtheta, k1, K1, want_sens)
+                for d in range(2 * l):
+                    st[d] = s[d] + 0.5 * h * k1[d]
+                if want_sens:
+                    axpy(Sst, S, 0.5 * h, K1)
+                field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                      theta, dtheta, k2, K2, want_sens)
+                for d in range(2 * l):
+                    st[d] = s[d] + 0.5 * h * k2[d]
+                if want_sens:
+                    axpy(Sst, S, 0.5 * h, K2)
+                field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                      theta, dtheta, k3, K3, want_sens)
+                for d in range(2 * l):
+                    st[d] = s[d] + h * k3[d]
+                if want_sens:
+                    axpy(Sst, S, h, K3)
+                field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                      theta, dtheta, k4, K4, want_sens)
+                good = True
+                for d in range(2 * l):
+                    s_new[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+                    if not (np.abs(s_new[d]) <= limit[d]):  # also catches NaN
+                        good = False
+                if want_sens and good:
+                    for i in range(2 * l):
+                        for t in range(n):
+                            v = S[i, t] + h / 6.0 * (K1[i, t] + 2.0 * K2[i, t] + 2.0 * K3[i, t] + K4[i, t])
+                            if not np.isfinite(v):
+                                good = False
+                            S_new[i, t] = v
+                if good:
+                    s[:] = s_new
+                    if want_sens:
+                        S[:, :] = S_new
+                else:
+                    ok = False
+                    S[:, :] = 0.0
                     break
-                if not ok:  # left the bound: state held, sensitivities zero
-                    continue
-                ph = phase[w, k]
-                u = nu[w, k]
-                for _ in range(substeps):
-                    field(s, S, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                          theta, dtheta, k1, K1, want_sens)
-                    for d in range(2 * l):
-                        st[d] = s[d] + 0.5 * h * k1[d]
-                    if want_sens:
-                        Sst[:, :] = S + 0.5 * h * K1
-                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                          theta, dtheta, k2, K2, want_sens)
-                    for d in range(2 * l):
-                        st[d] = s[d] + 0.5 * h * k2[d]
-                    if want_sens:
-                        Sst[:, :] = S + 0.5 * h * K2
-                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                          theta, dtheta, k3, K3, want_sens)
-                    for d in range(2 * l):
-                        st[d] = s[d] + h * k3[d]
-                    if want_sens:
-                        Sst[:, :] = S + h * K3
-                    field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                          theta, dtheta, k4, K4, want_sens)
-                    good = True
-                    for d in range(2 * l):
-                        s_new[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
-                        if not (np.abs(s_new[d]) <= limit[d]):  # also catches NaN
-                            good = False
-                    if want_sens:
-                        S_new[:, :] = S + h / 6.0 * (K1 + 2.0 * K2 + 2.0 * K3 + K4)
-                        if not np.all(np.isfinite(S_new)):
-                            good = False
-                    if good:
-                        s[:] = s_new
-                        if want_sens:
-                            S[:, :] = S_new
-                    else:
-                        ok = False
-                        S[:, :] = 0.0
-                        break
+
+    @numba.njit(cache=True, parallel=True)
+    def rk4_windows(xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                    dt, substeps, limit, stride, want_sens, X, V, S_out, alive):
+        """Every window from its true start (windows in parallel threads)."""
+        for w in numba.prange(xi.shape[0]):
+            one_window(w, xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+                       dt, substeps, limit, stride, want_sens, X, V, S_out, alive)
 
     @njit
     def rk4_rollout(x_true, v_true, nu, phase, lens, resets, Xi, kind, var, power, count, active, n_active,

@@ -51,6 +51,8 @@ class TrainConfig:
     ``contact_phase`` names the phase that trains the encoder in step (a).
     ``encoder_components``: names of the q components the encoder reads (None =
     all 18, the paper); ``encoder_scaling``: ``none`` or ``spread``;
+    ``encoder_base_latents``: latents from the base pose, the rest from the joints
+    (None: one PCA over what the encoder reads, the paper);
     ``decoded_weight``: weight of the decoded-acceleration term of the SINDy loss
     (1 = the paper); ``alpha``: ridge on the standardised features in step (c)
     (0 = none, the paper); ``measure``: what ``threshold`` applies to,
@@ -73,6 +75,7 @@ class TrainConfig:
     contact_phase: str = "contact"
     encoder_components: tuple[str, ...] | None = None
     encoder_scaling: str = "none"
+    encoder_base_latents: int | None = None
     decoded_weight: float = 1.0
     measure: str = "coefficient"
     collinearity: float | None = None
@@ -124,7 +127,7 @@ class TrainConfig:
             encoder = AdamAutoencoder(self.adam, self.encoder_components, self.seed, progress)
             regressor = Adam(self.adam, self.threshold, self.seed, progress=progress)
         else:
-            encoder = PCAEncoder(self.encoder_components, self.encoder_scaling)
+            encoder = PCAEncoder(self.encoder_components, self.encoder_scaling, self.encoder_base_latents)
             regressor = self.regressor()
         return SymbolicROM(self.latent_dim, LibrarySpec.standard(self.poly_order, self.trig, self.inputs),
                            encoder, regressor, self.decoded_weight, self.contact_phase, self.path)

@@ -68,26 +68,18 @@ def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tupl
     return Zs, G
 
 
-def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
-                  ridge: float = 0.0, prior: np.ndarray | None = None, alpha: float = 0.0,
-                  importance: bool = False) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2
-    + alpha sum_ij G_jj A_ii Xi_ij^2 with Xi zero off ``mask``, r = ridge * mean(diag A).
-
-    A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool,
-    prior (p, l) or None (= 0). Returns Xi (p, l); with ``importance`` also
-    (p, l) the increase of the loss if each active entry were removed and the
-    others refit, x_i^2 / (K^-1)_ii (inf off the support).
-    """
-    p, l = mask.shape
+def _scaled_system(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray, ridge: float,
+                   prior: np.ndarray | None, alpha: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The normal equations of the active entries of ``mask``, equilibrated and regularised:
+    (idx, Ks, rhs / d, d) with idx the column-major positions of the active entries in
+    Xi, Ks = D^-1 K D^-1 + max(alpha, jitter) I and d = sqrt(diag K) (see ``solve_support``)."""
     # A term that is zero on this phase's rows up to rounding (e.g. the latent ground
     # force in flight) is not identifiable: its equilibrated coefficient would be
     # rounding noise divided by ~0.
+    p = mask.shape[0]
     mask = mask & ~negligible(np.sqrt(np.clip(np.diag(A), 0.0, None)))[:, None]
     idx = np.flatnonzero(mask.T.ravel())  # column-major vec of Xi
-    Xi = np.zeros((p, l))
-    if idx.size == 0:
-        return (Xi, np.full((p, l), np.inf)) if importance else Xi
     feat, col = idx % p, idx // p
     K = G[np.ix_(col, col)] * A[np.ix_(feat, feat)]  # rows/cols of G kron A
     rhs = B[feat, col]
@@ -104,21 +96,40 @@ def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
     d = np.sqrt(np.clip(np.diag(K), 1e-300, None))
     Ks = K / d[:, None] / d[None, :]
     Ks[np.diag_indices_from(Ks)] += max(alpha, _JITTER)
+    return idx, Ks, rhs / d, d
+
+
+def _inverse(Ks: np.ndarray) -> np.ndarray:
+    """Ks^-1 of a symmetric positive (semi)definite matrix: Cholesky, else the
+    pseudo-inverse of its well-conditioned part."""
     try:
-        factor = scipy.linalg.cho_factor(Ks, check_finite=False)
-        x = scipy.linalg.cho_solve(factor, rhs / d, check_finite=False)
-        inv_diag = (lambda: np.diag(scipy.linalg.cho_solve(factor, np.eye(idx.size), check_finite=False)))
+        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ks, check_finite=False), np.eye(len(Ks)),
+                                      check_finite=False)
     except np.linalg.LinAlgError:
         w, V = np.linalg.eigh(Ks)
         keep = w > w.max() * 1e-13
-        x = V[:, keep] @ ((V[:, keep].T @ (rhs / d)) / w[keep])
-        inv_diag = (lambda: np.einsum("ik,k,ik->i", V[:, keep], 1.0 / w[keep], V[:, keep]))
-    Xi.T.flat[idx] = x / d
-    if not importance:
+        return (V[:, keep] / w[keep]) @ V[:, keep].T
+
+
+def solve_support(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray,
+                  ridge: float = 0.0, prior: np.ndarray | None = None, alpha: float = 0.0) -> np.ndarray:
+    """Minimise tr(G (Theta Xi - Z)^T (Theta Xi - Z)) + r ||Xi - prior||^2
+    + alpha sum_ij G_jj A_ii Xi_ij^2 with Xi zero off ``mask``, r = ridge * mean(diag A).
+
+    A = Theta^T Theta (p, p), B = Theta^T Z G (p, l), G (l, l), mask (p, l) bool,
+    prior (p, l) or None (= 0). Returns Xi (p, l).
+    """
+    p, l = mask.shape
+    idx, Ks, rhs, d = _scaled_system(A, B, G, mask, ridge, prior, alpha)
+    Xi = np.zeros((p, l))
+    if idx.size == 0:
         return Xi
-    gain = np.full((p, l), np.inf)
-    gain.T.flat[idx] = x ** 2 / inv_diag()  # invariant under the equilibration
-    return Xi, gain
+    try:
+        x = scipy.linalg.cho_solve(scipy.linalg.cho_factor(Ks, check_finite=False), rhs, check_finite=False)
+    except np.linalg.LinAlgError:
+        x = _inverse(Ks) @ rhs
+    Xi.T.flat[idx] = x / d
+    return Xi
 
 
 def term_sizes(Xi: np.ndarray, theta_rms: np.ndarray, config: STLSQConfig) -> np.ndarray:
@@ -130,19 +141,51 @@ def term_sizes(Xi: np.ndarray, theta_rms: np.ndarray, config: STLSQConfig) -> np
     return np.abs(Xi) * theta_rms[:, None] / np.maximum(spread, 1e-300)[None, :]
 
 
+REFRESH = 25  # removals between fresh inversions of the normal matrix (downdates drift)
+
+
 def _backward_elimination(A: np.ndarray, B: np.ndarray, G: np.ndarray, mask: np.ndarray, n_rows: int,
                           config: STLSQConfig, prior: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """The ``explained`` measure: drop the least explaining term until all explain enough."""
+    """The ``explained`` measure: drop the least explaining term until all explain enough.
+
+    The share of entry i is x_i^2 / (K^-1)_ii over n_rows G_jj spread_j^2 (its
+    column j): the loss increase if it were removed and the rest refit. Removing an
+    entry downdates the optimum and the inverse (the Schur complement), so each
+    removal costs O(n^2) instead of a new factorisation; a fresh inversion every
+    ``REFRESH`` removals bounds the drift.
+    """
+    p, l = mask.shape
     spread = np.asarray(config.target_spread, dtype=float)
     norm = n_rows * np.diag(G) * np.maximum(spread, 1e-300) ** 2  # (l,)
+    removed = 0
     while True:
-        Xi, gain = solve_support(A, B, G, mask, config.ridge, prior, config.alpha, importance=True)
-        share = np.where(mask, gain / norm[None, :], np.inf)
-        i = np.unravel_index(np.argmin(share), share.shape)
-        if not np.isfinite(share[i]) or share[i] >= config.threshold:
-            return Xi * mask, mask
+        idx, Ks, rhs, d = _scaled_system(A, B, G, mask, config.ridge, prior, config.alpha)
+        if idx.size == 0:
+            return np.zeros((p, l)), mask & False
+        M = _inverse(Ks)
+        x = M @ rhs
+        keep = np.ones(idx.size, dtype=bool)
+        for _ in range(REFRESH):
+            live = np.flatnonzero(keep)
+            share = x[live] ** 2 / np.maximum(np.diag(M)[live], 1e-300) / norm[idx[live] // p]
+            k = int(np.argmin(share))
+            if share[k] >= config.threshold:
+                Xi = np.zeros((p, l))
+                Xi.T.flat[idx[keep]] = x[keep] / d[keep]
+                out = np.zeros(p * l, dtype=bool)
+                out[idx[keep]] = True
+                return Xi, out.reshape(l, p).T.copy()
+            i = live[k]
+            mi = M[:, i].copy()
+            x -= mi * (x[i] / M[i, i])
+            M -= np.outer(mi, mi) / M[i, i]
+            keep[i] = False
+            x[i] = 0.0
+            removed += 1
+            if not keep.any():
+                break
         mask = mask.copy()
-        mask[i] = False
+        mask.T.flat[idx[~keep]] = False
 
 
 def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
