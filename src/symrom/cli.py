@@ -294,6 +294,30 @@ def equations_cmd(
     _model_warnings(model)
 
 
+@app.command("export")
+@guarded
+def export_cmd(
+    model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
+    to: Annotated[str, typer.Option("--to", help="c (C99 source and header), casadi (casadi.Function files) or python.")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("export"),
+    force: Force = False,
+) -> None:
+    """Write the model as standalone code: encoder, decoder, each phase's dynamics, an RK4 step."""
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.model.export import TARGETS, export, model_hash
+    from symrom.model.persistence import load_model
+
+    if to not in TARGETS:
+        raise ValueError(f"--to must be one of {', '.join(TARGETS)}, got {to!r}")
+    check_output_file(out, force)
+    model = load_model(model_path)
+    with atomic_dir(out, force) as tmp:
+        written = export(model, to, tmp)
+    out_console.print(f"{to} export of {model_path} (sha256 {model_hash(model)[:12]}, phases "
+                      f"{', '.join(model.phase_names)}): " + ", ".join(str(out / p.name) for p in written),
+                      highlight=False, soft_wrap=True)
+
+
 @app.command("reproduce")
 @guarded
 def reproduce_cmd(

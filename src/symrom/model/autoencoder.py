@@ -35,6 +35,11 @@ class LinearAutoencoder:
     def latent_dim(self) -> int:
         return int(self.W_e.shape[0])
 
+    @property
+    def input_map(self) -> np.ndarray:
+        """(18, l) pinv(W_e): nu rows = u rows @ input_map."""
+        return self._input_map
+
     def encode(self, q: np.ndarray) -> np.ndarray:
         """q (N, 18) -> xi (N, l)."""
         return q @ self.W_e.T + self.B_e

@@ -88,33 +88,36 @@ def kernels():
     njit = numba.njit(cache=True, fastmath=False)
 
     @njit
-    def features(s, nu, kind, var, power, count, theta, dtheta, want_jac):
-        """theta (p,) and, if want_jac, dtheta (p, 2l) at one state s (2l,), inputs nu (l,)."""
-        p, F = kind.shape
-        fv = np.empty(F)
-        dv = np.empty(F)
-        if want_jac:
-            dtheta[:, :] = 0.0
-        for t in range(p):
+    def features(s, nu, terms, n_terms, kind, var, power, count, fv, dv, theta, dtheta, want_jac):
+        """theta[t] and, if want_jac, dtheta[t] (2l,) for the ``n_terms`` terms t in
+        ``terms`` at one state s (2l,), inputs nu (l,); fv, dv (F,) are scratch."""
+        for a in range(n_terms):
+            t = terms[a]
             val = 1.0
             for f in range(count[t]):
                 k, i, e = kind[t, f], var[t, f], power[t, f]
                 if k == 0:
                     x = s[i]
-                    fv[f] = x ** e
-                    dv[f] = e * x ** (e - 1) if e > 1 else 1.0
+                    if e == 1:
+                        fv[f], dv[f] = x, 1.0
+                    else:
+                        xe = x ** (e - 1)
+                        fv[f], dv[f] = xe * x, e * xe
                 elif k == 1:
                     fv[f] = np.sin(s[i])
-                    dv[f] = np.cos(s[i])
+                    if want_jac:
+                        dv[f] = np.cos(s[i])
                 elif k == 2:
                     fv[f] = np.cos(s[i])
-                    dv[f] = -np.sin(s[i])
+                    if want_jac:
+                        dv[f] = -np.sin(s[i])
                 else:
-                    fv[f] = nu[i]
-                    dv[f] = 0.0
+                    fv[f], dv[f] = nu[i], 0.0
                 val *= fv[f]
             theta[t] = val
             if want_jac:
+                for d in range(dtheta.shape[1]):
+                    dtheta[t, d] = 0.0
                 for f in range(count[t]):
                     if kind[t, f] == 3:
                         continue
@@ -126,10 +129,10 @@ def kernels():
 
     @njit
     def field(s, S, nu, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-              theta, dtheta, ds, dS, want_sens):
+              theta, dtheta, fv, dv, ds, dS, want_sens):
         """ds (2l,) = f(s) and, if want_sens, dS (2l, n) = A S + B, in phase ph."""
         l = Xi.shape[2]
-        features(s, nu, kind, var, power, count, theta, dtheta, want_sens)
+        features(s, nu, active[ph], n_active[ph], kind, var, power, count, fv, dv, theta, dtheta, want_sens)
         for j in range(l):
             ds[j] = s[l + j]
             acc = 0.0
@@ -174,6 +177,7 @@ def kernels():
         h = dt / substeps
         theta = np.empty(p)
         dtheta = np.zeros((p, 2 * l))
+        fv, dv = np.empty(kind.shape[1]), np.empty(kind.shape[1])
         s, st, s_new = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
         S, Sst, S_new = np.zeros((2 * l, n)), np.zeros((2 * l, n)), np.zeros((2 * l, n))
         k1, k2, k3, k4 = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
@@ -196,25 +200,25 @@ def kernels():
             u = nu[w, k]
             for _ in range(substeps):
                 field(s, S, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                      theta, dtheta, k1, K1, want_sens)
+                      theta, dtheta, fv, dv, k1, K1, want_sens)
                 for d in range(2 * l):
                     st[d] = s[d] + 0.5 * h * k1[d]
                 if want_sens:
                     axpy(Sst, S, 0.5 * h, K1)
                 field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                      theta, dtheta, k2, K2, want_sens)
+                      theta, dtheta, fv, dv, k2, K2, want_sens)
                 for d in range(2 * l):
                     st[d] = s[d] + 0.5 * h * k2[d]
                 if want_sens:
                     axpy(Sst, S, 0.5 * h, K2)
                 field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                      theta, dtheta, k3, K3, want_sens)
+                      theta, dtheta, fv, dv, k3, K3, want_sens)
                 for d in range(2 * l):
                     st[d] = s[d] + h * k3[d]
                 if want_sens:
                     axpy(Sst, S, h, K3)
                 field(st, Sst, u, ph, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
-                      theta, dtheta, k4, K4, want_sens)
+                      theta, dtheta, fv, dv, k4, K4, want_sens)
                 good = True
                 for d in range(2 * l):
                     s_new[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
@@ -255,6 +259,7 @@ def kernels():
         h = dt / substeps
         theta = np.empty(p)
         dtheta = np.zeros((p, 2 * l))
+        fv, dv = np.empty(kind.shape[1]), np.empty(kind.shape[1])
         dummy_S = np.zeros((2 * l, 0))
         dummy_i = np.zeros(0, dtype=np.int64)
         s, st = np.empty(2 * l), np.empty(2 * l)
@@ -280,19 +285,19 @@ def kernels():
                 u = nu[j, k]
                 for _ in range(substeps):
                     field(s, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, k1, dummy_S, False)
+                          active, n_active, theta, dtheta, fv, dv, k1, dummy_S, False)
                     for d in range(2 * l):
                         st[d] = s[d] + 0.5 * h * k1[d]
                     field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, k2, dummy_S, False)
+                          active, n_active, theta, dtheta, fv, dv, k2, dummy_S, False)
                     for d in range(2 * l):
                         st[d] = s[d] + 0.5 * h * k2[d]
                     field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, k3, dummy_S, False)
+                          active, n_active, theta, dtheta, fv, dv, k3, dummy_S, False)
                     for d in range(2 * l):
                         st[d] = s[d] + h * k3[d]
                     field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, k4, dummy_S, False)
+                          active, n_active, theta, dtheta, fv, dv, k4, dummy_S, False)
                     for d in range(2 * l):
                         s[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
 

@@ -130,7 +130,9 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
             X, V = np.zeros((W, L, l)), np.zeros((W, L, l))
             S = np.zeros((W, -(-L // stride), 2 * l, n))
             alive = np.zeros((W, L), dtype=np.bool_)
-            active, n_active = active_terms(np.asarray(Xi) != 0)
+            support = np.zeros(np.shape(Xi), dtype=bool)
+            support[params.phase, params.term, params.latent] = True  # a coefficient at 0.0 still needs its term
+            active, n_active = active_terms(support)
             kernels()["rk4_windows"](
                 np.ascontiguousarray(win.xi), np.ascontiguousarray(win.dxi), np.ascontiguousarray(win.nu),
                 np.ascontiguousarray(win.phase, dtype=np.int64), np.ascontiguousarray(Xi, dtype=float),
