@@ -53,8 +53,9 @@ def test_shorter_horizon_is_more_accurate(model_and_data):
     assert short < full
 
 
+@pytest.mark.parametrize("backend", ["table", "generated"])
 @pytest.mark.parametrize("reset", [None, 0.1])
-def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset):
+def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset, backend):
     from dataclasses import replace
 
     from symrom.model.training import TrainConfig, train
@@ -66,9 +67,21 @@ def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset):
     Xi[0, names.index("dxi1"), 0] = 60.0  # a fast unstable mode, so some rollouts diverge
     bad = replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
     for m in (model, bad):
-        a = rollout(m, ds, None, RolloutOptions("rk4", reset=reset, backend="compiled"))
+        a = rollout(m, ds, None, RolloutOptions("rk4", reset=reset, backend=backend))
         b = rollout(m, ds, None, RolloutOptions("rk4", reset=reset, backend="numpy"))
         np.testing.assert_array_equal(a.diverged_at, b.diverged_at)
         for x, y in zip(a.q_pred, b.q_pred):
             np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-12)
-    assert rollout(bad, ds, None, RolloutOptions("rk4", backend="compiled")).diverged.any()
+    assert rollout(bad, ds, None, RolloutOptions("rk4", backend=backend)).diverged.any()
+
+
+def test_lsoda_with_the_generated_right_hand_side_matches(planted_block):
+    from symrom.model.training import TrainConfig, train
+
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    jumps = ds.jumps_in("test")
+    a = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="generated"))
+    b = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="numpy"))
+    for x, y in zip(a.xi, b.xi):
+        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-10)

@@ -222,9 +222,14 @@ class HybridModel:
 
         from symrom.model.kernel import compiled_rollout
 
+        def generated():
+            from symrom.model.codegen import generated_integrator, generated_rhs
+
+            return generated_integrator(self), generated_rhs(self)
+
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
-                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi))
+                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated)
 
     # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:

@@ -100,7 +100,7 @@ class Parameters:
         return Xi
 
 
-BACKENDS = ("auto", "compiled", "numpy")
+BACKENDS = ("auto", "table", "numpy")
 
 
 def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows, dt: float,
@@ -112,9 +112,9 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
     sensitivities S (W, ceil(L / stride), 2l, n) of [xi, dxi] to the parameters
     at every ``stride``-th sample (None unless ``sensitivities``), and alive
     (W, L) bool: False from the first sample at which a window left the bound
-    (its state is then held, its S zeroed). backend: ``compiled`` (numba,
-    ``symrom.model.kernel``), ``numpy`` (the reference), or ``auto`` (compiled
-    when the library has a term table).
+    (its state is then held, its S zeroed). backend: ``table`` (numba,
+    ``symrom.model.kernel``), ``numpy`` (the reference), or ``auto`` (the table
+    kernel when the library has a term table).
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose from {BACKENDS}")
@@ -122,7 +122,7 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
         from symrom.model.kernel import active_terms, kernels, term_table
 
         table = term_table(library)
-        if table is None and backend == "compiled":
+        if table is None and backend == "table":
             raise ValueError("this library has terms the compiled kernel cannot evaluate")
         if table is not None:
             W, L = win.shape

@@ -34,16 +34,20 @@ from symrom.data.dataset import Dataset
 from symrom.rollout.system import Rollable
 
 METHODS = ("lsoda", "rk4")
-BACKENDS = ("auto", "compiled", "numpy")
+# auto: rk4 by the compiled term-table kernel (no compilation per model), lsoda with the
+# NumPy right-hand side; generated: the model's own compiled code for both (about a
+# second to compile per model, then the fastest); table: the term-table kernel;
+# numpy: the reference.
+BACKENDS = ("auto", "table", "generated", "numpy")
 
 
 @dataclass
 class RolloutOptions:
     """method: ``lsoda`` or ``rk4``; reset: s between resets (None = full horizon);
     substeps: RK4 steps per sample; max_steps: LSODA step budget per sample;
-    bound: divergence bound as a multiple of the model's yardstick; backend (rk4):
-    ``auto`` (compiled when the model offers it), ``compiled`` or ``numpy`` (the
-    reference)."""
+    bound: divergence bound as a multiple of the model's yardstick; backend: ``auto``,
+    ``table``, ``generated`` or ``numpy`` (see ``BACKENDS``; a model without compiled
+    code runs on NumPy with ``auto``)."""
 
     method: str = "lsoda"
     reset: float | None = None
@@ -104,12 +108,13 @@ def pad_edge(arrays: list[np.ndarray]) -> np.ndarray:
 Accel = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
 
 
-def integrate_lsoda(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, resets: np.ndarray,
-                    limit: np.ndarray, dt: float, max_steps: int) -> tuple[np.ndarray, np.ndarray, int]:
-    """One jump of x'' = acc with LSODA over each sample interval.
+def integrate_lsoda(rhs: Callable, args: Callable[[int], tuple], x_true: np.ndarray, v_true: np.ndarray,
+                    resets: np.ndarray, limit: np.ndarray, dt: float,
+                    max_steps: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """One jump of y' = rhs(y, t, *args(k)) with LSODA over each sample interval k.
 
-    x_true, v_true (n, d) give the start and reset states; resets (n,) bool;
-    limit (2d,) bound on |[x, v]|. Returns X, V (n, d), NaN from the first bad
+    y = [x, v]; x_true, v_true (n, d) give the start and reset states; resets (n,)
+    bool; limit (2d,) bound on |[x, v]|. Returns X, V (n, d), NaN from the first bad
     sample on, and that sample's index (-1 if none).
     """
     n, d = x_true.shape
@@ -124,12 +129,9 @@ def integrate_lsoda(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, resets: 
         if k == n - 1:
             break
 
-        def rhs(state, _t, k=k):
-            return np.concatenate([state[d:], acc(k, state[None, :d], state[None, d:])[0]])
-
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; we check its message
-            sol, info = odeint(rhs, y, [0.0, dt], mxstep=max_steps, full_output=True)
+            sol, info = odeint(rhs, y, [0.0, dt], args=args(k), mxstep=max_steps, full_output=True)
         if info["message"] != "Integration successful.":
             return X, V, k + 1
         y = sol[1]
@@ -185,13 +187,25 @@ def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None =
         return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int), comps, ds.dt)
     sysm = model.rollout_system(ds, jumps)
     limit = options.bound * sysm.scale  # (J, 2d)
+    generated = sysm.generated() if options.backend == "generated" and sysm.generated else None
+    if options.backend == "generated" and generated is None:
+        raise ValueError("this model has no generated code; use backend 'auto' or 'numpy'")
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
         for i, (x, v) in enumerate(zip(sysm.x, sysm.v)):
-            drive = {name: d[i][:, None] for name, d in sysm.drive.items()}  # (n, 1, ...)
-            X, V, d = integrate_lsoda(lambda k, xs, vs, drive=drive: sysm.acceleration(
-                {n: a[k] for n, a in drive.items()}, xs, vs), x, v,
-                reset_mask(x.shape[0], options.reset, ds.dt), limit[i], ds.dt, options.max_steps)
+            drive = {name: d[i] for name, d in sysm.drive.items()}  # (n, ...)
+            if generated is not None:
+                rhs, args = generated[1], (lambda k, dr=drive: (int(dr["phase"][k]), dr["nu"][k]))
+            else:
+                d = x.shape[1]
+
+                def rhs(state, _t, k, dr=drive, d=d):
+                    a = sysm.acceleration({n: v[k][None] for n, v in dr.items()}, state[None, :d], state[None, d:])
+                    return np.concatenate([state[d:], a[0]])
+
+                args = (lambda k: (k,))
+            X, V, d = integrate_lsoda(rhs, args, x, v, reset_mask(x.shape[0], options.reset, ds.dt), limit[i],
+                                      ds.dt, options.max_steps)
             Xs.append(X)
             Vs.append(V)
             div.append(d)
@@ -202,11 +216,12 @@ def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None =
         lens = np.array([x.shape[0] for x in sysm.x])
         drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
         resets = reset_mask(int(lens.max()), options.reset, ds.dt)
-        if options.backend == "compiled" and sysm.compiled is None:
+        if options.backend == "table" and sysm.compiled is None:
             raise ValueError("this model has no compiled integrator; use backend 'numpy'")
-        if sysm.compiled is not None and options.backend != "numpy":
-            X, V, div_at = sysm.compiled(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit,
-                                         ds.dt, options.substeps)
+        fast = generated[0] if generated is not None else sysm.compiled if options.backend != "numpy" else None
+        if fast is not None:
+            X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, ds.dt,
+                                options.substeps)
             Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]
         else:
             Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(

@@ -36,7 +36,9 @@ class RolloutSystem:
     prediction (n, C) of its ``components`` from its path X (n, d) on jump i;
     compiled: optionally, a compiled fixed-step RK4 integrator of this system
     (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
-    ``rk4`` unless the NumPy reference is asked for.
+    ``rk4`` unless another backend is asked for; generated: optionally, a factory of
+    the system's own compiled code, (RK4 integrator, LSODA right-hand side
+    ``rhs(y, t, phase, nu)``), for the ``generated`` backend.
     """
 
     x: list[np.ndarray]
@@ -46,6 +48,7 @@ class RolloutSystem:
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
     compiled: Callable | None = None
+    generated: Callable[[], tuple[Callable, Callable]] | None = None
 
     @property
     def n_jumps(self) -> int:
