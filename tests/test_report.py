@@ -267,6 +267,17 @@ def test_cli_report_force_and_errors(tmp_path):
     assert r.exit_code == 1 and "no such run directory" in r.output
 
 
+def test_report_refuses_a_folder_that_is_not_a_run(tmp_path):
+    from conftest import one_line_error
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "cat.txt").write_text("not a run")
+    one_line_error(CliRunner().invoke(app, ["report", str(folder)]), str(folder), "not a run directory",
+                   "summary.json")
+    assert sorted(p.name for p in folder.iterdir()) == ["cat.txt"]
+
+
 def test_figures_from_arrays(tmp_path):
     t = np.linspace(0, 0.5, 50)
     com = np.c_[t, 0 * t, 0.3 + 0.1 * np.sin(6 * t)]

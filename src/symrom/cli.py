@@ -15,10 +15,29 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+def _flags_without_type(params: list) -> list:
+    """Boolean flags take no value: show no type (typer's help would say ``<bool>``)."""
+    for p in params:
+        if getattr(p, "is_flag", False) and p.metavar is None:
+            p.metavar = ""
+    return params
+
+
+class _Group(TyperGroup):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+class _Command(TyperCommand):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True,
                   help="Symbolic reduced-order models of legged-robot jumping, learned from data.")
 console = Console(stderr=True)
 out_console = Console()
@@ -60,25 +79,23 @@ def progress_bar() -> Progress:
                     TimeElapsedColumn(), console=console, transient=False)
 
 
-def _horizon_ticker(bar: Progress, task) -> Callable[[int, int], None]:
-    """A progress callback for rollouts repeated per horizon: each horizon counts
-    its jumps from 1 again, the bar keeps adding up."""
-    state = {"before": 0, "last": 0}
-
-    def tick(i: int, n: int) -> None:
-        if i < state["last"]:
-            state["before"] += state["last"]
-        state["last"] = i
-        bar.update(task, completed=state["before"] + i)
-
-    return tick
+def _ticker(bar: Progress, task) -> Callable[[int, int], None]:
+    """A progress callback ``(done, total)`` that moves ``task`` of ``bar``."""
+    return lambda done, total: bar.update(task, completed=done, total=total)
 
 
 def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
+    """The horizons: the full jump, then each ``--reset`` period (default 0.1 s); checked
+    here, before any work starts."""
+    import math
+
+    for r in reset or []:
+        if not (math.isfinite(r) and r > 0):
+            raise ValueError(f"--reset {r:g}: a reset period must be a positive number of seconds")
     return (None, *sorted(set(reset or [0.1])))
 
 
-@app.command("import")
+@app.command("import", cls=_Command)
 @guarded
 def import_cmd(
     logs: Annotated[list[Path], typer.Argument(help="CSV log file(s); several are concatenated as consecutive jumps.")],
@@ -95,10 +112,7 @@ def import_cmd(
     from symrom.data.importers import import_logs
     from symrom.data.io import write_dataset
 
-    check_output_file(out, force)
-    resolved = {p.resolve() for p in logs}
-    if out.resolve() in resolved:
-        raise ValueError(f"--out {out} is one of the input logs")
+    check_output_file(out, force, inputs=tuple(logs))
     with console.status(f"importing {len(logs)} log file(s)"):
         ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
                          split=split, diff_method=diff)
@@ -108,7 +122,7 @@ def import_cmd(
                       f"phases {', '.join(ds.phase_names)}; {counts})", highlight=False, soft_wrap=True)
 
 
-@app.command("train")
+@app.command("train", cls=_Command)
 @guarded
 def train_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -150,7 +164,7 @@ def train_cmd(
     from symrom.model.persistence import save_model
     from symrom.model.training import AdamConfig, TrainConfig, train
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
@@ -217,7 +231,7 @@ def _model_warnings(model) -> None:
             console.print(f"[yellow]warning:[/yellow] {st.warning()}", highlight=False, soft_wrap=True)
 
 
-@app.command("evaluate")
+@app.command("evaluate", cls=_Command)
 @guarded
 def evaluate_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
@@ -238,11 +252,11 @@ def evaluate_cmd(
     from symrom.model.persistence import load_model
     from symrom.rollout.integrate import RolloutOptions
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(model_path, data))
+    _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     model = load_model(model_path)
     ds = read_dataset(data)
-    if split not in ("train", "val", "test"):
-        raise ValueError(f"--split must be train, val or test, got {split!r}")
     if ds.jumps_in(split).size == 0:
         raise ValueError(f"{data} has no {split!r} jumps")
     model.check_data(ds)  # robot, layout and phases: refused before any work starts
@@ -251,10 +265,9 @@ def evaluate_cmd(
         bad = [j for j in plot_jump if not 0 <= j < ds.n_jumps]
         if bad:
             raise ValueError(f"--plot-jump {bad[0]}: the dataset has jumps 0..{ds.n_jumps - 1}")
-    resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task("rollouts", total=len(resets) * ds.jumps_in(split).size)
-        tick = _horizon_ticker(bar, task)
+        tick = _ticker(bar, task)
 
         metrics, rollouts = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
                                      model_name=str(model_path), data_name=str(data), progress=tick)
@@ -271,7 +284,7 @@ def evaluate_cmd(
     out_console.print(f"metrics: {out / 'metrics.json'}")
 
 
-@app.command("equations")
+@app.command("equations", cls=_Command)
 @guarded
 def equations_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
@@ -294,7 +307,7 @@ def equations_cmd(
     _model_warnings(model)
 
 
-@app.command("reproduce")
+@app.command("reproduce", cls=_Command)
 @guarded
 def reproduce_cmd(
     out: Annotated[Path, typer.Option("--out", help="Run directory; existing datasets and results are reused.")],
@@ -333,7 +346,7 @@ def reproduce_cmd(
     typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
 
 
-@app.command("demo")
+@app.command("demo", cls=_Command)
 @guarded
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("symrom-demo"),
@@ -362,18 +375,19 @@ def demo_cmd(
                     console.log(msg)
 
             summary = reproduce(tmp, cfg, command=command, say=say)
-            status.update("demo: report")
-            build_report(tmp, tmp / "report.html")
         go1 = summary["experiments"]["go1_sim"]
         text = load_model(tmp / "go1_sim" / "model.json").equations_text()
         (tmp / "go1_sim" / "equations.txt").write_text(text + "\n")
+    # The report is built where the run now is, so that it names that directory.
+    with console.status("demo: report"):
+        build_report(out, out / "report.html")
     typer.echo(text)
     typer.echo(table2(go1["metrics"], title="SIM Go1, test split"))
     typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
     out_console.print(f"report: {out / 'report.html'}")
 
 
-@app.command("aslip")
+@app.command("aslip", cls=_Command)
 @guarded
 def aslip_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -394,8 +408,9 @@ def aslip_cmd(
     from symrom.atomic import check_output_file
     from symrom.baselines.aslip import PAPER_PARAMS, ASlip, ASlipParams, fit_aslip, fit_aslip_rollout, robot_mass
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     if fit not in ("residual", "rollout"):
         raise ValueError(f"--fit must be residual or rollout, got {fit!r}")
     if not fixed and (k_s is not None or l0 is not None):
@@ -418,13 +433,13 @@ def aslip_cmd(
                + ("" if mass is not None else f" (mass from the {ds.robot} URDF)"))
     params_text = json.dumps({**asdict(params), "units": {"k_s": "N/m", "l_0": "m", "m": "kg"},
                               "source": how, **extra}, indent=1) + "\n"
-    _evaluate_baseline(ASlip(params), ds, data, split, reset, integrator, out, force, "aSLIP",
+    _evaluate_baseline(ASlip(params), ds, data, split, resets, integrator, out, force, "aSLIP",
                        {"params.json": params_text})
     out_console.print(f"aSLIP ({how}): k_s {params.k_s:.4g} N/m, l_0 {params.l_0:.4g} m, m {params.m:.4g} kg; "
                       f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
 
 
-@app.command("newton")
+@app.command("newton", cls=_Command)
 @guarded
 def newton_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -439,11 +454,12 @@ def newton_cmd(
     from symrom.atomic import check_output_file
     from symrom.baselines.newton import Newton
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     ds = _read_with_split(data, split)
     model = Newton.of(ds, mass)
-    _evaluate_baseline(model, ds, data, split, reset, integrator, out, force, "Newton", {})
+    _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton", {})
     out_console.print(f"Newton (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}", highlight=False,
                       soft_wrap=True)
 
@@ -464,19 +480,18 @@ def _read_with_split(data: Path, split: str):
     return ds
 
 
-def _evaluate_baseline(model, ds, data: Path, split: str, reset, integrator: str, out: Path, force: bool,
-                       title: str, files: dict[str, str]) -> None:
+def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | None, ...], integrator: str,
+                       out: Path, force: bool, title: str, files: dict[str, str]) -> None:
     """Roll a CoM baseline out on ``split``, print its table and write metrics, table and ``files``."""
     from symrom.atomic import atomic_dir
     from symrom.evaluate.metrics import evaluate
     from symrom.evaluate.tables import table2
     from symrom.rollout.integrate import RolloutOptions
 
-    resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task(f"{title} rollouts", total=len(resets) * ds.jumps_in(split).size)
         metrics, _ = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
-                              model_name=title, data_name=str(data), progress=_horizon_ticker(bar, task))
+                              model_name=title, data_name=str(data), progress=_ticker(bar, task))
     table = table2(metrics, components=tuple(model.components), title=f"{title}, {ds.robot} {ds.motion} ({split})")
     with atomic_dir(out, force) as tmp:
         (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
@@ -486,7 +501,7 @@ def _evaluate_baseline(model, ds, data: Path, split: str, reset, integrator: str
     typer.echo(table)
 
 
-@app.command("report")
+@app.command("report", cls=_Command)
 @guarded
 def report_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory made by `symrom reproduce`.")],
@@ -507,7 +522,7 @@ def report_cmd(
     out_console.print(f"report: {html}\nmarkdown: {md}", highlight=False, soft_wrap=True)
 
 
-@app.command("generate")
+@app.command("generate", cls=_Command)
 @guarded
 def generate_cmd(
     robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
@@ -547,7 +562,7 @@ def generate_cmd(
                       f"{ds.generator['retries']} retries; split {counts})", highlight=False)
 
 
-@app.command("show")
+@app.command("show", cls=_Command)
 @guarded
 def show_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -568,7 +583,7 @@ def show_cmd(
     out_console.print(f"frames: {len(paths)} PNG in {out}", highlight=False)
 
 
-@app.command("sweep")
+@app.command("sweep", cls=_Command)
 @guarded
 def sweep_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -590,7 +605,7 @@ def sweep_cmd(
     dims = parse_latent_dims(latent_dims)
     config = SweepConfig(latent_dims=dims, seeds=seeds, poly_order=poly_order, solver=solver,
                          lam=lam, workers=workers, rmse_test=rmse_test)
-    check_output_file(out / "sweep.json", force)
+    check_output_file(out / "sweep.json", force, inputs=(data,))
     ds = read_dataset(data)
     with progress_bar() as bar:
         task = bar.add_task("sweep", total=len(dims) * len(config.seeds))

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from symrom.motions import MOTIONS
 from symrom.names import DEFAULT_DT, N_JOINTS, N_LEGS, N_Q, SPLITS
 
 SCHEMA_VERSION = 1
@@ -129,6 +130,8 @@ def validate(ds: Dataset) -> None:
     if not isinstance(ds.phase_names, list) or not ds.phase_names or not all(
             isinstance(p, str) and p for p in ds.phase_names):
         raise DatasetError("attr 'phase_names': must be a non-empty list of names")
+    if ds.motion not in MOTIONS:
+        raise DatasetError(f"attr 'motion': unknown motion {ds.motion!r}; known: {sorted(MOTIONS)}")
     if not (np.isfinite(ds.dt) and ds.dt > 0):
         raise DatasetError(f"attr 'dt': must be a positive number, got {ds.dt!r}")
     jump = ds.jump if isinstance(ds.jump, np.ndarray) else None

@@ -73,14 +73,21 @@ def horizon_metrics(ds: Dataset, ro: Rollout) -> dict:
 def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
              options: RolloutOptions = RolloutOptions(), model_name: str = "", data_name: str = "",
              progress: Callable[[int, int], None] | None = None) -> tuple[dict, dict[str, Rollout]]:
-    """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts."""
+    """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts.
+
+    ``progress(done, total)`` counts rolled-out jumps over all horizons (total: jumps x
+    horizons), whichever integrator reports them.
+    """
     jumps = ds.jumps_in(split)
     if jumps.size == 0:
         raise ValueError(f"the dataset has no {split!r} jumps")
     horizons, rollouts = {}, {}
-    for reset in resets:
+    total = len(resets) * int(jumps.size)
+    for h, reset in enumerate(resets):
         key = horizon_key(reset)
-        ro = rollout(model, ds, jumps, replace(options, reset=reset), progress)
+        tick = None if progress is None else (
+            lambda i, n, before=h * int(jumps.size): progress(before + i, total))
+        ro = rollout(model, ds, jumps, replace(options, reset=reset), tick)
         rollouts[key] = ro
         horizons[key] = horizon_metrics(ds, ro)
     metrics = {"model": model_name, "data": data_name, "split": split, "n_jumps": int(jumps.size),
