@@ -275,13 +275,20 @@ def evaluate_cmd(
     with atomic_dir(out, force) as tmp:
         write_evaluation(tmp, metrics, rollouts, ds, plots, title=f"{ds.robot} {ds.motion} ({split})")
     typer.echo(table2(metrics))
+    _divergence_warnings(metrics)
+    out_console.print(f"metrics: {out / 'metrics.json'}")
+
+
+def _divergence_warnings(metrics: dict) -> None:
+    """One warning per horizon with diverged jumps: which, when (s), and what was scored."""
     for key, h in metrics["horizons"].items():
         if h["diverged_jumps"]:
             when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
+            share = f" ({100 * h['scored_samples'] / h['samples']:.1f} % of the split's samples)" \
+                if h.get("samples") else ""
             console.print(f"[yellow]warning:[/yellow] {h['diverged_jumps']} of {metrics['n_jumps']} "
-                          f"jumps diverged at horizon {key} ({when}); they are excluded from the statistics",
-                          highlight=False, soft_wrap=True)
-    out_console.print(f"metrics: {out / 'metrics.json'}")
+                          f"jumps diverged at horizon {key} ({when}); each is scored up to its "
+                          f"divergence{share}", highlight=False, soft_wrap=True)
 
 
 @app.command("equations", cls=_Command)
@@ -499,6 +506,7 @@ def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | 
         for name, text in files.items():
             (tmp / name).write_text(text)
     typer.echo(table)
+    _divergence_warnings(metrics)
 
 
 @app.command("report", cls=_Command)
