@@ -105,21 +105,83 @@ def import_cmd(
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
     split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1); default all train.")] = None,
     diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
+    lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values per file instead of refusing the import.")] = False,
+    dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's median period); other jumps are resampled.")] = None,
+    max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
+    positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     force: Force = False,
 ) -> None:
-    """Import CSV robot logs (Go1 hardware layout or plain layout) into a dataset file."""
+    """Import CSV robot logs (Go1 hardware layout or plain layout) into a checked dataset file."""
     from symrom.atomic import check_output_file
     from symrom.data.importers import import_logs
     from symrom.data.io import write_dataset
+    from symrom.data.timebase import TimeBase
 
     check_output_file(out, force, inputs=tuple(logs))
+    time_base = TimeBase(dt=dt, max_gap=max_gap)
     with console.status(f"importing {len(logs)} log file(s)"):
         ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
-                         split=split, diff_method=diff)
+                         split=split, diff_method=diff, lenient=lenient, time_base=time_base,
+                         positions=positions)
         write_dataset(ds, out)
+    _import_report(ds)
     counts = ", ".join(f"{s} {int((ds.split == s).sum())}" for s in ("train", "val", "test"))
-    out_console.print(f"dataset: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, dt {ds.dt:g} s, "
-                      f"phases {', '.join(ds.phase_names)}; {counts})", highlight=False, soft_wrap=True)
+    out_console.print(f"dataset: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, dt {ds.dt:g} s; "
+                      f"phases: {_phase_rows(ds)}; {counts})", highlight=False, soft_wrap=True)
+
+
+def _phase_rows(ds, rows=None) -> str:
+    """'contact 1200 rows, flight 400 rows, partial none' for the rows of ``ds`` (all by default)."""
+    import numpy as np
+
+    phase = ds.phase if rows is None else ds.phase[rows]
+    counts = np.bincount(phase, minlength=len(ds.phase_names))
+    return ", ".join(f"{n} {c} rows" if c else f"{n} none" for n, c in zip(ds.phase_names, counts))
+
+
+def _import_report(ds) -> None:
+    """What the import found and did: implausible values kept (--lenient), rebased jumps, the
+    time base (jumps resampled, jitter, gaps)."""
+    g = ds.generator
+    warn = "[yellow]warning:[/yellow]"
+    for f in g.get("files", []):
+        probs = f.get("checks") or []
+        if probs:
+            console.print(f"{warn} {f['name']}: {len(probs)} column(s) fail the plausibility checks; kept as "
+                          "logged (--lenient):", highlight=False, soft_wrap=True)
+            for pr in probs:
+                console.print(f"  column {pr['header']!r} (first at jump {pr['jump']}, row {pr['row']}, line "
+                              f"{pr['line']}): {pr['rows']} rows outside [{pr['low']}, {pr['high']}] {pr['unit']} "
+                              f"({pr['limit']}), worst {pr['worst']:.6g}"
+                              + (f"; it looks like {pr['hint']}" if pr["hint"] else ""),
+                              highlight=False, soft_wrap=True)
+    rebased = g.get("rebased") or []
+    if rebased:
+        offsets = [r["z_offset"] for r in rebased]
+        how = sorted({r["from"] for r in rebased})
+        console.print(f"positions: {len(rebased)} jump(s) start at z = 0 (rebased); z raised by "
+                      f"{min(offsets):.4g}..{max(offsets):.4g} m so that " + "; ".join(how),
+                      highlight=False, soft_wrap=True)
+    tb = g.get("time_base")
+    if tb:
+        jumps = tb["jumps"]
+        moved = [j for j in jumps if j["stored"] == "resampled"]
+        jitter = [j for j in jumps if j["jitter_steps"]]
+        gaps = [(j, x) for j in jumps for x in j["gaps"]]
+        line = f"time base: dt {tb['dt']:g} s ({tb['rule']}); "
+        line += (f"{len(moved)} of {len(jumps)} jumps resampled to it (modified Akima; contact flags by the "
+                 f"nearest sample): " + ", ".join(f"{Path(j['file']).name} jump {j['jump']} "
+                                                  f"(logged every {1e3 * j['median_dt']:.4g} ms)" for j in moved[:6])
+                 + (" ..." if len(moved) > 6 else "") if moved else "every jump is on it, stored as logged")
+        console.print(line, highlight=False, soft_wrap=True)
+        if jitter:
+            console.print(f"{warn} jitter: {len(jitter)} jump(s) have steps more than 10 % off their median "
+                          f"(up to {100 * max(j['max_deviation'] for j in jitter):.3g} %)",
+                          highlight=False, soft_wrap=True)
+        if gaps:
+            console.print(f"{warn} gaps bridged by interpolation: " + ", ".join(
+                f"{Path(j['file']).name} jump {j['jump']}: {1e3 * x['length']:.3g} ms after t = {x['t']:.3f} s"
+                for j, x in gaps[:6]) + (" ..." if len(gaps) > 6 else ""), highlight=False, soft_wrap=True)
 
 
 @app.command("train", cls=_Command)
@@ -175,6 +237,7 @@ def train_cmd(
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
                          collinearity=collinearity, encoder_scaling=encoder_scaling, refine=refine)
     ds = read_dataset(data)
+    out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)
         model = train(ds, config, progress=lambda stage, frac: bar.update(
@@ -222,10 +285,17 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: 
 
 
 def _model_warnings(model) -> None:
-    """One warning line per untrained phase and per phase with a fast unstable mode."""
-    for name in model.info.get("untrained_phases", []):
-        console.print(f"[yellow]warning:[/yellow] phase {name!r} has no training rows: it is not trained, "
-                      "and rollouts through it are refused", highlight=False, soft_wrap=True)
+    """Which phases the model could fit, one warning line per phase it could not (and if the
+    encoder did not see the contact phase), and per phase with a fast unstable mode."""
+    untrained = model.info.get("untrained_phases", [])
+    if untrained:
+        console.print(f"[yellow]warning:[/yellow] can fit: {', '.join(model.trained_phases())}; cannot fit: "
+                      f"{', '.join(untrained)} (no training rows: its equations stay zero and rollouts "
+                      "through it are refused)", highlight=False, soft_wrap=True)
+    rows = model.info.get("encoder_rows", "")
+    if rows.startswith("all"):
+        console.print(f"[yellow]warning:[/yellow] the encoder (step a) is fitted on {rows}",
+                      highlight=False, soft_wrap=True)
     for st in model.stability():
         if st.warning():
             console.print(f"[yellow]warning:[/yellow] {st.warning()}", highlight=False, soft_wrap=True)
