@@ -72,7 +72,7 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
 
 
 def test_help_pages_show_no_type_next_to_flags():
-    for args in ([], ["train"], ["evaluate"], ["import"], ["generate"], ["report"]):
+    for args in ([], ["train"], ["evaluate"], ["import"], ["generate"], ["report"], ["finetune"]):
         r = runner.invoke(app, [*args, "--help"])
         assert r.exit_code == 0, r.output
         assert "<bool>" not in r.output, args

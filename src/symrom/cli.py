@@ -361,6 +361,71 @@ def _divergence_warnings(metrics: dict) -> None:
                           f"divergence{share}", highlight=False, soft_wrap=True)
 
 
+@app.command("finetune", cls=_Command)
+@guarded
+def finetune_cmd(
+    model_path: Annotated[Path, typer.Argument(help="Source model file (model.json), e.g. trained on simulation.")],
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5) of the new jumps: train to fit, val to check.")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
+    prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
+    keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
+    tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
+    threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold (default: the source's).")] = None,
+    integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
+    force: Force = False,
+) -> None:
+    """Fine-tune a model on new jumps (the phases they hold), checked on their val split."""
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
+    from symrom.evaluate.tables import table2
+    from symrom.experiments.finetune import FineTuneCheck, check_data, run_finetune
+    from symrom.model.finetune import FineTuneConfig
+    from symrom.model.persistence import load_model, save_model
+
+    check_output_file(out, force, inputs=(model_path, data))
+    _check_split_and_integrator("val", integrator)
+    check = FineTuneCheck(FineTuneConfig(prior_weight=prior_weight, threshold=threshold,
+                                         refit_decoder=not keep_decoder), tolerance=tolerance,
+                          integrator=integrator)
+    model = load_model(model_path)
+    ds = read_dataset(data)
+    check_data(model, ds, check.config)  # refused before any work
+    with console.status("fine-tuning") as status:
+        result = run_finetune(model, ds, check, progress=lambda msg: status.update(f"fine-tuning: {msg}"))
+    tuned = result.model
+    tuned.info["data_path"] = str(data)
+    tuned.info["finetune"]["source_model"] = str(model_path)
+    record = result.to_dict()
+    with atomic_dir(out, force) as tmp:
+        save_model(tuned, tmp / "model.json")
+        (tmp / "equations.txt").write_text(tuned.equations_text() + "\n")
+        (tmp / "finetune.json").write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
+        for name, metrics in (("val_before", result.before), ("val_after", result.after)):
+            (tmp / name).mkdir()
+            (tmp / name / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+            (tmp / name / "table.md").write_text(table2(metrics, title=f"{name.replace('_', ' ')} fine-tuning"))
+    out_console.print(f"fine-tuning rows (train): {_phase_rows(ds, ds.rows_of('train'))}",
+                      highlight=False, soft_wrap=True)
+    for name in record["phases_kept"]:
+        console.print(f"[yellow]warning:[/yellow] phase {name!r}: no rows in the train split of {data}: its "
+                      "source coefficients are kept", highlight=False, soft_wrap=True)
+    dec = record["decoder"]
+    out_console.print(("decoder: refit towards the source" if dec["refit"] else "decoder: the source's (kept)")
+                      + f"; the rows vary by at least {100 * dec['excitation']:.3g} % of the source's latent spread "
+                      f"in every direction; max |W_d| {dec['max_abs_W_d_source']:.3g} -> {dec['max_abs_W_d']:.3g}",
+                      highlight=False, soft_wrap=True)
+    raised = "" if len(result.attempts) == 1 else (
+        f" (prior weight raised to {record['prior_weight']:g}: at " + ", ".join(
+            f"{a['prior_weight']:g} the score was {a['score']:.4g}" for a in result.attempts[:-1]) + ")")
+    out_console.print(f"refit phases: {', '.join(record['phases_refit'])}; val ({ds.jumps_in('val').size} jumps): score "
+                      f"{record['score_before']:.4g} -> {record['score_after']:.4g} (mean RMSE / spread, both "
+                      f"horizons; at most +{100 * tolerance:g} % allowed), diverged {record['diverged_before']} -> "
+                      f"{record['diverged_after']}{raised}", highlight=False, soft_wrap=True)
+    _divergence_warnings(result.after)
+    out_console.print(f"model: {out / 'model.json'}  val before: {out / 'val_before' / 'metrics.json'}  "
+                      f"after: {out / 'val_after' / 'metrics.json'}", highlight=False, soft_wrap=True)
+
+
 @app.command("equations", cls=_Command)
 @guarded
 def equations_cmd(
