@@ -169,20 +169,23 @@ def test_jittered_segments_are_resampled_consistently():
 def test_a_jump_with_a_20ms_gap(tmp_path):
     ds = sim_go1()
     m = jump(ds, 2)
-    keep = np.r_[np.arange(200), np.arange(210, m["t"].size)]  # samples 200-209 lost: a 20 ms step
+    keep = np.r_[np.arange(200), np.arange(209, m["t"].size)]  # samples 200-208 lost: a 20 ms step
     gap = {k: v[keep] for k, v in m.items()}
     log = write_hardware(tmp_path / "gap.csv", [gap])
     one_line_error(_import(log, "--robot", "go1", "--out", tmp_path / "d.h5"),
-                   "gap.csv", "jump 0", "line 202", "a gap of 22 ms after t = 0.3980 s", "--max-gap")
+                   "gap.csv", "jump 0", "line 202", "a gap of 20 ms after t = 0.3980 s",
+                   "logged every 2 ms", "longer than 10 ms", "--max-gap")
     _nothing_written(tmp_path, [log])
     out = tmp_path / "bridged.h5"
     r = _import(log, "--robot", "go1", "--out", out, "--max-gap", "0.025")
     assert r.exit_code == 0, r.output
-    assert "gaps bridged by interpolation: gap.csv jump 0: 22 ms after t = 0.398 s" in " ".join(r.output.split())
+    assert "gaps bridged by interpolation: gap.csv jump 0: 20 ms after t = 0.398 s" in " ".join(r.output.split())
     got = read_dataset(out)
     assert got.n_samples == m["t"].size and got.dt == 0.002  # the lost samples are interpolated
     np.testing.assert_array_equal(got.q[:200], m["q"][:200])
-    np.testing.assert_allclose(got.q[201:209], m["q"][201:209], atol=0.02)
+    np.testing.assert_allclose(got.q[209:], m["q"][209:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.q[200:209], m["q"][200:209], atol=0.02)
+    assert got.generator["time_base"]["jumps"][0]["gaps"][0]["line"] == 202
 
 
 def test_refusing_to_resample(tmp_path):
@@ -191,6 +194,9 @@ def test_refusing_to_resample(tmp_path):
     logs = [write_plain(tmp_path / "a.csv", [jump(ds, 1)]), write_plain(tmp_path / "b.csv", [fast])]
     with pytest.raises(TimeBaseError, match=r"b\.csv, jump 0: logged every 1 ms .* not on the dataset's grid of 2 ms"):
         import_logs(logs, robot="go1", time_base=TimeBase(resample=False))
+    one_line_error(_import(*logs, "--robot", "go1", "--out", tmp_path / "d.h5", "--no-resample"),
+                   "b.csv, jump 0", "logged every 1 ms", "not on the dataset's grid of 2 ms")
+    _nothing_written(tmp_path, logs)
 
 
 def test_a_stored_jump_off_its_time_base_is_refused():

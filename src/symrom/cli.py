@@ -108,6 +108,7 @@ def import_cmd(
     lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values per file instead of refusing the import.")] = False,
     dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's median period); other jumps are resampled.")] = None,
     max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
+    no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
     positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     force: Force = False,
 ) -> None:
@@ -118,7 +119,7 @@ def import_cmd(
     from symrom.data.timebase import TimeBase
 
     check_output_file(out, force, inputs=tuple(logs))
-    time_base = TimeBase(dt=dt, max_gap=max_gap)
+    time_base = TimeBase(dt=dt, max_gap=max_gap, resample=not no_resample)
     with console.status(f"importing {len(logs)} log file(s)"):
         ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
                          split=split, diff_method=diff, lenient=lenient, time_base=time_base,
@@ -263,6 +264,7 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=workers)
     ds = read_dataset(data)
     check_splits(ds)
+    out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
         sel = select(ds, cfg, progress=lambda done, total, what: bar.update(

@@ -542,7 +542,8 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 raise TimeBaseError(f"{timing.file}, jump {timing.jump}: logged every "
                                     f"{1e3 * timing.median_dt:.4g} ms (steps deviate up to "
                                     f"{100 * timing.max_deviation:.3g} %), not on the dataset's grid of "
-                                    f"{1e3 * dt:.4g} ms; allow resampling or import it separately")
+                                    f"{1e3 * dt:.4g} ms; let the import resample it (without --no-resample) "
+                                    "or import it separately")
             else:
                 timing.stored = "resampled"
                 t_new, sig, contact = resample_jump(t, signals, lg.contact[a:b], dt)
