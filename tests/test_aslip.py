@@ -118,18 +118,23 @@ def test_absurd_model_is_flagged(slip, method):
     m, _ = evaluate(ASlip(crazy), ds, "test", resets=(None,),
                     options=RolloutOptions(method=method, max_steps=200))
     full = m["horizons"]["full"]
-    assert full["diverged_jumps"] == m["n_jumps"] and full["components"] == {}
+    assert full["diverged_jumps"] == m["n_jumps"]
+    # Each is scored up to its divergence (sample 0 is the true start), no further.
+    assert full["scored_samples"] == pytest.approx(sum(d["t"] for d in full["diverged"]) / ds.dt)
+    assert full["scored_samples"] < 0.1 * full["samples"]
 
 
 def test_metrics_layout(slip):
     ds, truth = slip
     m, _ = evaluate(ASlip(truth), ds, "test", resets=(None, 0.1), options=RolloutOptions("rk4"),
                     data_name="d.h5")
-    assert set(m) == {"model", "data", "split", "n_jumps", "integrator", "horizons"}
+    assert set(m) == {"format_version", "model", "data", "split", "n_jumps", "integrator", "horizons"}
+    assert m["format_version"] == 2
     assert m["split"] == "test" and m["n_jumps"] == len(ds.jumps_in("test")) and m["data"] == "d.h5"
     assert list(m["horizons"]) == ["full", "0.1"]
     for h in m["horizons"].values():
         assert h["diverged_jumps"] == 0 and h["diverged"] == []
+        assert h["samples"] == h["scored_samples"] == int(ds.rows_of("test").sum())
         assert list(h["components"]) == ["x", "y", "z"]
         for c in h["components"].values():
             assert set(c) == {"mean", "std", "mae", "rmse"}

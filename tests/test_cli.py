@@ -1,6 +1,8 @@
 """End to end through the command line: train -> evaluate -> equations."""
 
 import json
+import os
+import stat
 
 from typer.testing import CliRunner
 
@@ -55,8 +57,45 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     table = json.loads((out / "go1_sim" / "selection" / "selection.json").read_text())
     assert table["chosen"] is not None and table["rows"][table["chosen"]]["score"] is not None
     assert (out / "go1_sim" / "equations.txt").read_text().startswith("[contact]")
-    assert "Table 2" in (out / "report.md").read_text()
+    report = (out / "report.md").read_text()
+    assert "Table 2" in report
+    # The report names the run's directory, not the temporary one the run was made in.
+    assert f"Run directory: {out.resolve()}." in report
+    umask = os.umask(0)
+    os.umask(umask)
+    for d in (out, out / "go1_sim", out / "report_files"):
+        assert stat.S_IMODE(d.stat().st_mode) == 0o777 & ~umask, d
     before = (out / "go1_sim" / "model.json").read_text()
     r = runner.invoke(app, ["demo", "--out", str(out)])
     assert r.exit_code != 0 and "--force" in r.output
     assert (out / "go1_sim" / "model.json").read_text() == before
+
+
+def test_help_pages_show_no_type_next_to_flags():
+    for args in ([], ["train"], ["evaluate"], ["import"], ["generate"], ["report"], ["finetune"]):
+        r = runner.invoke(app, [*args, "--help"])
+        assert r.exit_code == 0, r.output
+        assert "<bool>" not in r.output, args
+    assert "<int>" in runner.invoke(app, ["train", "--help"]).output  # options with a value keep theirs
+
+
+def test_progress_reaches_the_end_with_the_batch_integrator(planted_block, tmp_path):
+    from symrom.evaluate.metrics import evaluate
+    from symrom.model.training import TrainConfig, train
+    from symrom.rollout.integrate import RolloutOptions
+
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    for method in ("rk4", "lsoda"):
+        seen = []
+        evaluate(model, ds, "test", (None, 0.1, 0.2), RolloutOptions(method), progress=lambda d, t: seen.append((d, t)))
+        n = 3 * ds.jumps_in("test").size
+        assert seen[-1] == (n, n) and all(t == n for _, t in seen), method
+        assert [d for d, _ in seen] == sorted(d for d, _ in seen), method
+    data, run = tmp_path / "data.h5", tmp_path / "run"
+    write_dataset(ds, data)
+    assert runner.invoke(app, ["train", str(data), "--out", str(run)]).exit_code == 0
+    r = runner.invoke(app, ["evaluate", str(run / "model.json"), str(data), "--out", str(tmp_path / "ev"),
+                            "--integrator", "rk4"])
+    assert r.exit_code == 0, r.output
+    assert "100%" in r.output and "50%" not in r.output

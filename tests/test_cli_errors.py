@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import stat
 
 import h5py
 import numpy as np
@@ -211,3 +213,53 @@ def test_train_with_an_unknown_encoder_component(good, tmp_path):
     one_line_error(_run("train", good, "--out", out, "--encoder-components", "x,heave"),
                    "encoder_components", "heave")
     assert not out.exists()
+
+
+def test_output_folders_have_the_usual_permissions(good, tmp_path):
+    old = os.umask(0o022)
+    try:
+        out = tmp_path / "run"
+        assert _run("train", good, "--out", out).exit_code == 0
+        assert stat.S_IMODE(out.stat().st_mode) == 0o755
+        assert stat.S_IMODE((out / "model.json").stat().st_mode) == 0o644
+    finally:
+        os.umask(old)
+
+
+def test_an_output_that_is_an_input_is_refused_even_with_force(good, model, tmp_path):
+    data = tmp_path / "data.h5"
+    shutil.copy(good, data)
+    before = data.read_bytes()
+    one_line_error(_run("train", data, "--out", data, "--force"), str(data), "is the input")
+    assert data.read_bytes() == before
+    run = tmp_path / "run"
+    shutil.copytree(model.parent, run)
+    one_line_error(_run("evaluate", run / "model.json", data, "--out", run, "--force"),
+                   str(run), "holds the input", "model.json")
+    assert (run / "model.json").read_text() == model.read_text()
+    one_line_error(_run("newton", data, "--out", data, "--force"), "is the input")
+    assert data.read_bytes() == before
+
+
+@pytest.mark.parametrize("reset", ["0", "-0.1", "nan"])
+def test_a_bad_reset_is_refused_before_any_work(model, good, tmp_path, reset):
+    out = tmp_path / "eval"
+    line = one_line_error(_run("evaluate", model, good, "--out", out, "--reset", reset), "--reset",
+                          "positive number of seconds")
+    assert "rollouts" not in line
+    assert not out.exists()
+    one_line_error(_run("newton", good, "--out", out, "--reset", reset), "--reset")
+
+
+def test_an_unknown_motion_is_refused_on_import_and_in_a_dataset_file(good, tmp_path):
+    bad = tmp_path / "bogus.h5"
+    shutil.copy(good, bad)
+    with h5py.File(bad, "r+") as f:
+        f.attrs["motion"] = "bogus"
+    out = tmp_path / "run"
+    one_line_error(_run("train", bad, "--out", out), "attr 'motion'", "unknown motion 'bogus'")
+    assert not out.exists()
+    log = _plain_log(tmp_path / "log.csv")
+    one_line_error(_run("import", log, "--robot", "go1", "--motion", "bogus", "--out", tmp_path / "x.h5"),
+                   "unknown motion 'bogus'")
+    assert not (tmp_path / "x.h5").exists()

@@ -205,3 +205,16 @@ def test_cli_generate_and_show(tmp_path):
     r = runner.invoke(app, ["show", str(reference_file("froggy")), "--jump", "99", "--out",
                             str(tmp_path / "f2")])
     assert r.exit_code == 1 and "jump 99" in r.output
+
+
+@pytest.mark.slow
+def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
+    motion, robot = ("pronk", "go1") if have("pronk") else ("froggy", "a1")
+    out = tmp_path / "two.h5"
+    code = "import sys; from symrom.cli import main; sys.argv[0] = 'symrom'; main()"
+    r = subprocess.run([sys.executable, "-c", code, "generate", "--robot", robot, "--motion", motion,
+                        "--jumps", "2", "--workers", "2", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "pybullet build time" not in r.stdout + r.stderr
+    assert read_dataset(out).n_jumps == 2

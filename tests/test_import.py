@@ -31,13 +31,24 @@ def _hw_q_columns(quantity: str) -> list[str]:
     return [f"{j} {quantity}" for j in HW_JOINTS] + [b.format(quantity) for b in HW_BODY]
 
 
+# Planted values scaled into a Go1's plausible ranges (joint angles about a standing
+# posture, a base height about 0.3 m), every component still distinct.
+SCALE = np.r_[np.full(12, 0.1), np.full(3, 0.02), np.full(3, 0.1)]
+OFFSET = np.r_[np.tile([0.0, 0.8, -1.5], 4), 0.0, 0.0, 0.3, 0.0, 0.0, 0.0]
+
+
+def plausible(ds):
+    """A planted dataset moved into the Go1's plausible ranges (q, dq, ddq scaled alike)."""
+    from dataclasses import replace
+
+    return replace(ds, robot="go1", q=SCALE * ds.q + OFFSET, dq=SCALE * ds.dq, ddq=SCALE * ds.ddq)
+
+
 def _motion():
     """Two jumps of a planted smooth motion with staggered per-foot contact flags."""
-    ds, _ = make_planted_dataset(n_jumps=2, n_samples=N_PER_JUMP, seed=3, noise=0.0)
+    ds = plausible(make_planted_dataset(n_jumps=2, n_samples=N_PER_JUMP, seed=3, noise=0.0)[0])
     n = ds.n_samples
-    # Scale into plausible ranges (joint angles, base pose) without losing distinctness.
-    q = 0.2 * ds.q + np.r_[np.tile([0.0, 0.8, -1.5], 4), 0.0, 0.0, 0.3, 0.0, 0.0, 0.0]
-    dq, ddq = 0.2 * ds.dq, 0.2 * ds.ddq
+    q, dq, ddq = ds.q, ds.dq, ds.ddq
     tau = np.linspace(-5, 5, n * 12).reshape(n, 12) + np.arange(12)
     i = np.arange(N_PER_JUMP)
     # Foot k leaves at 20 + 2k and lands at 40 + 3k: every foot has its own pattern.
@@ -152,7 +163,7 @@ def test_several_files_are_consecutive_jumps(tmp_path, motion):
 
 
 def test_plain_layout_round_trip(tmp_path):
-    ds0, _ = make_planted_dataset(n_jumps=3, n_samples=50, seed=1)
+    ds0 = plausible(make_planted_dataset(n_jumps=3, n_samples=50, seed=1)[0])
     ds0 = import_logs([_export(ds0, tmp_path / "seed.csv")], robot="go1")  # physical wrench
     path = tmp_path / "plain.csv"
     write_plain_csv(ds0, path)
@@ -172,7 +183,7 @@ def _export(ds, path):
 
 
 def test_plain_without_jump_column_uses_time_restart(tmp_path):
-    ds0, _ = make_planted_dataset(n_jumps=2, n_samples=30, seed=2)
+    ds0 = plausible(make_planted_dataset(n_jumps=2, n_samples=30, seed=2)[0])
     path = _export(ds0, tmp_path / "p.csv")
     lines = path.read_text().splitlines()
     path.write_text("\n".join(",".join(line.split(",")[1:]) for line in lines) + "\n")

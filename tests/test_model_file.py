@@ -89,3 +89,17 @@ def test_not_json(tmp_path):
     p.write_text("{not json")
     with pytest.raises(ModelFileError, match="not valid JSON"):
         load_model(p)
+
+
+def test_a_non_finite_model_is_refused_by_key_not_by_json(planted_block, tmp_path):
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    path = tmp_path / "model.json"
+    model.autoencoder.W_d[4, 1] = np.inf  # what a fit that blew up leaves
+    with pytest.raises(ModelFileError, match=r"^decoder\.W_d\[4, 1\]: inf is not a finite number"):
+        save_model(model, path)
+    model.autoencoder.W_d[4, 1] = 1.0
+    model.info["finetune"] = {"val": [0.1, float("nan")]}
+    with pytest.raises(ModelFileError, match=r"^info\.finetune\.val\[1\]: not a finite number"):
+        save_model(model, path)
+    assert not path.exists() and list(tmp_path.iterdir()) == []

@@ -228,6 +228,19 @@ def test_diverged_jumps_are_shown(run_dir, tmp_path):
     assert f"all {m['n_jumps']} jumps diverged" in html
     assert f"Full: {m['n_jumps']} of {m['n_jumps']}" in html
     assert '<p class="note">Diverged test jumps' in html
+    # One jump diverged late: scored up to it (format 2), and when it diverged is shown.
+    m = json.loads(mpath.read_text())
+    m["horizons"]["full"] = dict(m["horizons"]["0.1"], diverged_jumps=1, diverged=[{"jump": 4, "t": 1.438}])
+    mpath.write_text(json.dumps(m))
+    run = load_run(only)
+    html = render_html("t", [], build_sections(run, Context(run, tmp_path)))
+    assert "ours mean±std (1 diverged, scored up to it)" in html
+    assert f"Full: 1 of {m['n_jumps']} (jump 4 at 1.438 s)" in html and "scored up to the time it diverged" in html
+    m.pop("format_version")  # a file of version 1: diverged jumps were left out
+    mpath.write_text(json.dumps(m))
+    run = load_run(only)
+    html = render_html("t", [], build_sections(run, Context(run, tmp_path)))
+    assert "ours mean±std (1 diverged, left out)" in html and "left out of the statistics" in html
 
 
 def test_metrics_records_read_what_later_versions_add():
@@ -265,6 +278,17 @@ def test_cli_report_force_and_errors(tmp_path):
     assert r.exit_code == 0, r.output
     r = runner.invoke(app, ["report", str(tmp_path / "nope")])
     assert r.exit_code == 1 and "no such run directory" in r.output
+
+
+def test_report_refuses_a_folder_that_is_not_a_run(tmp_path):
+    from conftest import one_line_error
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    (folder / "cat.txt").write_text("not a run")
+    one_line_error(CliRunner().invoke(app, ["report", str(folder)]), str(folder), "not a run directory",
+                   "summary.json")
+    assert sorted(p.name for p in folder.iterdir()) == ["cat.txt"]
 
 
 def test_figures_from_arrays(tmp_path):

@@ -27,9 +27,11 @@ def test_exploding_model_is_flagged_not_hung(model_and_data, method):
     assert time.perf_counter() - t0 < 60
     full = metrics["horizons"]["full"]
     assert full["diverged_jumps"] == len(ds.jumps_in("test"))
-    assert full["components"] == {}
-    assert "diverged" in table2(metrics)
     assert all(d >= 0 for d in ros["full"].diverged_at)
+    # Only the samples before each divergence are scored.
+    assert full["scored_samples"] == int(ros["full"].diverged_at.sum()) < full["samples"]
+    assert (full["components"] == {}) == (full["scored_samples"] == 0)
+    assert "diverged" in table2(metrics)
 
 
 @pytest.mark.parametrize("method", ["lsoda", "rk4"])
@@ -85,3 +87,75 @@ def test_lsoda_with_the_generated_right_hand_side_matches(planted_block):
     b = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="numpy"))
     for x, y in zip(a.xi, b.xi):
         np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-10)
+
+
+def _late_divergence(model_and_data):
+    """A model whose rollouts of some training jumps diverge late (after 80 % of the jump)."""
+    from dataclasses import replace
+
+    model, ds = model_and_data
+    Xi = model.Xi.copy()
+    Xi[0, model.library.feature_names.index("dxi1"), 0] = 10.0  # a slow unstable mode
+    return replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
+
+
+@pytest.mark.parametrize("method", ["lsoda", "rk4"])
+def test_a_diverged_jump_is_scored_up_to_its_divergence(model_and_data, method):
+    from symrom.names import Q_NAMES
+
+    _, ds = model_and_data
+    bad = _late_divergence(model_and_data)
+    metrics, ros = evaluate(bad, ds, "train", resets=(None,), options=RolloutOptions(method))
+    full, ro = metrics["horizons"]["full"], ros["full"]
+    lengths = np.diff(ds.jump_bounds(), axis=1)[ro.jumps, 0]
+    assert 0 < ro.diverged.sum() < ro.jumps.size
+    assert np.all(ro.diverged_at[ro.diverged] > 0.8 * lengths[ro.diverged])  # the late ones of the issue
+    assert metrics["format_version"] == 2 and full["diverged_jumps"] == int(ro.diverged.sum())
+    assert full["diverged"] == [{"jump": int(j), "t": round(int(k) * ds.dt, 6)}
+                                for j, k in zip(ro.jumps[ro.diverged], ro.diverged_at[ro.diverged])]
+    # Expected: every sample of the jumps that stayed bounded, and those of each diverged jump
+    # before it left its bound (finite predictions), none after.
+    bounds, err = ds.jump_bounds(), []
+    for i, j in enumerate(ro.jumps):
+        n = int(ro.diverged_at[i]) if ro.diverged[i] else int(lengths[i])
+        assert np.isfinite(ro.q_pred[i][:n]).all()
+        err.append(ro.q_pred[i][:n] - ds.q[bounds[j, 0]:bounds[j, 0] + n])
+    err = np.concatenate(err)
+    assert full["samples"] == int(lengths.sum()) and full["scored_samples"] == err.shape[0]
+    assert full["scored_samples"] > full["samples"] - (lengths[ro.diverged].sum() * 0.2)
+    np.testing.assert_allclose([full["components"][c]["rmse"] for c in Q_NAMES],
+                               np.sqrt(np.mean(err ** 2, axis=0)), rtol=1e-12)
+    np.testing.assert_allclose([full["components"][c]["mean"] for c in Q_NAMES], err.mean(axis=0),
+                               rtol=1e-9, atol=1e-15)
+    text = table2(metrics)
+    j, k = int(ro.jumps[ro.diverged][0]), int(ro.diverged_at[ro.diverged][0])
+    assert f"jump {j} at {k * ds.dt:.3f} s" in text and "scored up to the divergence" in text
+
+
+def test_divergence_is_reported_in_seconds_by_the_command_line(model_and_data, tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from symrom.cli import app
+    from symrom.data.io import write_dataset
+    from symrom.evaluate.records import Metrics
+    from symrom.model.persistence import save_model
+
+    _, ds = model_and_data
+    bad = _late_divergence(model_and_data)
+    data, path, out = tmp_path / "d.h5", tmp_path / "bad.json", tmp_path / "ev"
+    write_dataset(ds, data)
+    save_model(bad, path)
+    r = CliRunner().invoke(app, ["evaluate", str(path), str(data), "--split", "train", "--integrator", "rk4",
+                                 "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    m = json.loads((out / "metrics.json").read_text())
+    full = m["horizons"]["full"]
+    first = full["diverged"][0]
+    said = " ".join(r.output.split())
+    assert f"jump {first['jump']} at {first['t']:.3f} s" in said and "scored up to its divergence" in said
+    assert f"jump {first['jump']} at {first['t']:.3f} s" in (out / "table.md").read_text()
+    rec = Metrics.read(out / "metrics.json")
+    assert rec.format_version == 2 and rec.horizons["full"].scored_samples == full["scored_samples"]
+    assert rec.to_dict() == m

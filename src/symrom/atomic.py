@@ -29,13 +29,18 @@ def atomic_path(path: str | os.PathLike, suffix: str = "") -> Iterator[Path]:
     try:
         yield tmp_path
         # mkstemp makes the file private (0600); give it the permissions of a normal new file.
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp_path, 0o666 & ~umask)
+        os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it and putting it back)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
@@ -67,6 +72,8 @@ def atomic_dir(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
         raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
+    # mkdtemp makes the folder private (0700); give it the permissions of a normal new folder.
+    os.chmod(tmp, 0o777 & ~_umask())
     try:
         yield tmp
         if path.exists():
@@ -81,9 +88,26 @@ def atomic_dir(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
             shutil.rmtree(tmp, ignore_errors=True)
 
 
-def check_output_file(path: str | os.PathLike, force: bool) -> Path:
-    """Refuse an existing output file unless ``force``."""
+class OutputIsInputError(ValueError):
+    """An output would replace (or, being a folder, delete) one of the command's inputs."""
+
+
+def check_output_file(path: str | os.PathLike, force: bool,
+                      inputs: tuple[str | os.PathLike, ...] = ()) -> Path:
+    """Refuse an existing output unless ``force``, and always an output that is one of
+    ``inputs`` or a folder holding one (replacing it would destroy the input)."""
     path = Path(path)
+    target = path.resolve()
+    for src in inputs:
+        src = Path(src)
+        if not src.exists():
+            continue
+        if src.resolve() == target:
+            raise OutputIsInputError(f"--out {path} is the input {src}; choose another output "
+                                     "(--force would replace the input)")
+        if path.is_dir() and src.resolve().is_relative_to(target):
+            raise OutputIsInputError(f"--out {path} holds the input {src}; choose another output "
+                                     "(--force would delete the input)")
     if path.exists() and not force:
         raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
     return path

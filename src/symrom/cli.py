@@ -15,10 +15,29 @@ from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+def _flags_without_type(params: list) -> list:
+    """Boolean flags take no value: show no type (typer's help would say ``<bool>``)."""
+    for p in params:
+        if getattr(p, "is_flag", False) and p.metavar is None:
+            p.metavar = ""
+    return params
+
+
+class _Group(TyperGroup):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+class _Command(TyperCommand):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True,
                   help="Symbolic reduced-order models of legged-robot jumping, learned from data.")
 console = Console(stderr=True)
 out_console = Console()
@@ -60,25 +79,23 @@ def progress_bar() -> Progress:
                     TimeElapsedColumn(), console=console, transient=False)
 
 
-def _horizon_ticker(bar: Progress, task) -> Callable[[int, int], None]:
-    """A progress callback for rollouts repeated per horizon: each horizon counts
-    its jumps from 1 again, the bar keeps adding up."""
-    state = {"before": 0, "last": 0}
-
-    def tick(i: int, n: int) -> None:
-        if i < state["last"]:
-            state["before"] += state["last"]
-        state["last"] = i
-        bar.update(task, completed=state["before"] + i)
-
-    return tick
+def _ticker(bar: Progress, task) -> Callable[[int, int], None]:
+    """A progress callback ``(done, total)`` that moves ``task`` of ``bar``."""
+    return lambda done, total: bar.update(task, completed=done, total=total)
 
 
 def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
+    """The horizons: the full jump, then each ``--reset`` period (default 0.1 s); checked
+    here, before any work starts."""
+    import math
+
+    for r in reset or []:
+        if not (math.isfinite(r) and r > 0):
+            raise ValueError(f"--reset {r:g}: a reset period must be a positive number of seconds")
     return (None, *sorted(set(reset or [0.1])))
 
 
-@app.command("import")
+@app.command("import", cls=_Command)
 @guarded
 def import_cmd(
     logs: Annotated[list[Path], typer.Argument(help="CSV log file(s); several are concatenated as consecutive jumps.")],
@@ -88,27 +105,87 @@ def import_cmd(
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
     split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1); default all train.")] = None,
     diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
+    lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values per file instead of refusing the import.")] = False,
+    dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's median period); other jumps are resampled.")] = None,
+    max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
+    no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
+    positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     force: Force = False,
 ) -> None:
-    """Import CSV robot logs (Go1 hardware layout or plain layout) into a dataset file."""
+    """Import CSV robot logs (Go1 hardware layout or plain layout) into a checked dataset file."""
     from symrom.atomic import check_output_file
     from symrom.data.importers import import_logs
     from symrom.data.io import write_dataset
+    from symrom.data.timebase import TimeBase
 
-    check_output_file(out, force)
-    resolved = {p.resolve() for p in logs}
-    if out.resolve() in resolved:
-        raise ValueError(f"--out {out} is one of the input logs")
+    check_output_file(out, force, inputs=tuple(logs))
+    time_base = TimeBase(dt=dt, max_gap=max_gap, resample=not no_resample)
     with console.status(f"importing {len(logs)} log file(s)"):
         ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
-                         split=split, diff_method=diff)
+                         split=split, diff_method=diff, lenient=lenient, time_base=time_base,
+                         positions=positions)
         write_dataset(ds, out)
+    _import_report(ds)
     counts = ", ".join(f"{s} {int((ds.split == s).sum())}" for s in ("train", "val", "test"))
-    out_console.print(f"dataset: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, dt {ds.dt:g} s, "
-                      f"phases {', '.join(ds.phase_names)}; {counts})", highlight=False, soft_wrap=True)
+    out_console.print(f"dataset: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, dt {ds.dt:g} s; "
+                      f"phases: {_phase_rows(ds)}; {counts})", highlight=False, soft_wrap=True)
 
 
-@app.command("train")
+def _phase_rows(ds, rows=None) -> str:
+    """'contact 1200 rows, flight 400 rows, partial none' for the rows of ``ds`` (all by default)."""
+    import numpy as np
+
+    phase = ds.phase if rows is None else ds.phase[rows]
+    counts = np.bincount(phase, minlength=len(ds.phase_names))
+    return ", ".join(f"{n} {c} rows" if c else f"{n} none" for n, c in zip(ds.phase_names, counts))
+
+
+def _import_report(ds) -> None:
+    """What the import found and did: implausible values kept (--lenient), rebased jumps, the
+    time base (jumps resampled, jitter, gaps)."""
+    g = ds.generator
+    warn = "[yellow]warning:[/yellow]"
+    for f in g.get("files", []):
+        probs = f.get("checks") or []
+        if probs:
+            console.print(f"{warn} {f['name']}: {len(probs)} column(s) fail the plausibility checks; kept as "
+                          "logged (--lenient):", highlight=False, soft_wrap=True)
+            for pr in probs:
+                console.print(f"  column {pr['header']!r} (first at jump {pr['jump']}, row {pr['row']}, line "
+                              f"{pr['line']}): {pr['rows']} rows outside [{pr['low']}, {pr['high']}] {pr['unit']} "
+                              f"({pr['limit']}), worst {pr['worst']:.6g}"
+                              + (f"; it looks like {pr['hint']}" if pr["hint"] else ""),
+                              highlight=False, soft_wrap=True)
+    rebased = g.get("rebased") or []
+    if rebased:
+        offsets = [r["z_offset"] for r in rebased]
+        how = sorted({r["from"] for r in rebased})
+        console.print(f"positions: {len(rebased)} jump(s) start at z = 0 (rebased); z raised by "
+                      f"{min(offsets):.4g}..{max(offsets):.4g} m so that " + "; ".join(how),
+                      highlight=False, soft_wrap=True)
+    tb = g.get("time_base")
+    if tb:
+        jumps = tb["jumps"]
+        moved = [j for j in jumps if j["stored"] == "resampled"]
+        jitter = [j for j in jumps if j["jitter_steps"]]
+        gaps = [(j, x) for j in jumps for x in j["gaps"]]
+        line = f"time base: dt {tb['dt']:g} s ({tb['rule']}); "
+        line += (f"{len(moved)} of {len(jumps)} jumps resampled to it (modified Akima; contact flags by the "
+                 f"nearest sample): " + ", ".join(f"{Path(j['file']).name} jump {j['jump']} "
+                                                  f"(logged every {1e3 * j['median_dt']:.4g} ms)" for j in moved[:6])
+                 + (" ..." if len(moved) > 6 else "") if moved else "every jump is on it, stored as logged")
+        console.print(line, highlight=False, soft_wrap=True)
+        if jitter:
+            console.print(f"{warn} jitter: {len(jitter)} jump(s) have steps more than 10 % off their median "
+                          f"(up to {100 * max(j['max_deviation'] for j in jitter):.3g} %)",
+                          highlight=False, soft_wrap=True)
+        if gaps:
+            console.print(f"{warn} gaps bridged by interpolation: " + ", ".join(
+                f"{Path(j['file']).name} jump {j['jump']}: {1e3 * x['length']:.3g} ms after t = {x['t']:.3f} s"
+                for j, x in gaps[:6]) + (" ..." if len(gaps) > 6 else ""), highlight=False, soft_wrap=True)
+
+
+@app.command("train", cls=_Command)
 @guarded
 def train_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -150,7 +227,7 @@ def train_cmd(
     from symrom.model.persistence import save_model
     from symrom.model.training import AdamConfig, TrainConfig, train
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
@@ -161,6 +238,7 @@ def train_cmd(
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
                          collinearity=collinearity, encoder_scaling=encoder_scaling, refine=refine)
     ds = read_dataset(data)
+    out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)
         model = train(ds, config, progress=lambda stage, frac: bar.update(
@@ -186,6 +264,7 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=workers)
     ds = read_dataset(data)
     check_splits(ds)
+    out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
         sel = select(ds, cfg, progress=lambda done, total, what: bar.update(
@@ -208,16 +287,23 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: 
 
 
 def _model_warnings(model) -> None:
-    """One warning line per untrained phase and per phase with a fast unstable mode."""
-    for name in model.info.get("untrained_phases", []):
-        console.print(f"[yellow]warning:[/yellow] phase {name!r} has no training rows: it is not trained, "
-                      "and rollouts through it are refused", highlight=False, soft_wrap=True)
+    """Which phases the model could fit, one warning line per phase it could not (and if the
+    encoder did not see the contact phase), and per phase with a fast unstable mode."""
+    untrained = model.info.get("untrained_phases", [])
+    if untrained:
+        console.print(f"[yellow]warning:[/yellow] can fit: {', '.join(model.trained_phases())}; cannot fit: "
+                      f"{', '.join(untrained)} (no training rows: its equations stay zero and rollouts "
+                      "through it are refused)", highlight=False, soft_wrap=True)
+    rows = model.info.get("encoder_rows", "")
+    if rows.startswith("all"):
+        console.print(f"[yellow]warning:[/yellow] the encoder (step a) is fitted on {rows}",
+                      highlight=False, soft_wrap=True)
     for st in model.stability():
         if st.warning():
             console.print(f"[yellow]warning:[/yellow] {st.warning()}", highlight=False, soft_wrap=True)
 
 
-@app.command("evaluate")
+@app.command("evaluate", cls=_Command)
 @guarded
 def evaluate_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
@@ -238,11 +324,11 @@ def evaluate_cmd(
     from symrom.model.persistence import load_model
     from symrom.rollout.integrate import RolloutOptions
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(model_path, data))
+    _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     model = load_model(model_path)
     ds = read_dataset(data)
-    if split not in ("train", "val", "test"):
-        raise ValueError(f"--split must be train, val or test, got {split!r}")
     if ds.jumps_in(split).size == 0:
         raise ValueError(f"{data} has no {split!r} jumps")
     model.check_data(ds)  # robot, layout and phases: refused before any work starts
@@ -251,10 +337,9 @@ def evaluate_cmd(
         bad = [j for j in plot_jump if not 0 <= j < ds.n_jumps]
         if bad:
             raise ValueError(f"--plot-jump {bad[0]}: the dataset has jumps 0..{ds.n_jumps - 1}")
-    resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task("rollouts", total=len(resets) * ds.jumps_in(split).size)
-        tick = _horizon_ticker(bar, task)
+        tick = _ticker(bar, task)
 
         metrics, rollouts = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
                                      model_name=str(model_path), data_name=str(data), progress=tick)
@@ -262,16 +347,88 @@ def evaluate_cmd(
     with atomic_dir(out, force) as tmp:
         write_evaluation(tmp, metrics, rollouts, ds, plots, title=f"{ds.robot} {ds.motion} ({split})")
     typer.echo(table2(metrics))
-    for key, h in metrics["horizons"].items():
-        if h["diverged_jumps"]:
-            when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
-            console.print(f"[yellow]warning:[/yellow] {h['diverged_jumps']} of {metrics['n_jumps']} "
-                          f"jumps diverged at horizon {key} ({when}); they are excluded from the statistics",
-                          highlight=False, soft_wrap=True)
+    _divergence_warnings(metrics)
     out_console.print(f"metrics: {out / 'metrics.json'}")
 
 
-@app.command("equations")
+def _divergence_warnings(metrics: dict) -> None:
+    """One warning per horizon with diverged jumps: which, when (s), and what was scored."""
+    for key, h in metrics["horizons"].items():
+        if h["diverged_jumps"]:
+            when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
+            share = f" ({100 * h['scored_samples'] / h['samples']:.1f} % of the split's samples)" \
+                if h.get("samples") else ""
+            console.print(f"[yellow]warning:[/yellow] {h['diverged_jumps']} of {metrics['n_jumps']} "
+                          f"jumps diverged at horizon {key} ({when}); each is scored up to its "
+                          f"divergence{share}", highlight=False, soft_wrap=True)
+
+
+@app.command("finetune", cls=_Command)
+@guarded
+def finetune_cmd(
+    model_path: Annotated[Path, typer.Argument(help="Source model file (model.json), e.g. trained on simulation.")],
+    data: Annotated[Path, typer.Argument(help="Dataset file (HDF5) of the new jumps: train to fit, val to check.")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
+    prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
+    keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
+    tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
+    threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold (default: the source's).")] = None,
+    integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
+    force: Force = False,
+) -> None:
+    """Fine-tune a model on new jumps (the phases they hold), checked on their val split."""
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
+    from symrom.evaluate.tables import table2
+    from symrom.experiments.finetune import FineTuneCheck, check_data, run_finetune
+    from symrom.model.finetune import FineTuneConfig
+    from symrom.model.persistence import load_model, save_model
+
+    check_output_file(out, force, inputs=(model_path, data))
+    _check_split_and_integrator("val", integrator)
+    check = FineTuneCheck(FineTuneConfig(prior_weight=prior_weight, threshold=threshold,
+                                         refit_decoder=not keep_decoder), tolerance=tolerance,
+                          integrator=integrator)
+    model = load_model(model_path)
+    ds = read_dataset(data)
+    check_data(model, ds, check.config)  # refused before any work
+    with console.status("fine-tuning") as status:
+        result = run_finetune(model, ds, check, progress=lambda msg: status.update(f"fine-tuning: {msg}"))
+    tuned = result.model
+    tuned.info["data_path"] = str(data)
+    tuned.info["finetune"]["source_model"] = str(model_path)
+    record = result.to_dict()
+    with atomic_dir(out, force) as tmp:
+        save_model(tuned, tmp / "model.json")
+        (tmp / "equations.txt").write_text(tuned.equations_text() + "\n")
+        (tmp / "finetune.json").write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
+        for name, metrics in (("val_before", result.before), ("val_after", result.after)):
+            (tmp / name).mkdir()
+            (tmp / name / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
+            (tmp / name / "table.md").write_text(table2(metrics, title=f"{name.replace('_', ' ')} fine-tuning"))
+    out_console.print(f"fine-tuning rows (train): {_phase_rows(ds, ds.rows_of('train'))}",
+                      highlight=False, soft_wrap=True)
+    for name in record["phases_kept"]:
+        console.print(f"[yellow]warning:[/yellow] phase {name!r}: no rows in the train split of {data}: its "
+                      "source coefficients are kept", highlight=False, soft_wrap=True)
+    dec = record["decoder"]
+    out_console.print(("decoder: refit towards the source" if dec["refit"] else "decoder: the source's (kept)")
+                      + f"; the rows vary by at least {100 * dec['excitation']:.3g} % of the source's latent spread "
+                      f"in every direction; max |W_d| {dec['max_abs_W_d_source']:.3g} -> {dec['max_abs_W_d']:.3g}",
+                      highlight=False, soft_wrap=True)
+    raised = "" if len(result.attempts) == 1 else (
+        f" (prior weight raised to {record['prior_weight']:g}: at " + ", ".join(
+            f"{a['prior_weight']:g} the score was {a['score']:.4g}" for a in result.attempts[:-1]) + ")")
+    out_console.print(f"refit phases: {', '.join(record['phases_refit'])}; val ({ds.jumps_in('val').size} jumps): score "
+                      f"{record['score_before']:.4g} -> {record['score_after']:.4g} (mean RMSE / spread, both "
+                      f"horizons; at most +{100 * tolerance:g} % allowed), diverged {record['diverged_before']} -> "
+                      f"{record['diverged_after']}{raised}", highlight=False, soft_wrap=True)
+    _divergence_warnings(result.after)
+    out_console.print(f"model: {out / 'model.json'}  val before: {out / 'val_before' / 'metrics.json'}  "
+                      f"after: {out / 'val_after' / 'metrics.json'}", highlight=False, soft_wrap=True)
+
+
+@app.command("equations", cls=_Command)
 @guarded
 def equations_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
@@ -294,7 +451,7 @@ def equations_cmd(
     _model_warnings(model)
 
 
-@app.command("export")
+@app.command("export", cls=_Command)
 @guarded
 def export_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
@@ -318,7 +475,7 @@ def export_cmd(
                       highlight=False, soft_wrap=True)
 
 
-@app.command("reproduce")
+@app.command("reproduce", cls=_Command)
 @guarded
 def reproduce_cmd(
     out: Annotated[Path, typer.Option("--out", help="Run directory; existing datasets and results are reused.")],
@@ -357,7 +514,7 @@ def reproduce_cmd(
     typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
 
 
-@app.command("demo")
+@app.command("demo", cls=_Command)
 @guarded
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("symrom-demo"),
@@ -386,18 +543,19 @@ def demo_cmd(
                     console.log(msg)
 
             summary = reproduce(tmp, cfg, command=command, say=say)
-            status.update("demo: report")
-            build_report(tmp, tmp / "report.html")
         go1 = summary["experiments"]["go1_sim"]
         text = load_model(tmp / "go1_sim" / "model.json").equations_text()
         (tmp / "go1_sim" / "equations.txt").write_text(text + "\n")
+    # The report is built where the run now is, so that it names that directory.
+    with console.status("demo: report"):
+        build_report(out, out / "report.html")
     typer.echo(text)
     typer.echo(table2(go1["metrics"], title="SIM Go1, test split"))
     typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
     out_console.print(f"report: {out / 'report.html'}")
 
 
-@app.command("aslip")
+@app.command("aslip", cls=_Command)
 @guarded
 def aslip_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -418,8 +576,9 @@ def aslip_cmd(
     from symrom.atomic import check_output_file
     from symrom.baselines.aslip import PAPER_PARAMS, ASlip, ASlipParams, fit_aslip, fit_aslip_rollout, robot_mass
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     if fit not in ("residual", "rollout"):
         raise ValueError(f"--fit must be residual or rollout, got {fit!r}")
     if not fixed and (k_s is not None or l0 is not None):
@@ -442,13 +601,13 @@ def aslip_cmd(
                + ("" if mass is not None else f" (mass from the {ds.robot} URDF)"))
     params_text = json.dumps({**asdict(params), "units": {"k_s": "N/m", "l_0": "m", "m": "kg"},
                               "source": how, **extra}, indent=1) + "\n"
-    _evaluate_baseline(ASlip(params), ds, data, split, reset, integrator, out, force, "aSLIP",
+    _evaluate_baseline(ASlip(params), ds, data, split, resets, integrator, out, force, "aSLIP",
                        {"params.json": params_text})
     out_console.print(f"aSLIP ({how}): k_s {params.k_s:.4g} N/m, l_0 {params.l_0:.4g} m, m {params.m:.4g} kg; "
                       f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
 
 
-@app.command("newton")
+@app.command("newton", cls=_Command)
 @guarded
 def newton_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -463,11 +622,12 @@ def newton_cmd(
     from symrom.atomic import check_output_file
     from symrom.baselines.newton import Newton
 
-    check_output_file(out, force)
+    check_output_file(out, force, inputs=(data,))
     _check_split_and_integrator(split, integrator)
+    resets = _parse_resets(reset)
     ds = _read_with_split(data, split)
     model = Newton.of(ds, mass)
-    _evaluate_baseline(model, ds, data, split, reset, integrator, out, force, "Newton", {})
+    _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton", {})
     out_console.print(f"Newton (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}", highlight=False,
                       soft_wrap=True)
 
@@ -488,19 +648,18 @@ def _read_with_split(data: Path, split: str):
     return ds
 
 
-def _evaluate_baseline(model, ds, data: Path, split: str, reset, integrator: str, out: Path, force: bool,
-                       title: str, files: dict[str, str]) -> None:
+def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | None, ...], integrator: str,
+                       out: Path, force: bool, title: str, files: dict[str, str]) -> None:
     """Roll a CoM baseline out on ``split``, print its table and write metrics, table and ``files``."""
     from symrom.atomic import atomic_dir
     from symrom.evaluate.metrics import evaluate
     from symrom.evaluate.tables import table2
     from symrom.rollout.integrate import RolloutOptions
 
-    resets = _parse_resets(reset)
     with progress_bar() as bar:
         task = bar.add_task(f"{title} rollouts", total=len(resets) * ds.jumps_in(split).size)
         metrics, _ = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
-                              model_name=title, data_name=str(data), progress=_horizon_ticker(bar, task))
+                              model_name=title, data_name=str(data), progress=_ticker(bar, task))
     table = table2(metrics, components=tuple(model.components), title=f"{title}, {ds.robot} {ds.motion} ({split})")
     with atomic_dir(out, force) as tmp:
         (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
@@ -508,9 +667,10 @@ def _evaluate_baseline(model, ds, data: Path, split: str, reset, integrator: str
         for name, text in files.items():
             (tmp / name).write_text(text)
     typer.echo(table)
+    _divergence_warnings(metrics)
 
 
-@app.command("report")
+@app.command("report", cls=_Command)
 @guarded
 def report_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory made by `symrom reproduce`.")],
@@ -531,7 +691,7 @@ def report_cmd(
     out_console.print(f"report: {html}\nmarkdown: {md}", highlight=False, soft_wrap=True)
 
 
-@app.command("generate")
+@app.command("generate", cls=_Command)
 @guarded
 def generate_cmd(
     robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
@@ -571,7 +731,7 @@ def generate_cmd(
                       f"{ds.generator['retries']} retries; split {counts})", highlight=False)
 
 
-@app.command("show")
+@app.command("show", cls=_Command)
 @guarded
 def show_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -592,7 +752,7 @@ def show_cmd(
     out_console.print(f"frames: {len(paths)} PNG in {out}", highlight=False)
 
 
-@app.command("sweep")
+@app.command("sweep", cls=_Command)
 @guarded
 def sweep_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
@@ -614,7 +774,7 @@ def sweep_cmd(
     dims = parse_latent_dims(latent_dims)
     config = SweepConfig(latent_dims=dims, seeds=seeds, poly_order=poly_order, solver=solver,
                          lam=lam, workers=workers, rmse_test=rmse_test)
-    check_output_file(out / "sweep.json", force)
+    check_output_file(out / "sweep.json", force, inputs=(data,))
     ds = read_dataset(data)
     with progress_bar() as bar:
         task = bar.add_task("sweep", total=len(dims) * len(config.seeds))

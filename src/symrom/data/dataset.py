@@ -13,9 +13,11 @@ from typing import Any
 
 import numpy as np
 
+from symrom.motions import MOTIONS
 from symrom.names import DEFAULT_DT, N_JOINTS, N_LEGS, N_Q, SPLITS
 
 SCHEMA_VERSION = 1
+ON_GRID = 1e-3  # t of the k-th sample of a jump is k dt to this fraction of dt
 
 
 def jump_bounds(jump: np.ndarray) -> np.ndarray:
@@ -129,6 +131,8 @@ def validate(ds: Dataset) -> None:
     if not isinstance(ds.phase_names, list) or not ds.phase_names or not all(
             isinstance(p, str) and p for p in ds.phase_names):
         raise DatasetError("attr 'phase_names': must be a non-empty list of names")
+    if ds.motion not in MOTIONS:
+        raise DatasetError(f"attr 'motion': unknown motion {ds.motion!r}; known: {sorted(MOTIONS)}")
     if not (np.isfinite(ds.dt) and ds.dt > 0):
         raise DatasetError(f"attr 'dt': must be a positive number, got {ds.dt!r}")
     jump = ds.jump if isinstance(ds.jump, np.ndarray) else None
@@ -174,6 +178,14 @@ def validate(ds: Dataset) -> None:
     if backwards.any():
         r = int(np.flatnonzero(backwards)[0] + 1)
         raise DatasetError(f"key 't': time does not increase at {_where(jump, r)}")
+    bounds = jump_bounds(jump)
+    k = np.arange(n) - np.repeat(bounds[:, 0], bounds[:, 1] - bounds[:, 0])
+    off = np.abs(ds.t - k * ds.dt) > ON_GRID * ds.dt
+    if off.any():  # one time base: rollouts and metrics step in dt
+        r = int(np.flatnonzero(off)[0])
+        raise DatasetError(f"key 't': {ds.t[r]:.6g} s at {_where(jump, r)} is not sample {int(k[r])} x dt "
+                           f"= {k[r] * ds.dt:.6g} s: every jump must be sampled every dt = {ds.dt:g} s from 0 "
+                           "(import the logs again: the import resamples them)")
     flags = ds.contact
     if np.any((flags != 0) & (flags != 1)):
         r = int(np.flatnonzero(((flags != 0) & (flags != 1)).any(axis=1))[0])

@@ -30,9 +30,21 @@ jump).
 
 In both layouts the acceleration columns are optional as a group: present,
 they are used; absent, ``dq`` is differentiated (``savgol`` or ``central``).
-Several files are concatenated as consecutive jumps; ``t`` is stored relative
-to each jump's first sample and ``dt`` is the median time step. The CoM wrench
-and the phase labels come from ``preprocess.assemble`` for the named robot.
+Several files are concatenated as consecutive jumps.
+
+The import then, in this order:
+
+1. gives rebased jumps their height back (``restore_height``: a logger that
+   starts every segment's position at 0);
+2. checks every value against the robot's description (``checks``): the
+   first implausible one is refused in one line naming the file, jump, row,
+   line, column, value and limit, with the likely unit mistake; ``lenient``
+   records them per file instead;
+3. brings every jump to one time base (``timebase``): the period is checked
+   per jump (median, jitter, gaps), the dataset's ``dt`` is the coarsest
+   jump's median period (or the one given), and jumps off its grid are
+   resampled (or refused);
+4. computes the CoM wrench and the phase labels (``preprocess.assemble``).
 """
 
 from __future__ import annotations
@@ -41,13 +53,16 @@ import csv
 import hashlib
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from symrom.data.dataset import Dataset
+from symrom.data.checks import PlausibilityLimits, check_samples
+from symrom.data.dataset import Dataset, jump_bounds
 from symrom.data.preprocess import DIFF_METHODS, assemble, differentiate
+from symrom.data.timebase import METHOD as TIMEBASE_METHOD
+from symrom.data.timebase import TimeBase, TimeBaseError, check_gaps, choose_dt, jump_timing, on_grid, resample_jump
 from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.motions import get_motion
 from symrom.robots import get_robot
@@ -181,7 +196,9 @@ class RawLog:
 
     ``jump`` (n,) local jump ids 0..k-1; ``t`` (n,) s since the jump's first
     sample; ``q``, ``dq`` (n, 18); ``ddq`` (n, 18) or None if not logged;
-    ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8.
+    ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8; ``lines`` (n,) the file's
+    line of each sample; ``columns``: the header's name of each field's
+    columns (``q``, ``dq``, ``tau``), for messages.
     """
 
     path: Path
@@ -194,10 +211,24 @@ class RawLog:
     ddq: np.ndarray | None
     tau: np.ndarray
     contact: np.ndarray
+    lines: np.ndarray | None = None
+    columns: dict[str, tuple[str, ...]] | None = None
 
     @property
     def n_jumps(self) -> int:
         return int(self.jump[-1]) + 1
+
+    def bounds(self) -> np.ndarray:
+        """(k, 2) ``[start, stop)`` rows of each of the file's jumps."""
+        return jump_bounds(self.jump)
+
+    def where(self, row: int) -> str:
+        """'FILE, jump J, row R (line L)': a row of the file, for messages (R counts from 0
+        within the jump)."""
+        j = int(self.jump[row])
+        start = int(self.bounds()[j, 0])
+        line = f" (line {int(self.lines[row])})" if self.lines is not None else ""
+        return f"{self.path}, jump {j}, row {row - start}{line}"
 
 
 def _sha256(path: Path) -> str:
@@ -323,9 +354,11 @@ def read_log(path: str | os.PathLike) -> RawLog:
     starts = np.flatnonzero(np.r_[True, np.diff(jump) != 0])
     t0 = np.repeat(t[starts], np.diff(np.r_[starts, len(t)]))
     has_acc = all(n in pos for n in layout.ddq)
+    names = {f: tuple(header[pos[n]].strip() for n in getattr(layout, f)) for f in ("q", "dq", "tau")}
     return RawLog(path=path, layout=layout.name, sha256=_sha256(path), jump=jump, t=t - t0,
                   q=cols(layout.q), dq=cols(layout.dq), ddq=cols(layout.ddq) if has_acc else None,
-                  tau=cols(layout.tau), contact=contact.astype(np.uint8))
+                  tau=cols(layout.tau), contact=contact.astype(np.uint8), lines=np.asarray(lines),
+                  columns=names)
 
 
 # ----------------------------------------------------------------- splits, dt
@@ -375,51 +408,180 @@ def sample_period(t: np.ndarray, jump: np.ndarray) -> float:
     return float(f"{np.median(steps):.6g}")
 
 
+# ----------------------------------------------------------------- rebased positions
+
+POSITIONS = ("auto", "absolute", "rebased")
+_Z = BASE_NAMES.index("z") + len(JOINT_NAMES)
+REBASED_Z = 1e-9  # m: a jump whose first base height is 0 (to this) was rebased by its logger
+
+
+def restore_height(lg: RawLog, robot: str, positions: str) -> list[dict]:
+    """Give rebased jumps of ``lg`` their height above the ground back (in place); one record
+    per jump restored.
+
+    A logger that rebases positions per segment starts x, y and z at 0; a base
+    cannot sit at ground level, so with ``positions="auto"`` a jump whose first
+    base height is 0 is taken as rebased (``"rebased"``: every jump; ``"absolute"``:
+    none). Its z is shifted so that the feet in contact touch the ground (their
+    centres one foot radius above it; the median over the jump's rows with a foot
+    down) or, in a jump without a contact row, so that the lowest foot of its first
+    sample does (the segment is taken to start at take-off). x and y are left as
+    logged: a horizontal shift does not change the dynamics.
+    """
+    if positions not in POSITIONS:
+        raise ValueError(f"--positions {positions!r}: choose from {', '.join(POSITIONS)}")
+    if positions == "absolute":
+        return []
+    from symrom.data.preprocess import foot_positions_world
+    from symrom.robots import get_robot
+
+    radius = get_robot(robot).foot_radius
+    out = []
+    for j, (a, b) in enumerate(lg.bounds()):
+        if positions == "auto" and abs(lg.q[a, _Z]) > REBASED_Z:
+            continue
+        feet = foot_positions_world(robot, lg.q[a:b])[:, :, 2]  # (n, 4) m, with the logged z
+        down = lg.contact[a:b].astype(bool)
+        rows = np.flatnonzero(down.any(axis=1))
+        if rows.size:
+            offset = float(np.median([radius - feet[r][down[r]].mean() for r in rows]))
+            how = f"feet in contact on the ground ({rows.size} rows)"
+        else:
+            offset = float(radius - feet[0].min())
+            how = "lowest foot on the ground at the first sample (no contact row: taken to start at take-off)"
+        lg.q[a:b, _Z] += offset
+        out.append({"file": lg.path.name, "jump": j, "z_offset": round(offset, 6), "from": how})
+    return out
+
+
+# ----------------------------------------------------------------- checks
+
+def plausibility(lg: RawLog, robot: str, limits: PlausibilityLimits) -> list[dict]:
+    """The plausibility problems of one log (``checks.check_samples``), each with the
+    file's column name, line, jump and row of its first bad value: JSON-ready."""
+    out = []
+    for prob in check_samples(robot, lg.q, lg.dq, lg.tau, limits):
+        r = prob.first
+        j = int(lg.jump[r])
+        header = lg.columns[prob.field][prob.index] if lg.columns else prob.name
+        out.append({**prob.to_dict(), "header": header, "line": int(lg.lines[r]) if lg.lines is not None else None,
+                    "jump": j, "row": r - int(lg.bounds()[j, 0]),
+                    "message": (f"{lg.where(r)}, column {header!r}: {prob.what} {prob.value:.6g} {prob.unit} is "
+                                f"outside {prob.range_text()} ({prob.limit}); {prob.rows} of {len(lg.t)} rows "
+                                f"are outside, worst {prob.worst:.6g}{prob.hint_text()}")})
+    return out
+
+
+def _refuse(problems: list[dict]) -> None:
+    first = problems[0]
+    more = len(problems) - 1
+    tail = f" ({more} more column{'s' if more > 1 else ''} fail; --lenient lists them all)" if more else ""
+    raise LogError(first["message"] + tail)
+
+
 # ----------------------------------------------------------------- import
 
 def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk",
                 source: str = "hardware", split: str | None = None,
-                diff_method: str = "savgol") -> Dataset:
-    """Read CSV logs (concatenated as consecutive jumps) into a validated dataset.
+                diff_method: str = "savgol", lenient: bool = False,
+                limits: PlausibilityLimits = PlausibilityLimits(),
+                time_base: TimeBase = TimeBase(), positions: str = "auto") -> Dataset:
+    """Read CSV logs (concatenated as consecutive jumps) into a checked, validated dataset.
 
-    robot: a built-in name or a robot description file (the wrench uses its URDF);
-    motion: a registered motion, whose phase rule labels the samples (``pronk``,
-    ``froggy``); split: see ``parse_split``; diff_method: ``savgol`` or
-    ``central``, used where a log has no acceleration columns.
+    robot: a built-in name or a robot description file (the wrench uses its URDF,
+    the checks its limits); motion: a registered motion, whose phase rule labels
+    the samples (``pronk``, ``froggy``); split: see ``parse_split``; diff_method:
+    ``savgol`` or ``central``, used where a log has no acceleration columns.
+
+    Every log is checked against the robot (``checks.check_samples``): the first
+    implausible value raises ``LogError`` naming the file, jump, row, line, column,
+    value and limit (and a likely unit mistake); ``lenient`` keeps the values as
+    logged and records every problem in ``generator["files"][i]["checks"]``.
+    positions: ``auto``, ``absolute`` or ``rebased`` (``restore_height``).
+    time_base: the dataset's sample period and how jumps at other rates are brought
+    to it (``timebase``); what was done per jump is in ``generator["time_base"]``.
     """
     robot = get_robot(robot).key
     get_motion(motion)
     if diff_method not in DIFF_METHODS:
         raise ValueError(f"unknown differentiation method {diff_method!r}; choose from {DIFF_METHODS}")
+    if positions not in POSITIONS:
+        raise ValueError(f"--positions {positions!r}: choose from {', '.join(POSITIONS)}")
     if not paths:
         raise ValueError("no log files given")
     logs = [read_log(p) for p in paths]
-    offsets = np.cumsum([0] + [lg.n_jumps for lg in logs])
-    jump = np.concatenate([lg.jump + off for lg, off in zip(logs, offsets)]).astype(np.int32)
-    t = np.concatenate([lg.t for lg in logs])
-    q, dq, tau = (np.concatenate([getattr(lg, k) for lg in logs]) for k in ("q", "dq", "tau"))
-    contact = np.concatenate([lg.contact for lg in logs])
-    dt = sample_period(t, jump)
-    n_jumps = int(offsets[-1])
+    n_jumps = sum(lg.n_jumps for lg in logs)
     splits = parse_split(split, n_jumps)
+
+    restored, checks = [], []
+    for lg in logs:
+        restored += restore_height(lg, robot, positions)
+        problems = plausibility(lg, robot, limits)
+        if problems and not lenient:
+            _refuse(problems)
+        checks.append(problems)
+
+    timings = [[jump_timing(str(lg.path), j, lg.t[a:b], list(lg.lines[a:b]), time_base)
+                for j, (a, b) in enumerate(lg.bounds())] for lg in logs]
+    flat = [x for per_file in timings for x in per_file]
+    for x in flat:
+        check_gaps(x, time_base)
+    dt = choose_dt(flat, time_base)
+
+    parts: dict[str, list] = {k: [] for k in ("t", "q", "dq", "ddq", "tau", "contact", "jump")}
+    jump_no = 0
+    for lg, per_file in zip(logs, timings):
+        for (a, b), timing in zip(lg.bounds(), per_file):
+            t = lg.t[a:b]
+            signals = {"q": lg.q[a:b], "dq": lg.dq[a:b], "tau": lg.tau[a:b],
+                       "ddq": None if lg.ddq is None else lg.ddq[a:b]}
+            if on_grid(t, dt):
+                timing.stored = "as logged"
+                t_new, sig, contact = np.arange(t.size) * dt, signals, lg.contact[a:b]
+            elif not time_base.resample:
+                raise TimeBaseError(f"{timing.file}, jump {timing.jump}: logged every "
+                                    f"{1e3 * timing.median_dt:.4g} ms (steps deviate up to "
+                                    f"{100 * timing.max_deviation:.3g} %), not on the dataset's grid of "
+                                    f"{1e3 * dt:.4g} ms; let the import resample it (without --no-resample) "
+                                    "or import it separately")
+            else:
+                timing.stored = "resampled"
+                t_new, sig, contact = resample_jump(t, signals, lg.contact[a:b], dt)
+            timing.rows_out = int(t_new.size)
+            parts["t"].append(t_new)
+            parts["contact"].append(contact)
+            parts["jump"].append(np.full(t_new.size, jump_no, np.int32))
+            for k in ("q", "dq", "tau"):
+                parts[k].append(sig[k])
+            parts["ddq"].append(sig["ddq"])
+            jump_no += 1
+    jump = np.concatenate(parts["jump"])
+    t = np.concatenate(parts["t"])
+    q, dq, tau = (np.concatenate(parts[k]) for k in ("q", "dq", "tau"))
+    contact = np.concatenate(parts["contact"]).astype(np.uint8)
     ddq = None
-    if any(lg.ddq is not None for lg in logs):
-        ddq = differentiate(dq, dt, jump, diff_method) if any(lg.ddq is None for lg in logs) \
-            else np.empty_like(dq)
+    if any(x is not None for x in parts["ddq"]):
+        ddq = differentiate(dq, dt, jump, diff_method)  # where a log has none
         row = 0
-        for lg in logs:
-            if lg.ddq is not None:
-                ddq[row:row + len(lg.t)] = lg.ddq
-            row += len(lg.t)
+        for x, n in zip(parts["ddq"], (p.size for p in parts["t"])):
+            if x is not None:
+                ddq[row:row + n] = x
+            row += n
     generator = {
         "kind": "import",
         "files": [{"name": lg.path.name, "path": str(lg.path), "sha256": lg.sha256,
                    "layout": lg.layout, "rows": int(len(lg.t)), "jumps": lg.n_jumps,
-                   "ddq": "logged" if lg.ddq is not None else f"differentiated dq ({diff_method})"}
-                  for lg in logs],
+                   "ddq": "logged" if lg.ddq is not None else f"differentiated dq ({diff_method})",
+                   "checks": probs}
+                  for lg, probs in zip(logs, checks)],
         "options": {"robot": robot, "motion": motion, "source": source, "split": split,
-                    "diff": diff_method},
+                    "diff": diff_method, "lenient": lenient, "positions": positions,
+                    "limits": limits.to_dict(), "time_base": asdict(time_base)},
         "dt": dt,
+        "time_base": {"dt": dt, "rule": "given (--dt)" if time_base.dt is not None
+                      else "the coarsest jump's median period", "method": TIMEBASE_METHOD,
+                      "jumps": [x.to_dict() for x in flat]},
+        "rebased": restored,
     }
     return assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
                     tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,

@@ -2,10 +2,12 @@
 
 ``Metrics.from_dict`` reads the metrics layout of docs/design.md and fails
 with one ``RecordError`` naming the key; fields it does not know are kept and
-written back by ``to_dict``. It accepts what later versions add: per horizon
-an optional ``diverged`` list (``{"jump": int, "t": float}``, the time in s at
-which a diverged rollout left its bound) and components that are a subset of
-the 18 (a baseline reports only ``x, y, z``).
+written back by ``to_dict``. It reads every version: per horizon an optional
+``diverged`` list (``{"jump": int, "t": float}``, the time in s at which a
+diverged rollout left its bound), components that are a subset of the 18 (a
+baseline reports only ``x, y, z``) and, from ``format_version`` 2 on (files
+without it are version 1), ``samples`` and ``scored_samples``: a diverged
+jump's samples up to its divergence are scored (version 1 left it out).
 
 ``ManifestEntry`` is one experiment of a run: its name, its role (what kind of
 result it is, which decides how the report shows it) and its files.
@@ -18,6 +20,9 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+
+METRICS_VERSIONS = (1, 2)  # metrics.json: 1 without the key (diverged jumps left out), 2 scores them
 
 
 class RecordError(ValueError):
@@ -77,15 +82,18 @@ class Divergence:
 
 @dataclass(frozen=True)
 class Horizon:
-    """One horizon's results: jumps lost to divergence (excluded from the stats) and the
-    per-component stats (empty when every jump diverged)."""
+    """One horizon's results: the jumps that diverged (each scored up to its divergence from
+    version 2 on, left out before), the split's samples and how many were scored (None in
+    version 1 files), and the per-component stats (empty when nothing could be scored)."""
 
     diverged_jumps: int
     components: dict[str, ComponentStats]
     diverged: tuple[Divergence, ...] = ()
+    samples: int | None = None
+    scored_samples: int | None = None
     extra: dict = field(default_factory=dict)
 
-    _KEYS = ("diverged_jumps", "components", "diverged")
+    _KEYS = ("diverged_jumps", "components", "diverged", "samples", "scored_samples")
 
     @classmethod
     def from_dict(cls, d: Any, where: str) -> Horizon:
@@ -97,12 +105,30 @@ class Horizon:
                    diverged=tuple(Divergence(_get(x, "jump", _key(where, f"diverged[{i}]"), int),
                                              _get(x, "t", _key(where, f"diverged[{i}]"), float))
                                   for i, x in enumerate(div)),
+                   samples=_get(d, "samples", where, (int, type(None)), None),
+                   scored_samples=_get(d, "scored_samples", where, (int, type(None)), None),
                    extra=_rest(d, cls._KEYS))
 
     def to_dict(self) -> dict:
-        return {"diverged_jumps": self.diverged_jumps,
-                "diverged": [{"jump": x.jump, "t": x.t} for x in self.diverged],
-                "components": {c: s.to_dict() for c, s in self.components.items()}} | self.extra
+        d: dict[str, Any] = {"diverged_jumps": self.diverged_jumps,
+                             "diverged": [{"jump": x.jump, "t": x.t} for x in self.diverged]}
+        if self.samples is not None:
+            d["samples"] = self.samples
+        if self.scored_samples is not None:
+            d["scored_samples"] = self.scored_samples
+        d["components"] = {c: s.to_dict() for c, s in self.components.items()}
+        return d | self.extra
+
+    def divergence_text(self) -> str:
+        """When each diverged jump left its bound, e.g. 'jump 4 at 1.438 s' ('' if none)."""
+        return ", ".join(f"jump {x.jump} at {x.t:.3f} s" for x in self.diverged)
+
+    @property
+    def scored_fraction(self) -> float | None:
+        """The share of the split's samples the statistics cover (None if not recorded)."""
+        if not self.samples or self.scored_samples is None:
+            return None
+        return self.scored_samples / self.samples
 
     def stat(self, component: str, name: str) -> float | None:
         """One statistic (``mean``, ``std``, ``mae``, ``rmse``) of a component, None if absent."""
@@ -123,14 +149,19 @@ class Metrics:
     model: str = ""
     data: str = ""
     integrator: str | None = None
+    format_version: int = 1
     extra: dict = field(default_factory=dict)
 
-    _KEYS = ("n_jumps", "horizons", "split", "model", "data", "integrator")
+    _KEYS = ("n_jumps", "horizons", "split", "model", "data", "integrator", "format_version")
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "metrics") -> Metrics:
         hs = _get(d, "horizons", where, dict)
-        return cls(n_jumps=_get(d, "n_jumps", where, int),
+        version = _get(d, "format_version", where, int, 1)
+        if version not in METRICS_VERSIONS:
+            raise RecordError(f"{_key(where, 'format_version')}: {version} is not supported "
+                              f"(this symrom reads {', '.join(map(str, METRICS_VERSIONS))})")
+        return cls(format_version=version, n_jumps=_get(d, "n_jumps", where, int),
                    horizons={k: Horizon.from_dict(h, _key(where, f"horizons.{k}")) for k, h in hs.items()},
                    split=_get(d, "split", where, str, "test"), model=_get(d, "model", where, str, ""),
                    data=_get(d, "data", where, str, ""),
@@ -149,7 +180,8 @@ class Metrics:
             raise RecordError(f"{path}: key {e}") from None
 
     def to_dict(self) -> dict:
-        d = {"model": self.model, "data": self.data, "split": self.split, "n_jumps": self.n_jumps}
+        d: dict[str, Any] = {"format_version": self.format_version} if self.format_version > 1 else {}
+        d |= {"model": self.model, "data": self.data, "split": self.split, "n_jumps": self.n_jumps}
         if self.integrator is not None:
             d["integrator"] = self.integrator
         d["horizons"] = {k: h.to_dict() for k, h in self.horizons.items()}
@@ -159,9 +191,16 @@ class Metrics:
     def any_diverged(self) -> bool:
         return any(h.diverged_jumps for h in self.horizons.values())
 
+    @property
+    def scores_diverged(self) -> bool:
+        """Whether a diverged jump's samples up to its divergence are in the stats (version 2 on)."""
+        return self.format_version >= 2
+
     def diverged_text(self, label=lambda key: key) -> str:
-        """One line naming the diverged jumps per horizon, e.g. 'full: 0 of 6, 0.1: 1 of 6'."""
-        return ", ".join(f"{label(k)}: {h.diverged_jumps} of {self.n_jumps}" for k, h in self.horizons.items())
+        """One line naming the diverged jumps per horizon and when each diverged, e.g.
+        'full: 1 of 6 (jump 4 at 1.438 s), 0.1: 0 of 6'."""
+        return ", ".join(f"{label(k)}: {h.diverged_jumps} of {self.n_jumps}"
+                         + (f" ({h.divergence_text()})" if h.diverged else "") for k, h in self.horizons.items())
 
 
 # ------------------------------------------------------------------ manifest

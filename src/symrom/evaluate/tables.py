@@ -13,8 +13,28 @@ def fmt_value(x: float) -> str:
     return f"{x:.2f}" if 0.1 <= a < 100 else f"{x:.1e}".replace("e-0", "e-").replace("e+0", "e")
 
 
+def divergence_note(metrics: dict) -> str:
+    """One sentence on the diverged jumps of a metrics dict, with when each diverged ('' if
+    none), e.g. 'Diverged: Full: jump 4 at 1.438 s; scored up to the divergence (97.1 % of
+    the samples).'"""
+    parts = []
+    scored = metrics.get("format_version", 1) >= 2
+    for key, h in metrics["horizons"].items():
+        if not h["diverged_jumps"]:
+            continue
+        label = "Full" if key == "full" else f"{key} s"
+        when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h.get("diverged", [])) \
+            or f"{h['diverged_jumps']} jumps"
+        share = (f" ({100 * h['scored_samples'] / h['samples']:.1f} % of the samples)"
+                 if scored and h.get("samples") else "")
+        parts.append(f"{label}: {when}; " + (f"scored up to the divergence{share}" if scored
+                                             else "left out of the statistics"))
+    return ("Diverged: " + "; ".join(parts) + ".") if parts else ""
+
+
 def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title: str = "") -> str:
-    """Signed mean ± std per component and horizon, then MAE and RMSE rows."""
+    """Signed mean ± std per component and horizon, then MAE and RMSE rows; a line under the
+    table says when each diverged jump left its bound and how it was scored."""
     head = "| horizon | stat | " + " | ".join(f"{c} [{Q_UNITS.get(c, '')}]" for c in components) + " |"
     lines = ([f"**{title}**", ""] if title else []) + [head, "|" + "---|" * (len(components) + 2)]
     for key, h in metrics["horizons"].items():
@@ -30,4 +50,5 @@ def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title
         for stat in ("mae", "rmse"):
             lines.append(f"| {label} | {stat.upper()} | "
                          + " | ".join(fmt_value(comps[c][stat]) for c in components) + " |")
-    return "\n".join(lines) + "\n"
+    note = divergence_note(metrics)
+    return "\n".join(lines + (["", note] if note else [])) + "\n"

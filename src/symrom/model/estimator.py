@@ -160,7 +160,9 @@ class SymbolicROM:
         l = int(self.latent_dim)
         lib = self.library.bind(l)
         say("encoder (contact phase)", 0.0)
-        ae = self.encoder.fit(ds.q[contact_rows(ds, rows, self.contact_phase)], ds.q[rows], l)
+        cp = self.contact_phase
+        has_contact = cp in ds.phase_names and bool((rows & (ds.phase == ds.phase_names.index(cp))).any())
+        ae = self.encoder.fit(ds.q[contact_rows(ds, rows, cp)], ds.q[rows], l)
         say("dynamics", 0.5)
         ddxi_all = ae.encode_derivative(ds.ddq[rows])
         val_rows = ds.rows_of("val") & ~rows
@@ -178,7 +180,10 @@ class SymbolicROM:
         record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
                   "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
                   "n_train_jumps": int(np.unique(ds.jump[rows]).size), "encoder": self.encoder.to_dict(),
-                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight}
+                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight,
+                  "encoder_rows": (f"the {self.contact_phase!r} phase" if has_contact
+                                   else f"all training rows (they hold no {self.contact_phase!r} row)"),
+                  "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist()}
         return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record,
                 "phase_names": list(ds.phase_names),
                 "scale": np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)}

@@ -1,18 +1,30 @@
 """Fine-tuning a trained model on a few jumps of another source (sim-to-real).
 
 The encoder is kept: the latent coordinates, and so the meaning of every
-learned term, stay those of the source model. On the new jumps:
-- the decoder is refit by least squares pulled towards the source decoder,
-  min ||q - W_d xi - B_d||^2 + r ||[W_d, B_d] - [W_d0, B_d0]||^2;
+learned term, stay those of the source model. On the new jumps' rows:
+
+- the decoder is refit, guarded. It is least squares pulled towards the
+  source decoder as if ``prior_weight`` x N more rows, spread like the
+  source's training latents, had been decoded by the source decoder:
+  min ||q - W_d (xi - m) - c||^2 + r N (sum_i s_i^2 ||W_d[:, i] - W_d0[:, i]||^2
+  + ||c - c0||^2), with m the new rows' latent mean, s the source's latent
+  spread (its ``info.latent_spread``; older model files: the largest |xi|),
+  c0 = W_d0 m + B_d0 and B_d = c - W_d m. Along a latent direction the new
+  rows barely move in, the source decoder is kept. If the new rows vary, along
+  some latent direction, by less than ``decoder_min_spread`` of the source's
+  spread (a flight-only set in which one latent stays still, jumps in place),
+  they cannot determine the decoder: ``DecoderRefitError`` is raised, and
+  ``refit_decoder=False`` keeps the source decoder;
 - each phase's Xi is refit by the ``FineTune`` regressor: sequential
   thresholding on the SINDy loss the source model was trained with (its
   ``decoded_weight``), pulled towards the source coefficients,
   + r ||Xi - Xi_0||^2, starting from the source support (terms may drop
-  out, none are added). A phase the new jumps do not hold keeps the source
-  coefficients.
-Both are closed form. ``prior_weight`` sets r relative to the data's scale: 0
-refits from the new jumps alone, large values keep the source model. Phases
-are matched by name.
+  out, none are added). A phase the new rows do not hold keeps the source
+  coefficients (``info.finetune.phases_kept``).
+
+Both are closed form. ``prior_weight`` sets r relative to the data: 0 refits
+from the new rows alone, large values keep the source model. Phases are
+matched by name. ``experiments.finetune`` adds the check on validation jumps.
 """
 
 from __future__ import annotations
@@ -29,31 +41,85 @@ from symrom.model.regressors.base import Coefficients, RegressionProblem
 from symrom.model.regressors.prior import FineTune
 
 
+class DecoderRefitError(ModelDataError):
+    """The fine-tuning rows cannot determine the decoder; one clear line."""
+
+
 @dataclass(frozen=True)
 class FineTuneConfig:
     """prior_weight: pull towards the source model, relative to mean(diag ThetaᵀTheta)
-    per phase (and to mean(xi²) for the decoder); threshold: as in training, in the
-    source's sparsity measure (None: the source's own threshold)."""
+    per phase, and for the decoder the weight of the source's pseudo-rows relative to
+    the new rows; threshold: as in training, in the source's sparsity measure (None:
+    the source's own threshold); refit_decoder: False keeps the source decoder;
+    decoder_min_spread: the least spread, as a fraction of the source's, the new rows
+    must have along every latent direction for the decoder to be refit."""
 
     prior_weight: float = 0.01
     threshold: float | None = None
     refit_decoder: bool = True
+    decoder_min_spread: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not self.prior_weight >= 0:
+            raise ValueError(f"prior_weight must be >= 0, got {self.prior_weight}")
+        if not 0 <= self.decoder_min_spread < 1:
+            raise ValueError(f"decoder_min_spread must lie in [0, 1), got {self.decoder_min_spread}")
 
 
-def _decoder_towards(xi: np.ndarray, q: np.ndarray, W0: np.ndarray, b0: np.ndarray,
-                     weight: float) -> tuple[np.ndarray, np.ndarray]:
-    """Ridge-to-prior least squares for (W_d (18, l), B_d (18,)) from xi (N, l), q (N, 18)."""
-    X = np.hstack([xi, np.ones((xi.shape[0], 1))])
-    A = X.T @ X
-    r = weight * np.mean(np.diag(A))
-    prior = np.vstack([W0.T, b0[None]])  # (l+1, 18)
-    coef = np.linalg.solve(A + r * np.eye(A.shape[0]), X.T @ q + r * prior)
-    return coef[:-1].T.copy(), coef[-1].copy()
+def source_spread(model: HybridModel) -> np.ndarray:
+    """(l,) the spread of the source's training latents: its recorded standard deviation,
+    or for model files without it the largest |xi| seen in training."""
+    l = model.latent_dim
+    s = model.info.get("latent_spread")
+    s = np.asarray(s, dtype=float) if s is not None and len(s) == l else np.asarray(model.latent_scale[:l])
+    return np.maximum(s, 1e-12)
+
+
+def decoder_excitation(xi: np.ndarray, spread: np.ndarray) -> tuple[float, np.ndarray]:
+    """How well rows xi (N, l) determine a decoder: the smallest standard deviation of
+    xi / spread over all latent directions, and that direction (l,) (unit, in xi)."""
+    z = (xi - xi.mean(axis=0)) / spread
+    w, v = np.linalg.eigh(z.T @ z / max(len(z), 1))
+    d = v[:, 0] / spread
+    return float(np.sqrt(max(w[0], 0.0))), d / np.linalg.norm(d)
+
+
+def refit_decoder(xi: np.ndarray, q: np.ndarray, W0: np.ndarray, b0: np.ndarray, spread: np.ndarray,
+                  weight: float) -> tuple[np.ndarray, np.ndarray]:
+    """(W_d (18, l), B_d (18,)) from xi (N, l), q (N, 18), pulled towards (W0, b0) with the
+    source's latent spread (l,) and relative weight (module docstring)."""
+    n = xi.shape[0]
+    m = xi.mean(axis=0)
+    X = xi - m
+    r = weight * n
+    c = (q.mean(axis=0) + weight * (W0 @ m + b0)) / (1.0 + weight)
+    A = X.T @ X + r * np.diag(spread ** 2)
+    W = np.linalg.solve(A, X.T @ (q - q.mean(axis=0)) + r * np.diag(spread ** 2) @ W0.T).T
+    return W, c - W @ m
+
+
+def check_decoder(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTuneConfig) -> float:
+    """The excitation of the decoder refit by ``rows`` (N,) (``decoder_excitation``);
+    ``DecoderRefitError`` if the decoder is to be refit and the rows cannot determine it."""
+    excitation, direction = decoder_excitation(model.autoencoder.encode(ds.q[rows]), source_spread(model))
+    if config.refit_decoder and excitation < config.decoder_min_spread:
+        terms = " ".join(f"{c:+.2f} xi{i + 1}" for i, c in enumerate(direction) if abs(c) >= 0.01)
+        raise DecoderRefitError(
+            f"the fine-tuning rows cannot determine the decoder: along the latent direction "
+            f"({terms.lstrip('+')}) they vary by {100 * excitation:.2g} % of the source's training spread "
+            f"(at least {100 * config.decoder_min_spread:g} % is needed); keep the source decoder "
+            "(--keep-decoder) or add rows that move along it")
+    return excitation
 
 
 def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
              config: FineTuneConfig = FineTuneConfig()) -> HybridModel:
-    """A new model adapted to the ``train`` rows of ``ds`` (or boolean ``rows`` (N,))."""
+    """A new model adapted to the ``train`` rows of ``ds`` (or boolean ``rows`` (N,)).
+
+    Raises ``ModelDataError`` for rows the model cannot take (another robot, a phase
+    it has no equations for) and ``DecoderRefitError`` when the rows cannot determine
+    the decoder (module docstring).
+    """
     rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
     if not rows.any():
         raise ValueError("no fine-tuning rows (the dataset has no 'train' jumps)")
@@ -61,8 +127,15 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     model.phase_index(ds, rows)  # every phase of the new rows must be one the model knows
     ae0 = model.autoencoder
     xi = ae0.encode(ds.q[rows])
-    W_d, B_d = (_decoder_towards(xi, ds.q[rows], ae0.W_d, ae0.B_d, config.prior_weight)
-                if config.refit_decoder else (ae0.W_d, ae0.B_d))
+    spread = source_spread(model)
+    excitation = check_decoder(model, ds, rows, config)
+    decoder = {"refit": bool(config.refit_decoder), "excitation": excitation,
+               "max_abs_W_d_source": float(np.abs(ae0.W_d).max())}
+    if config.refit_decoder:
+        W_d, B_d = refit_decoder(xi, ds.q[rows], ae0.W_d, ae0.B_d, spread, config.prior_weight)
+    else:
+        W_d, B_d = ae0.W_d.copy(), ae0.B_d.copy()
+    decoder["max_abs_W_d"] = float(np.abs(W_d).max())
     ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
     trained = model.info.get("training", {})
     weight = float(model.info.get("decoded_weight", trained.get("decoded_weight", 1.0)))
@@ -76,9 +149,13 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     regressor = FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
                          float(trained.get("alpha", 0.0)))
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
+    refit = [n for n, p in zip(model.phase_names, phases) if p is not None]
+    n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
     info = dict(model.info)
     info["finetune"] = {"config": asdict(config), "data_sha256": data_hash(ds),
                         "source": ds.source, "n_rows": int(rows.sum()),
                         "base_data_sha256": model.info.get("data_sha256"),
-                        "phases_refit": [n for n, p in zip(model.phase_names, phases) if p is not None]}
+                        "phases_refit": refit, "rows_per_phase": n_rows,
+                        "phases_kept": [n for n in model.phase_names if n not in refit],
+                        "decoder": decoder}
     return replace(model, autoencoder=ae, Xi=fit.Xi, mask=fit.mask, info=info)

@@ -47,9 +47,42 @@ def model_to_dict(model: HybridModel) -> dict:
     }
 
 
+def _check_finite(model: HybridModel) -> None:
+    """``ModelFileError`` naming the first array entry of ``model`` that is not finite."""
+    ae = model.autoencoder
+    arrays = [("encoder.W_e", ae.W_e), ("encoder.B_e", ae.B_e), ("decoder.W_d", ae.W_d),
+              ("decoder.B_d", ae.B_d), ("latent_scale", model.latent_scale)]
+    arrays += [(f"phases.{n}.Xi", model.Xi[k]) for k, n in enumerate(model.phase_names)]
+    for key, arr in arrays:
+        bad = np.argwhere(~np.isfinite(np.asarray(arr, dtype=float)))
+        if bad.size:
+            at = ", ".join(str(int(i)) for i in bad[0])
+            raise ModelFileError(f"{key}[{at}]: {float(np.asarray(arr)[tuple(bad[0])])} is not a finite "
+                                 "number (the fit diverged); the model is not saved")
+
+
+def _non_finite_key(obj, where: str = "") -> str | None:
+    """The key path of the first non-finite float in a JSON-ready ``obj``, or None."""
+    if isinstance(obj, float):
+        return None if np.isfinite(obj) else where or "model"
+    items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, (list, tuple)) else ()
+    for k, v in items:
+        found = _non_finite_key(v, f"{where}.{k}" if where and isinstance(k, str) else
+                                f"{where}[{k}]" if where else str(k))
+        if found:
+            return found
+    return None
+
+
 def save_model(model: HybridModel, path: str | os.PathLike) -> None:
-    """Write ``model`` to ``path`` as JSON, atomically."""
-    write_text_atomic(path, json.dumps(model_to_dict(model), indent=1, allow_nan=False))
+    """Write ``model`` to ``path`` as JSON, atomically; ``ModelFileError`` naming the key of a
+    value JSON cannot hold (NaN, infinity) instead of writing it."""
+    _check_finite(model)
+    d = model_to_dict(model)
+    bad = _non_finite_key(d)
+    if bad is not None:
+        raise ModelFileError(f"{bad}: not a finite number; the model is not saved")
+    write_text_atomic(path, json.dumps(d, indent=1, allow_nan=False))
 
 
 def _array(d: dict, key: str, where: str, shape: tuple[int, ...]) -> np.ndarray:

@@ -106,16 +106,21 @@ class Run:
         return files
 
 
+class NotARunError(ValueError):
+    """A directory that is not a run (it holds no ``summary.json``)."""
+
+
 def load_run(run_dir: str | Path) -> Run:
-    """Collect what the run directory holds; raise only if ``run_dir`` is not a directory."""
+    """Collect what the run directory holds; raise only if ``run_dir`` is not a directory
+    (``FileNotFoundError``) or not a run: no ``summary.json`` (``NotARunError``)."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise FileNotFoundError(f"{run_dir}: no such run directory")
     run = Run(run_dir, {}, [])
     path = run_dir / "summary.json"
     if not path.is_file():
-        run.note("summary.json is missing: this directory holds no experiments to report")
-        return run
+        raise NotARunError(f"{run_dir}: not a run directory (it holds no summary.json; "
+                           "`symrom reproduce --out DIR` or `symrom demo` makes one)")
     try:
         summary = json.loads(path.read_text())
         if not isinstance(summary, dict):

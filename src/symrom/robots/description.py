@@ -94,6 +94,40 @@ class RobotDescription:
         """(12,) joint signs as an array."""
         return np.asarray(self.joint_signs, dtype=float)
 
+    @cached_property
+    def joint_limits(self) -> JointLimits:
+        """The URDF's ``<limit>`` of each of the 12 joints, in symrom's signs (a joint turned
+        the other way has its range mirrored): angles (rad; -inf/inf for a continuous
+        joint or a missing bound), speed (rad/s) and effort (N m; inf where the URDF gives
+        none or 0)."""
+        root = ET.parse(self.urdf_path).getroot()
+        joints = {j.get("name"): j for j in root.findall("joint")}
+        lo, hi, vel, eff = (np.full(len(self.joint_names), v) for v in (-np.inf, np.inf, np.inf, np.inf))
+        for i, name in enumerate(self.joint_names):
+            lim = joints[name].find("limit")
+            if lim is None:
+                continue
+            if joints[name].get("type") == "revolute":
+                lo[i] = float(lim.get("lower", "-inf"))
+                hi[i] = float(lim.get("upper", "inf"))
+            for arr, key in ((vel, "velocity"), (eff, "effort")):
+                v = float(lim.get(key, "inf"))
+                arr[i] = v if v > 0 else np.inf
+        flip = self.signs < 0
+        lo[flip], hi[flip] = -hi[flip], -lo[flip]
+        return JointLimits(lo, hi, vel, eff)
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per joint (12,), symrom order and signs: ``lower``, ``upper`` (rad), ``velocity``
+    (rad/s) and ``effort`` (N m), as the URDF states them (infinite where it does not)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
 
 def _fail(path: Path, key: str, what: str) -> RobotDescriptionError:
     return RobotDescriptionError(f"robot description {path}: key {key!r}: {what}")

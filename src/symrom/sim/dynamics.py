@@ -42,7 +42,7 @@ def body_model(robot: str) -> BodyModel:
 
 @cache
 def _body_model(robot: str) -> BodyModel:
-    import pybullet as p
+    from symrom.sim.bullet import p
 
     desc = get_robot(robot)
     cid = p.connect(p.DIRECT)
@@ -98,7 +98,7 @@ class LegGravity:
     """
 
     def __init__(self, robot: str):
-        import pybullet as p
+        from symrom.sim.bullet import p
 
         desc = get_robot(robot)
         self._p = p

@@ -92,7 +92,7 @@ def apply_to_world(world, cfg: ProxyConfig) -> None:
 
     world: a ``symrom.sim.world.World`` (uses its ``client``, ``robot``, ``plane``).
     """
-    import pybullet as p
+    from symrom.sim.bullet import p
 
     c, rob = world.client, world.robot
     for link in range(-1, p.getNumJoints(rob, physicsClientId=c)):
@@ -190,7 +190,7 @@ class ProxyWorld:
 
     def step(self, tau: np.ndarray) -> np.ndarray:
         """Send ``tau`` (12,) N m; returns the torque (12,) actually applied this tick."""
-        import pybullet as p
+        from symrom.sim.bullet import p
 
         w = self.world
         jv = np.array([js[1] for js in p.getJointStates(w.robot, w.joint_ids, physicsClientId=w.client)])

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pybullet as p
+from symrom.sim.bullet import p
 
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS, N_Q
