@@ -49,3 +49,31 @@ def test_prior_weight_interpolates(source_and_target):
     assert free.Xi[0, names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.05)
     with pytest.raises(ValueError, match="no fine-tuning rows"):
         finetune(model, target, rows=np.zeros(target.n_samples, bool))
+
+
+def test_rollout_finetuning_moves_towards_the_new_system(source_and_target):
+    model, target, _ = source_and_target
+    tuned = finetune(model, target, config=FineTuneConfig(method="rollout"))
+    assert tuned.info["finetune"]["config"]["method"] == "rollout"
+    np.testing.assert_array_equal(tuned.mask, model.mask)  # the rollout fit keeps the support
+    # Both fine-tunings reach the target's 3 mm noise floor (the source errs by twice that).
+    assert _full_rmse(tuned, target) < 0.55 * _full_rmse(model, target)
+    assert _full_rmse(tuned, target) < 1.1 * _full_rmse(finetune(model, target), target)
+    k = tuned.phase_names.index("contact")
+    assert tuned.Xi[k, tuned.library.feature_names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.1)
+
+
+def test_rollout_finetuning_keeps_the_phases_the_rows_lack(source_and_target):
+    model, target, _ = source_and_target
+    k = target.phase_names.index("flight")
+    rows = target.rows_of("train") & (target.phase == k)
+    tuned = finetune(model, target, rows=rows, config=FineTuneConfig(method="rollout", refit_decoder=False))
+    c = model.phase_names.index("contact")
+    np.testing.assert_array_equal(tuned.Xi[c], model.Xi[c])
+    assert tuned.info["finetune"]["phases_kept"] == ["contact"]
+    assert not np.array_equal(tuned.Xi[model.phase_names.index("flight")], model.Xi[model.phase_names.index("flight")])
+
+
+def test_unknown_finetuning_method_is_refused():
+    with pytest.raises(ValueError, match="fine-tuning method"):
+        FineTuneConfig(method="gradient")

@@ -13,7 +13,6 @@ from typer.testing import CliRunner
 from _logs import flight_segment, needs_go1, proxy_go1, sim_go1, write_hardware
 from conftest import one_line_error
 from symrom.cli import app
-from symrom.data.importers import import_logs
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.experiments.finetune import HORIZONS, FineTuneCheck, FineTuneRefused, run_finetune, val_score
@@ -75,6 +74,27 @@ def test_finetune_on_a_flight_only_set(files, tmp_path):
     after, _ = evaluate(tuned, ds, "val", HORIZONS, RolloutOptions("rk4"))
     assert val_score(after, spread)[0] == pytest.approx(rec["score_after"], rel=1e-9)
     assert tuned.info["finetune"]["source_model"] == str(model_path)
+
+
+def test_rollout_finetune_on_a_flight_only_set(files, tmp_path):
+    model_path, data = files
+    out = tmp_path / "tuned"
+    r = runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(out), "--method", "rollout"])
+    assert r.exit_code == 0, r.output
+    source, tuned = load_model(model_path), load_model(out / "model.json")
+    k = source.phase_names.index("contact")
+    np.testing.assert_array_equal(tuned.Xi[k], source.Xi[k])
+    np.testing.assert_array_equal(tuned.mask, source.mask)  # the rollout fit keeps the support
+    rec = json.loads((out / "finetune.json").read_text())
+    assert len(rec["attempts"]) == 1 and rec["check"]["config"]["method"] == "rollout"
+    assert rec["score_after"] <= rec["score_before"] * (1 + rec["check"]["tolerance"])
+
+
+def test_unknown_finetune_method_is_refused_before_work(files, tmp_path):
+    model_path, data = files
+    r = runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(tmp_path / "o"), "--method", "sgd"])
+    assert r.exit_code != 0 and "fine-tuning method must be one of" in " ".join(r.output.split())
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("config", [BASE, TrainConfig(latent_dim=2)], ids=["base_position", "paper"])

@@ -371,6 +371,8 @@ def finetune_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
     prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
     keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
+    method: Annotated[str, typer.Option("--method", help="acceleration (towards the source, --prior-weight) or rollout "
+                                                         "(the rollout-aware refinement from the source coefficients).")] = "acceleration",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold (default: the source's).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
@@ -387,7 +389,8 @@ def finetune_cmd(
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator("val", integrator)
     check = FineTuneCheck(FineTuneConfig(prior_weight=prior_weight, threshold=threshold,
-                                         refit_decoder=not keep_decoder), tolerance=tolerance,
+                                         refit_decoder=not keep_decoder, method=method),
+                          tolerance=tolerance,
                           integrator=integrator)
     model = load_model(model_path)
     ds = read_dataset(data)

@@ -19,7 +19,9 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    the source and its score is at most ``tolerance`` (5 %) above the source's.
    Otherwise the prior weight is raised tenfold, towards the source model, and
    steps 2-4 repeat, up to ``max_raises`` times; if none is accepted the
-   fine-tuning is refused (the source model stays the better one).
+   fine-tuning is refused (the source model stays the better one). With
+   ``method="rollout"`` (the rollout-aware refinement started from the source
+   coefficients) the prior weight plays no part: one attempt.
 
 Only ``train`` and ``val`` are read, so ``symrom evaluate`` on the ``test``
 split stays an honest measure of the result.
@@ -150,6 +152,8 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
             tuned.info["finetune"]["check"] = {"val_score_before": score0, "val_score_after": score,
                                                "tolerance": check.tolerance, "prior_weight": weight}
             return FineTuneResult(tuned, before, after, attempts, check)
+        if check.config.method == "rollout":  # the prior weight does not enter the rollout fit
+            break
         weight = 10.0 * weight if weight > 0 else 0.01
     tried = ", ".join(f"{a['prior_weight']:g}" for a in attempts)
     raise FineTuneRefused(f"fine-tuning makes the val error worse at every prior weight tried ({tried}): "

@@ -289,28 +289,78 @@ def selected_config(model: HybridModel, **changes) -> TrainConfig:
     return replace(TrainConfig(**model.info["training"]), **changes)
 
 
+# Sim-to-real candidates: the source trained on the noisy variant with the selected
+# settings, with and without its refinement, each kept as it is or fine-tuned on the
+# proxy's train jumps by acceleration (FineTune) or by rollout (Refine).
+PROXY_SOURCES = ("refined", "exact")
+PROXY_METHODS = ("none", "acceleration", "rollout")
+
+
+def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceConfig,
+                 say: Say) -> tuple[list[dict], list[HybridModel | None], int | None]:
+    """Every (source, fine-tuning) candidate scored on the proxy's val jumps against the paper's
+    implied RMSE for the proxy (``select.score_model``), and the index ``select.choose`` picks:
+    the sparsest that meets it at both horizons, else the sparsest within the tolerance of the
+    best. A fine-tuning that cannot be done is recorded with its reason."""
+    from symrom.experiments.select import choose, score_model
+    from symrom.model.hybrid import ModelDataError
+
+    scfg = replace(cfg.selection, reference=paper_reference("go1_proxy") if cfg.paper_reference else None)
+    yardstick = scfg.yardstick(ds)
+    rows, models = [], []
+    for src in PROXY_SOURCES:
+        for method in PROXY_METHODS:
+            say(f"go1_proxy: {src} source, fine-tuning {method}")
+            row: dict = {"source": src, "finetune": method}
+            try:
+                model = (sources[src] if method == "none" else
+                         finetune(sources[src], ds, config=replace(cfg.finetune, method=method)))
+            except ModelDataError as e:
+                rows.append({**row, "refused": str(e), "score": None, "active_terms": None})
+                models.append(None)
+                continue
+            rows.append({**row, "active_terms": int(model.mask.sum()),
+                         **score_model(model, ds, yardstick, scfg.substeps)})
+            models.append(model)
+    return rows, models, choose(rows, scfg.tolerance, reference=scfg.reference is not None)
+
+
 def run_proxy(run: Path, noisy: Path, proxy: Path, settings: TrainConfig, cfg: ReproduceConfig, say: Say) -> dict:
-    """Sim-to-real: train on the noisy Go1 variant with the ``settings`` selected on SIM
-    Go1, fine-tune on the proxy jumps."""
+    """Sim-to-real: train on the noisy Go1 variant with the ``settings`` selected on SIM Go1
+    (refined and not), fine-tune on the proxy's train jumps, choose on its val jumps
+    (``choose_proxy``), report on its test jumps."""
     d = run / "go1_proxy"
     (d / "base").mkdir(parents=True, exist_ok=True)
     say("go1_proxy: training on the noisy Go1 variant")
-    base, _ = _train_or_load(d / "base" / "model.json", read_dataset(noisy), settings)
+    noisy_ds = read_dataset(noisy)
+    sources = {"refined": _train_or_load(d / "base" / "model.json", noisy_ds, settings)[0],
+               "exact": _train_or_load(d / "base_exact" / "model.json", noisy_ds, replace(settings, refine=False))[0]}
     ds = read_dataset(proxy)
-    if _done(d / "model.json"):
-        model = load_model(d / "model.json")
+    cpath = d / "finetune_choice.json"
+    if _done(d / "model.json") and _done(cpath):
+        model, choice = load_model(d / "model.json"), json.loads(cpath.read_text())
     else:
-        say("go1_proxy: fine-tuning on the proxy training jumps")
-        model = finetune(base, ds, config=cfg.finetune)
+        rows, models, k = choose_proxy(sources, ds, cfg, say)
+        if k is None:  # every candidate diverged on val: keep the source as trained
+            k = 0
+        model = models[k]
+        choice = {"version": 1, "rows": rows, "chosen": k, "split": "val",
+                  "rule": "scored on the proxy's val jumps against the paper's implied RMSE for the proxy; the "
+                          "sparsest candidate that meets it at both horizons, else the sparsest within "
+                          f"{100 * cfg.selection.tolerance:g} % of the best score"}
         save_model(model, d / "model.json")
+        write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))
     mpath = d / "eval" / "metrics.json"
     metrics = (json.loads(mpath.read_text()) if _done(mpath)
-               else _evaluate_into(model, ds, d / "eval", cfg, "proxy Go1 (fine-tuned)"))
+               else _evaluate_into(model, ds, d / "eval", cfg, "proxy Go1 (chosen on val)"))
     entry = _experiment_entry(model, metrics, run, proxy, d / "model.json")
     bpath = d / "base_eval" / "metrics.json"
     entry["before_finetune"] = (json.loads(bpath.read_text()) if _done(bpath)
-                                else _evaluate_into(base, ds, d / "base_eval", cfg, "proxy Go1 (sim model)"))
-    entry["finetune"] = asdict(cfg.finetune)
+                                else _evaluate_into(sources["refined"], ds, d / "base_eval", cfg,
+                                                    "proxy Go1 (sim model)"))
+    chosen = choice["rows"][choice["chosen"]]
+    entry["finetune"] = {**asdict(cfg.finetune), "source": chosen["source"], "method": chosen["finetune"]}
+    entry["finetune_choice"] = choice
     return entry
 
 
@@ -390,11 +440,12 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
                                  files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json")},
                                  facts={"wall_time_s": s["wall_time_s"]}))
     if "go1_proxy" in exps:
-        out.append(ManifestEntry("go1_proxy", FINE_TUNED, "proxy Go1, fine-tuned from the noisy Go1 model",
+        out.append(ManifestEntry("go1_proxy", FINE_TUNED, "proxy Go1, adapted from the noisy Go1 model",
                                  paper="go1_proxy", files={
                                      "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
                                      "data": exps["go1_proxy"]["data"], "source_model": rel("go1_proxy", "base", "model.json"),
-                                     "before": rel("go1_proxy", "base_eval", "metrics.json")},
+                                     "before": rel("go1_proxy", "base_eval", "metrics.json"),
+                                     "choice": rel("go1_proxy", "finetune_choice.json")},
                                  facts={"finetune": exps["go1_proxy"]["finetune"]}))
     out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
                              files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))

@@ -81,14 +81,17 @@ def phase_data(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder, library, de
     return out
 
 
-def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder) -> list[Trajectory]:
-    """The jumps holding ``rows``, encoded (their rows among ``rows`` only)."""
+def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder,
+                 phase: np.ndarray | None = None) -> list[Trajectory]:
+    """The jumps holding ``rows``, encoded (their rows among ``rows`` only); ``phase``
+    (N,) the model's phase index of every row (default: the dataset's own)."""
+    phase = ds.phase if phase is None else phase
     out = []
     for a, b in jump_bounds(ds.jump):
         r = np.flatnonzero(rows[a:b]) + a
         if r.size:
             out.append(Trajectory(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
-                                  ae.encode_input(ds.u[r]), ds.phase[r].astype(int)))
+                                  ae.encode_input(ds.u[r]), phase[r].astype(int)))
     return out
 
 

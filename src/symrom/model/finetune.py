@@ -25,6 +25,12 @@ learned term, stay those of the source model. On the new jumps' rows:
 Both are closed form. ``prior_weight`` sets r relative to the data: 0 refits
 from the new rows alone, large values keep the source model. Phases are
 matched by name. ``experiments.finetune`` adds the check on validation jumps.
+
+``method="rollout"`` adapts the coefficients instead by the rollout-aware
+refinement (``Refine``) started from the source coefficients, on the new
+jumps: for a source model that was itself refined, whose coefficients an
+acceleration fit would pull away from what makes its rollouts right. Only
+the phases the new jumps hold are refit; the others keep the source's.
 """
 
 from __future__ import annotations
@@ -35,10 +41,14 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.estimator import data_hash, phase_data
+from symrom.model.estimator import data_hash, phase_data, trajectories
 from symrom.model.hybrid import HybridModel, ModelDataError
 from symrom.model.regressors.base import Coefficients, RegressionProblem
 from symrom.model.regressors.prior import FineTune
+from symrom.model.regressors.refine import Refine
+
+
+FINETUNE_METHODS = ("acceleration", "rollout")
 
 
 class DecoderRefitError(ModelDataError):
@@ -58,12 +68,15 @@ class FineTuneConfig:
     threshold: float | None = None
     refit_decoder: bool = True
     decoder_min_spread: float = 0.05
+    method: str = "acceleration"
 
     def __post_init__(self) -> None:
         if not self.prior_weight >= 0:
             raise ValueError(f"prior_weight must be >= 0, got {self.prior_weight}")
         if not 0 <= self.decoder_min_spread < 1:
             raise ValueError(f"decoder_min_spread must lie in [0, 1), got {self.decoder_min_spread}")
+        if self.method not in FINETUNE_METHODS:
+            raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
 
 
 def source_spread(model: HybridModel) -> np.ndarray:
@@ -143,12 +156,22 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     if all(p is None for p in phases):
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
+    trajs = []
+    if config.method == "rollout":
+        index = np.zeros(ds.n_samples, dtype=int)
+        index[rows] = model.phase_index(ds, rows)
+        trajs = trajectories(ds, rows, ae, index)
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
-                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt)
+                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
     threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
-    regressor = FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
-                         float(trained.get("alpha", 0.0)))
+    regressor = (Refine() if config.method == "rollout" else
+                 FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
+                          float(trained.get("alpha", 0.0))))
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
+    Xi, mask = fit.Xi.copy(), fit.mask.copy()
+    for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor
+        if p is None:
+            Xi[k], mask[k] = model.Xi[k], model.mask[k]
     refit = [n for n, p in zip(model.phase_names, phases) if p is not None]
     n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
     info = dict(model.info)
@@ -158,4 +181,4 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
                         "phases_refit": refit, "rows_per_phase": n_rows,
                         "phases_kept": [n for n in model.phase_names if n not in refit],
                         "decoder": decoder}
-    return replace(model, autoencoder=ae, Xi=fit.Xi, mask=fit.mask, info=info)
+    return replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)

@@ -20,7 +20,7 @@ from symrom.report.document import Para, Section, Table
 from symrom.report.format import DASH, fmt, horizon_label
 from symrom.report.learned import equations_blocks, predictions_blocks, table2_blocks
 from symrom.report.run import Run
-from symrom.report.selection import selection_blocks
+from symrom.report.selection import finetune_choice_blocks, selection_blocks
 from symrom.report.solvers import solver_blocks
 from symrom.report.tradeoff import sweep_blocks
 
@@ -39,7 +39,8 @@ SECTIONS: dict[str, str] = {
 
 ROLES: dict[str, list[tuple[str, Renderer]]] = {
     LEARNED: [("table2", table2_blocks), ("predictions", predictions_blocks), ("equations", equations_blocks)],
-    FINE_TUNED: [("table2", table2_blocks), ("predictions", predictions_blocks), ("equations", equations_blocks)],
+    FINE_TUNED: [("table2", table2_blocks), ("predictions", predictions_blocks), ("selection", finetune_choice_blocks),
+                 ("equations", equations_blocks)],
     BASELINE: [("baselines", baseline_blocks)],
     SWEEP: [("tradeoff", sweep_blocks)],
     SOLVER: [("solvers", solver_blocks)],

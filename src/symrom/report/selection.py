@@ -58,3 +58,33 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
                             caption="The best candidate per encoder and latent dimension, and the chosen one "
                                     f"(the full table: {e.files['table']})"))
     return blocks
+
+
+CHOICE_HEADER = ["source model", "fine-tuning", "active terms", "val score full", "val score 0.1 s",
+                 "worst ratio full", "worst ratio 0.1 s", "diverged val jumps (full, 0.1 s)", "chosen"]
+
+
+def _choice_row(r: dict, chosen: bool) -> list[str]:
+    if r.get("refused"):
+        return [r["source"], r["finetune"], DASH, DASH, DASH, DASH, DASH, f"refused: {r['refused']}", ""]
+    h = r["horizons"]
+    num = lambda k, f: DASH if h[k][f] is None else f"{h[k][f]:.3g}"  # noqa: E731
+    return [r["source"], r["finetune"], str(r["active_terms"]), num("full", "score"), num("0.1", "score"),
+            num("full", "worst"), num("0.1", "worst"),
+            f"{h['full']['diverged_jumps']}, {h['0.1']['diverged_jumps']}", "★" if chosen else ""]
+
+
+def finetune_choice_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
+    """A fine-tuned experiment's candidates (source model x fine-tuning method) on its val split."""
+    blocks: list = []
+    for e in entries:
+        choice = run.json(e, "choice") if "choice" in e.files else None
+        if not choice or not isinstance(choice.get("rows"), list):
+            continue
+        blocks.append(f"{e.title or e.name}: fine-tuning chosen on the validation split")
+        blocks.append(Para(f"Rule: {choice.get('rule', '')}. Scores are RMSE over the paper's implied RMSE "
+                           "(1 = the paper's level)."))
+        blocks.append(Table(CHOICE_HEADER, [_choice_row(r, i == choice.get("chosen"))
+                                            for i, r in enumerate(choice["rows"])],
+                            caption=f"Every candidate (the table: {e.files['choice']})"))
+    return blocks
