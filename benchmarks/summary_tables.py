@@ -67,7 +67,7 @@ def selections(summary: dict) -> list[str]:
 
 def baselines(summary: dict) -> list[str]:
     lines = ["| experiment | CoM | learned MAE [m] | aSLIP (residual fit) | aSLIP (rollout fit) | Newton | "
-             "paper: learned / aSLIP |", "|---|---|---|---|---|---|---|"]
+             "Newton fitted | paper: learned / aSLIP |", "|---|---|---|---|---|---|---|---|"]
     for name, exp in summary["experiments"].items():
         b = exp.get("baselines")
         if not b:
@@ -76,7 +76,10 @@ def baselines(summary: dict) -> list[str]:
         for c in ("x", "z"):
             lm = learned[c]["mae"]
             cells = []
-            for key in ("aslip", "aslip_rollout", "newton"):
+            for key in ("aslip", "aslip_rollout", "newton", "newton_fitted"):
+                if key not in b:
+                    cells.append("")
+                    continue
                 comps = b[key]["horizons"]["full"]["components"]
                 cells.append(f"{fmt(comps[c]['mae'])} ({comps[c]['mae'] / lm:.3g}×)" if c in comps else "div.")
             p = PAPER_ASLIP.get(c) if name == "go1_sim" else None

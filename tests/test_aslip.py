@@ -235,6 +235,11 @@ def test_cli_newton_and_rollout_fit(slip, slip_file, tmp_path):
     assert r.exit_code == 0, r.output
     assert set(json.loads((tmp_path / "n" / "metrics.json").read_text())["horizons"]["full"]["components"]) \
         == {"x", "y", "z"}
+    r = runner.invoke(app, ["newton", str(slip_file), "--out", str(tmp_path / "nf"), "--fit", "--integrator", "rk4",
+                            "--mass", str(truth.m)])
+    assert r.exit_code == 0, r.output
+    params = json.loads((tmp_path / "nf" / "params.json").read_text())
+    assert params["model"] == "affine_force" and np.shape(params["A"]) == (3, 3) and "train split" in params["source"]
     r = runner.invoke(app, ["aslip", str(slip_file), "--out", str(tmp_path / "a"), "--mass", str(truth.m),
                             "--fit", "rollout", "--integrator", "rk4"])
     assert r.exit_code == 0, r.output
@@ -243,3 +248,26 @@ def test_cli_newton_and_rollout_fit(slip, slip_file, tmp_path):
     assert len(params["stages"]) == 3
     one_line_error(runner.invoke(app, ["aslip", str(slip_file), "--out", str(tmp_path / "b"), "--mass", "3",
                                        "--fit", "bogus"]), "--fit")
+
+
+def test_a_fitted_affine_force_law_recovers_a_planted_gain(slip):
+    """Base accelerations made from a known A, c (contact) and c_f (flight) are recovered
+    exactly, and the law survives its params.json round trip."""
+    from symrom.baselines import from_params
+    from symrom.baselines.com import flight_rows, input_acceleration
+    from symrom.baselines.newton import AffineForce
+
+    ds = replace(slip[0], ddq=slip[0].ddq.copy())
+    A = np.array([[0.9, 0.2, 0.0], [0.0, 1.0, 0.0], [-0.1, 0.3, 1.1]])
+    c, c_f = np.array([0.05, 0.0, -9.5]), np.array([0.2, 0.0, -10.2])
+    flight = flight_rows(ds)
+    acc = np.where(flight[:, None], c_f, c + input_acceleration(ds, 12.0) @ A.T)
+    ds.ddq[:, BASE_POS] = acc
+    fit = AffineForce.fit(ds, m=12.0)
+    np.testing.assert_allclose(fit.A, A, atol=1e-9)
+    np.testing.assert_allclose(fit.c, c, atol=1e-9)
+    np.testing.assert_allclose(fit.c_f, c_f, atol=1e-9)
+    again = from_params(fit.to_dict())
+    np.testing.assert_array_equal(again.A, fit.A)
+    with pytest.raises(ValueError, match="shape"):
+        AffineForce(12.0, np.eye(2), c, c_f)

@@ -52,7 +52,7 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["experiments"]) == {"go1_sim"}
     go1 = summary["experiments"]["go1_sim"]
-    for name in ("aslip", "aslip_rollout", "newton"):
+    for name in ("aslip", "aslip_rollout", "newton", "newton_fitted"):
         assert set(go1["baselines"][name]["horizons"]["full"]["components"]) == {"x", "y", "z"}
     table = json.loads((out / "go1_sim" / "selection" / "selection.json").read_text())
     assert table["chosen"] is not None and table["rows"][table["chosen"]]["score"] is not None

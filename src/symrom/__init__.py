@@ -15,7 +15,7 @@ __version__ = "0.2.0"
 
 from symrom import names
 from symrom.baselines.aslip import ASlip, ASlipParams
-from symrom.baselines.newton import Newton
+from symrom.baselines.newton import AffineForce, Newton
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate
@@ -29,7 +29,7 @@ from symrom.model.regressors.refine import Refine
 from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 
-__all__ = ["ASlip", "ASlipParams", "Custom", "Dataset", "FineTune", "HybridModel", "Inputs", "Library",
+__all__ = ["ASlip", "ASlipParams", "AffineForce", "Custom", "Dataset", "FineTune", "HybridModel", "Inputs", "Library",
            "Newton", "PCAEncoder", "Polynomial", "Refine", "RolloutOptions", "STLSQ", "SymbolicROM",
            "TrainConfig", "Trigonometric", "evaluate", "load_model", "names", "read_dataset", "rollout",
            "save_model", "train", "write_dataset"]

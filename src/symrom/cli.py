@@ -619,20 +619,28 @@ def newton_cmd(
     mass: Annotated[Optional[float], typer.Option("--mass", help="Body mass, kg (default: the robot's total).")] = None,
     reset: Annotated[Optional[list[float]], typer.Option("--reset", help="Reset period(s) in s (repeatable).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch).")] = "lsoda",
+    fit: Annotated[bool, typer.Option("--fit", help="Fit b'' = c + A F/m (contact), c_f (flight) on the train split.")] = False,
     force: Force = False,
 ) -> None:
-    """Evaluate Newton's law on the measured ground force, b'' = g + F/m, on a split."""
+    """Evaluate Newton's law on the measured ground force, b'' = g + F/m, on a split (--fit: its
+    gains and offsets fitted on the train split)."""
     from symrom.atomic import check_output_file
-    from symrom.baselines.newton import Newton
+    from symrom.baselines.newton import AffineForce, Newton
 
     check_output_file(out, force, inputs=(data,))
     _check_split_and_integrator(split, integrator)
     resets = _parse_resets(reset)
     ds = _read_with_split(data, split)
-    model = Newton.of(ds, mass)
-    _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton", {})
-    out_console.print(f"Newton (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}", highlight=False,
-                      soft_wrap=True)
+    if fit:
+        model = AffineForce.fit(ds, m=mass)
+        files = {"params.json": json.dumps({**model.to_dict(), "source": "fitted on the train split "
+                                            "(least squares on the base accelerations)"}, indent=1) + "\n"}
+        _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton (fitted)", files)
+    else:
+        model = Newton.of(ds, mass)
+        _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton", {})
+    out_console.print(f"Newton{' (fitted)' if fit else ''} (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}",
+                      highlight=False, soft_wrap=True)
 
 
 def _check_split_and_integrator(split: str, integrator: str) -> None:

@@ -9,6 +9,15 @@ fitted: whatever the data's force explains, this model explains. Where it
 errs, the gap comes from what the CoM model leaves out: legs that move the
 CoM against the base, and ground forces estimated from joint torques
 through massless-leg Jacobians.
+
+``AffineForce`` is the same law with its numbers fitted on the training rows,
+the strongest CoM baseline of a few parameters:
+
+    contact:  b'' = c + A F / m        flight:  b'' = c_f
+
+A (3, 3) corrects the force estimate's gain and cross-talk, c and c_f the
+gravity and a constant bias; least squares on the base accelerations of the
+training rows, per phase (15 numbers).
 """
 
 from __future__ import annotations
@@ -17,8 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symrom.baselines.com import COMPONENTS, GRAVITY, com_system, robot_mass
+from symrom.baselines.com import COMPONENTS, GRAVITY, com_system, flight_rows, input_acceleration, robot_mass
 from symrom.data.dataset import Dataset
+from symrom.names import BASE_POS
 from symrom.rollout.system import RolloutSystem
 
 
@@ -40,3 +50,50 @@ class Newton:
 
     def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
         return com_system(ds, jumps, self.m, lambda d, x, v: GRAVITY + d["u"])
+
+
+@dataclass(frozen=True)
+class AffineForce:
+    """Contact b'' = c + A F/m, flight b'' = c_f (``Rollable``); A (3, 3), c and c_f (3,) m/s^2,
+    m kg (module docstring)."""
+
+    m: float
+    A: np.ndarray
+    c: np.ndarray
+    c_f: np.ndarray
+    components = COMPONENTS
+
+    def __post_init__(self) -> None:
+        Newton(self.m)  # the same check of the mass
+        for name, shape in (("A", (3, 3)), ("c", (3,)), ("c_f", (3,))):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != shape or not np.isfinite(v).all():
+                raise ValueError(f"AffineForce: {name} must be a finite array of shape {shape}, got {v.shape}")
+            object.__setattr__(self, name, v)
+
+    @classmethod
+    def fit(cls, ds: Dataset, rows: np.ndarray | None = None, m: float | None = None) -> AffineForce:
+        """Least squares on the base accelerations of ``rows`` (N,) (default: the train split),
+        contact and flight rows apart; a clear error if either has too few rows."""
+        rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
+        m = robot_mass(ds.robot) if m is None else float(m)
+        flight, acc, u = flight_rows(ds), ds.ddq[:, BASE_POS], input_acceleration(ds, m)
+        contact_rows, flight_only = rows & ~flight, rows & flight
+        if contact_rows.sum() < 4 or flight_only.sum() < 1:
+            raise ValueError(f"AffineForce.fit: needs at least 4 contact and 1 flight training rows, got "
+                             f"{int(contact_rows.sum())} and {int(flight_only.sum())}")
+        X = np.column_stack([np.ones(contact_rows.sum()), u[contact_rows]])
+        coef, *_ = np.linalg.lstsq(X, acc[contact_rows], rcond=None)
+        return cls(m, coef[1:].T, coef[0], acc[flight_only].mean(axis=0))
+
+    def to_dict(self) -> dict:
+        return {"model": "affine_force", "m": self.m, "A": self.A.tolist(), "c": self.c.tolist(),
+                "c_f": self.c_f.tolist()}
+
+    def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
+        A, c, c_f = self.A, self.c, self.c_f
+
+        def acceleration(d, x, v):
+            return np.where(np.asarray(d["contact"], dtype=bool)[:, None], c + d["u"] @ A.T, c_f)
+
+        return com_system(ds, jumps, self.m, acceleration)

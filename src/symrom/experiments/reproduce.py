@@ -6,7 +6,7 @@ interrupted run resumes where it stopped and datasets are never regenerated):
     data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
     <exp>/     model.json (the selected model), eval/, selection/selection.json,
                paper_defaults/ (model.json, eval/),
-               aslip/, aslip_rollout/, newton/ (metrics.json, params.json)
+               aslip/, aslip_rollout/, newton/, newton_fitted/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
     go1_proxy/ base/model.json (trained on the noisy Go1 variant with the settings
                selected on SIM Go1), model.json (fine-tuned on the proxy training
@@ -247,14 +247,14 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
     return entry
 
 
-BASELINES = ("aslip", "aslip_rollout", "newton")
+BASELINES = ("aslip", "aslip_rollout", "newton", "newton_fitted")
 
 
 def run_baselines(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig, say: Say) -> dict:
-    """The aSLIP (residual fit and rollout fit) and Newton beside ``exp``, fitted on its
+    """The aSLIP (residual fit and rollout fit), Newton and Newton with fitted gains beside ``exp``, fitted on its
     training split and evaluated on its test split; their metrics by name."""
     from symrom.baselines.aslip import ASlip, fit_aslip, fit_aslip_rollout
-    from symrom.baselines.newton import Newton
+    from symrom.baselines.newton import AffineForce, Newton
 
     out = {}
     residual = None
@@ -267,6 +267,9 @@ def run_baselines(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceCon
         if name == "newton":
             model = Newton.of(ds)
             params = {"model": "newton", "m": model.m, "source": "the robot's total mass; nothing fitted"}
+        elif name == "newton_fitted":
+            model = AffineForce.fit(ds, ds.rows_of("train"))
+            params = {**model.to_dict(), "source": "fitted on the train split (least squares on the base accelerations)"}
         else:
             residual = residual or fit_aslip(ds, ds.rows_of("train"))
             p, extra = residual, {"source": "fitted on the train split (acceleration residual)"}
@@ -453,7 +456,8 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
 
 
 BASELINE_TITLES = {"aslip": "aSLIP (residual fit)", "aslip_rollout": "aSLIP (rollout fit)",
-                   "newton": "Newton, b'' = g + F/m"}
+                   "newton": "Newton, b'' = g + F/m",
+                   "newton_fitted": "Newton fitted, b'' = c + A F/m"}
 
 
 def _versions() -> dict:

@@ -19,7 +19,7 @@ from symrom.report.document import Figure, Para, Table
 from symrom.report.format import DASH, diverged_text, fmt
 from symrom.report.run import Run
 
-UNITS = {"k_s": "N/m", "l_0": "m", "m": "kg"}
+UNITS = {"k_s": "N/m", "l_0": "m", "m": "kg", "A": "-", "c": "m/s²", "c_f": "m/s²"}
 
 
 def comparison_rows(learned, baselines: list[tuple[str, object]], stat: str = "mae") -> list[list[str]]:
@@ -75,9 +75,8 @@ def baseline_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> lis
             [f"learned: {diverged_text(learned)}"] + [f"{e.title or e.name}: {diverged_text(m)}" for e, m in have])
             + "."))
         params = {e.name: run.json(e, "params") for e, _ in have if "params" in e.files}
-        rows = [[e.title or e.name, f"{k} [{UNITS[k]}]" if k in UNITS else k, f"{v:.4g}"]
-                for e, _ in have for k, v in (params.get(e.name) or {}).items()
-                if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        rows = [[e.title or e.name, f"{k} [{UNITS[k]}]" if k in UNITS else k, _number_text(v)]
+                for e, _ in have for k, v in (params.get(e.name) or {}).items() if _number_text(v)]
         if rows:
             blocks.append(Table(["baseline", "parameter", "value"], rows,
                                 caption="Baseline parameters; "
@@ -85,6 +84,17 @@ def baseline_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> lis
                                                     for e, _ in have if (p := params.get(e.name)))))
         blocks += _figure(learned_entry, [(e, params.get(e.name)) for e, _ in have], learned.integrator, ctx)
     return blocks
+
+
+def _number_text(v) -> str:
+    """A parameter's value as text: a number, or a (nested) list of numbers; '' for anything else."""
+    if isinstance(v, bool):
+        return ""
+    if isinstance(v, (int, float)):
+        return f"{v:.4g}"
+    if isinstance(v, list) and v and all(_number_text(x) for x in v):
+        return "[" + ", ".join(_number_text(x) for x in v) + "]"
+    return ""
 
 
 def _figure(learned_entry: ManifestEntry, baselines: list[tuple[ManifestEntry, dict | None]],
