@@ -40,6 +40,9 @@ def test_top_level_api(planted_axis, tmp_path):
     np.testing.assert_array_equal(back.simulate(ds, [0]).q_pred[0], rom.simulate(ds, [0]).q_pred[0])
     metrics, _ = symrom.evaluate(symrom.load_model(tmp_path / "m.json"), ds, "test")
     assert metrics["horizons"]["full"]["diverged_jumps"] == 0
+    # the fitted estimator itself is rolled out and scored like its model
+    direct, _ = symrom.evaluate(rom, ds, "test")
+    assert direct["horizons"]["full"]["components"] == metrics["horizons"]["full"]["components"]
 
 
 def test_linear_planted_system_has_its_analytic_eigenvalues(planted_axis):

@@ -241,6 +241,14 @@ class SymbolicROM:
     def stability(self) -> list[PhaseStability]:
         return self.model.stability()
 
+    # Rollable: a fitted estimator goes wherever its model goes (rollout, evaluate).
+    @property
+    def components(self) -> tuple[str, ...]:
+        return tuple(self.model.components)
+
+    def rollout_system(self, ds: Dataset, jumps):
+        return self.model.rollout_system(ds, jumps)
+
     def save(self, path: str | os.PathLike) -> None:
         from symrom.model.persistence import save_model
 
