@@ -3,7 +3,7 @@
 A dozen Go1 pronking jumps are simulated (PyBullet, convex MPC), the model's
 settings are selected on the validation jumps (a small grid), the chosen model
 is evaluated on the test split at the full horizon and with 0.1 s resets beside
-the paper's defaults and the baselines (aSLIP fitted two ways, Newton), a short
+the paper's defaults and the baselines (aSLIP fitted two ways, Newton as it is and fitted), a short
 latent-dimension sweep runs, and the report is written. It is ``reproduce``
 restricted to SIM Go1, so the layout of the output directory is that of a
 reproduction run.
