@@ -33,6 +33,7 @@ import numpy as np
 from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import nominal_feet, start_pose
+from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
 from symrom.sim.world import RobotState, World
@@ -122,19 +123,12 @@ def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
     Least-norm solution of sum F_k = force (3,) N and sum (p_k - centre) x F_k =
     moment (3,) N m, with foot_pos (4, 3) m and centre (3,) m in the world; then
     pulls are dropped and horizontal parts clipped to the friction cone ``mu``.
+    Compiled (``symrom.sim.compiled``).
     """
-    A = np.zeros((6, 3 * len(legs)))
-    for i, k in enumerate(legs):
-        r = foot_pos[k] - centre
-        A[:3, 3 * i:3 * i + 3] = np.eye(3)
-        A[3:, 3 * i:3 * i + 3] = [[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]]
-    sol = (np.linalg.pinv(A) @ np.r_[force, moment]).reshape(len(legs), 3)
-    sol[:, 2] = np.maximum(sol[:, 2], 0.0)
-    horiz = np.linalg.norm(sol[:, :2], axis=1)
-    scale = np.minimum(1.0, mu * sol[:, 2] / np.maximum(horiz, 1e-9))
-    sol[:, :2] *= scale[:, None]
-    grf = np.zeros((N_LEGS, 3))
-    grf[list(legs)] = sol
+    grf = np.empty((N_LEGS, 3))
+    compiled.distribute(np.ascontiguousarray(foot_pos, dtype=float), np.asarray(centre, dtype=float),
+                            np.asarray(legs, dtype=np.int64), np.asarray(force, dtype=float),
+                            np.asarray(moment, dtype=float), float(mu), grf)
     return grf
 
 
@@ -199,8 +193,7 @@ class FroggyController:
         p = self.params
         self.phase = self._stage(s)
         qj, dqj = s.q[JOINTS], s.dq[JOINTS]
-        pos, J = self.kin.foot_positions_and_jacobians(qj)
-        pos, J = pos[0], J[0]
+        pos, J = self.kin.one(qj)
         vel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))
         # Stance targets are body-fixed (their offsets give the body its attitude stiffness);
         # in flight they are level (yaw-only frame), so the legs hang plumb for landing.

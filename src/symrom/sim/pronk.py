@@ -328,8 +328,7 @@ class PronkController:
         if self.phase == "flight":
             tau = self._flight_pd(state)
         else:
-            p_b, J = self.kin.foot_positions_and_jacobians(qj[None])
-            p_b, J = p_b[0], J[0]
+            p_b, J = self.kin.one(qj)
             contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
             if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
                 self._forces = self._mpc_forces(state, contact)
