@@ -38,6 +38,7 @@ from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
 from symrom.sim.world import RobotState, World
 
+STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
 REAR = (2, 3)  # RR, RL
 
@@ -151,6 +152,8 @@ class FroggyController:
         self.t_flight = None  # time the flight stage began
         self.t_land = None
         self._p0 = None  # (feet (4, 3), base (3,)) in the world when the push starts, m
+        self._prm: np.ndarray | None = None  # the parameters as ``compiled.froggy_torque`` takes them
+        self._chains: tuple = ()
         p = params
         self._t_push = p.t_settle + p.t_crouch + p.t_hold
         self._t_rear = self._t_push + p.t_push_all
@@ -189,7 +192,26 @@ class FroggyController:
         return "flight"
 
     def torque(self, s: RobotState) -> np.ndarray:
-        """Joint torques (12,) N m for state ``s``."""
+        """Joint torques (12,) N m for state ``s``.
+
+        The stages above pick the targets; ``symrom.sim.compiled.froggy_torque`` does the
+        arithmetic (it reads as ``torque_numpy``, the reference it is tested against).
+        """
+        self.phase = self._stage(s)
+        stage = STAGES.index(self.phase)
+        if self.phase in ("push_all", "push_rear") and self._p0 is None:
+            self._p0 = (s.foot_pos.copy(), s.q[12:15].copy())
+        feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
+        if self._prm is None:
+            self._prm = np.array([float(getattr(self.params, n)) for n in compiled.FROGGY_PARAMS])
+            self._chains = self.kin.chain_arrays()
+        return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
+                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
+                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
+                                      self.limit, *self._chains)
+
+    def torque_numpy(self, s: RobotState) -> np.ndarray:
+        """``torque`` in NumPy, the reference of the compiled arithmetic (the same stages)."""
         p = self.params
         self.phase = self._stage(s)
         qj, dqj = s.q[JOINTS], s.dq[JOINTS]

@@ -86,8 +86,9 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
             tau = ctrl.torque(s)
             if force is not None and force[1] <= s.t < force[2]:
                 world.apply_base_force(force[0])
-            applied = world.step(tau)
-            if tick % every == 0:
+            logged = tick % every == 0
+            applied = world.step(tau, report=logged)
+            if logged:
                 log["t"].append(tick * cfg.world.dt)
                 log["q"].append(s.q)
                 log["dq"].append(s.dq)

@@ -122,6 +122,7 @@ class World:
         self.signs = self.spec.signs  # (12,) symrom angle = sign x URDF angle
         self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
         self._driven = np.arange(N_JOINTS)  # joints driven by torque: all but the held ones
+        self._held_ids: list[int] = []
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
         self._pending_force: np.ndarray | None = None
@@ -265,10 +266,12 @@ class World:
         return flags
 
     # ---------------------------------------------------------------- driving
-    def step(self, tau: np.ndarray) -> np.ndarray:
+    def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
         """Apply joint torques ``tau`` (12,) N m for one physics tick; return the applied (12,).
 
-        Requests beyond the robot's torque limits are saturated.
+        Requests beyond the robot's torque limits are saturated. ``report=False`` returns
+        None instead: what held joints' motors applied then need not be read back (a
+        caller logging every other tick asks only on those).
         """
         tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), -self.torque_limit), self.torque_limit)
         if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
@@ -283,8 +286,10 @@ class World:
             self._pending_force = None
         p.stepSimulation(physicsClientId=c)
         self.t += self.config.dt
+        if not report:
+            return None
         if self.held.size:  # what the solver's motors applied to hold them
-            js = p.getJointStates(self.robot, [self.joint_ids[k] for k in self.held], physicsClientId=c)
+            js = p.getJointStates(self.robot, self._held_ids, physicsClientId=c)
             tau = tau.copy()
             tau[self.held] = np.array([s[3] for s in js]) * self.signs[self.held]
         return tau
@@ -296,6 +301,7 @@ class World:
         self.held = np.asarray(sorted(set(int(k) for k in joints)), dtype=int)
         self._driven = np.array([k for k in range(N_JOINTS) if k not in set(self.held.tolist())], dtype=int)
         self._driven_ids = [self.joint_ids[k] for k in self._driven]
+        self._held_ids = [self.joint_ids[k] for k in self.held]
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         """Push the base's centre of mass with ``force_world`` (3,) N during the next tick only."""
