@@ -208,3 +208,19 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         for j in range(3):  # the leg's torques scaled together into the limits
             tau[3 * k + j] /= over
     return tau
+
+
+def warm_up() -> None:
+    """Compile (or load from the disk cache) every routine here now, as the first tick of a
+    simulation would; for benchmarks that time the ticks apart from the start-up."""
+    from symrom.robots import leg_kinematics
+
+    kin = leg_kinematics("go1")
+    kin.one(np.zeros(12))
+    q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
+    unit = np.array([0.0, 0.0, 0.0, 1.0])
+    base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
+    feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+    q[14] = 0.3
+    froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
+                  np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())

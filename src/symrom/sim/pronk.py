@@ -381,7 +381,8 @@ class PronkController:
             return True
         if self.phase != "land" or self._t_td is None:
             return False
-        settled = (np.linalg.norm(state.dq[BASE_POS]) < 0.15 and np.linalg.norm(state.omega) < 0.6)
+        v, w = state.dq[BASE_POS], state.omega
+        settled = float(v @ v) < 0.15 ** 2 and float(w @ w) < 0.6 ** 2
         return state.t - self._t_td >= self.params.settle_time and settled
 
 
