@@ -47,9 +47,11 @@ class MPCConfig:
     weights: per-state weights (13,) on [rpy, p, omega, v, g]; alpha: weight on
     the forces, 1/N^2; eps_abs / eps_rel / max_iter: OSQP's stopping tolerances
     (forces are tens of N, so 1e-3 changes nothing a robot would feel);
-    check_termination: OSQP checks them every that many iterations. Warm-started
-    from the previous solve, a solve converges in 10-30 iterations, so checking
-    every 5 (OSQP's default is 25) stops it there.
+    check_termination: OSQP checks them every that many iterations (its default, 25).
+    Warm-started from the previous solve, a solve meets the tolerances within 10-30
+    iterations, so checking every 5 makes it about 2.5 times faster; but the solution
+    it then stops at is less converged, enough to change the landings (the median peak
+    knee torque of Go1 jumps drops by 9 %), so the default keeps the data as they were.
     """
 
     horizon: int = 10
@@ -63,7 +65,7 @@ class MPCConfig:
     eps_abs: float = 1e-3
     eps_rel: float = 1e-3
     max_iter: int = 4000
-    check_termination: int = 5
+    check_termination: int = 25
 
 
 def skew(v: np.ndarray) -> np.ndarray:
