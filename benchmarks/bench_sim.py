@@ -9,14 +9,26 @@ time. The start-up (importing the simulator and compiling, or loading from
 numba's disk cache, its compiled routines) is timed apart, before the runs.
 Prints a Markdown table and, with ``--out``, writes JSON.
 
+With ``--against SRC`` (the ``src`` folder of another checkout, e.g. a git
+worktree of an earlier commit) the same one-worker generations run side by
+side, alternating between this code and that one, ``--repeats`` times each,
+each in a fresh process after its start-up; the table gives the medians and
+their ratio, which a machine shared with other jobs leaves far more stable than
+either number.
+
     python benchmarks/bench_sim.py [--jumps 6] [--seed 0] [--out benchmarks/results/sim.json]
+    git worktree add /tmp/ref COMMIT && python benchmarks/bench_sim.py --against /tmp/ref/src
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -40,11 +52,52 @@ def _run(motion: str, n: int, workers: int, seed: int, out: Path) -> dict:
             "mpc_solve_median_s": float(np.median(solves)) if solves else None}
 
 
+_CHILD = r"""
+import json, sys, tempfile, time
+from pathlib import Path
+from symrom.sim.controller import load_motion
+from symrom.sim.generate import GenerateConfig, generate
+motion, robot, n, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+load_motion(motion)
+try:
+    from symrom.sim.compiled import warm_up
+    warm_up()
+except ImportError:  # code without compiled routines
+    pass
+with tempfile.TemporaryDirectory() as d:
+    t0, c0 = time.perf_counter(), time.process_time()
+    ds = generate(GenerateConfig(robot, motion, n, seed=seed), Path(d) / "x.h5", workers=1)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+print(json.dumps({"wall_s": wall, "cpu_s": cpu, "simulated_s": ds.n_samples * ds.dt}))
+"""
+
+
+def side_by_side(motion: str, n: int, seed: int, against: Path, repeats: int) -> dict:
+    """Real-time factors (wall, per CPU s) of this code and of ``against``, alternating."""
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    out: dict = {"this": [], "against": []}
+    for _ in range(repeats):
+        for key, src in (("this", here), ("against", str(against))):
+            env = dict(os.environ, PYTHONPATH=src)
+            r = subprocess.run([sys.executable, "-c", _CHILD, motion, ROBOT_OF_MOTION[motion], str(n), str(seed)],
+                               env=env, check=True, capture_output=True, text=True)
+            out[key].append(json.loads(r.stdout.strip().splitlines()[-1]))
+    for key in ("this", "against"):
+        runs = out[key]
+        out[f"{key}_rtf_wall"] = statistics.median(r["simulated_s"] / r["wall_s"] for r in runs)
+        out[f"{key}_rtf_cpu"] = statistics.median(r["simulated_s"] / r["cpu_s"] for r in runs)
+    out["ratio_wall"] = out["this_rtf_wall"] / out["against_rtf_wall"]
+    out["ratio_cpu"] = out["this_rtf_cpu"] / out["against_rtf_cpu"]
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jumps", type=int, default=6)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--against", type=Path, default=None, help="src folder of the code to compare with")
+    ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     t0 = time.perf_counter()
     from symrom.sim.compiled import warm_up
@@ -79,6 +132,19 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     print("\n".join(rows))
     print(f"\nStart-up (imports, compiled routines compiled or loaded from the cache): {res['startup_s']:.1f} s")
+    if args.against is not None:
+        res["against"] = {"src": str(args.against), "repeats": args.repeats, "motions": {}}
+        print(f"\nSide by side with {args.against}, one worker, medians of {args.repeats} alternating runs:\n")
+        print("| motion | real-time factor, this code (wall / per CPU s) | the other code | ratio (wall / CPU) |")
+        print("|---|---|---|---|")
+        for motion in ("froggy", "pronk"):
+            if not motion_available(motion):
+                continue
+            r = side_by_side(motion, args.jumps, args.seed, args.against, args.repeats)
+            res["against"]["motions"][motion] = r
+            print(f"| {ROBOT_OF_MOTION[motion]} {motion} | {r['this_rtf_wall']:.2f} / {r['this_rtf_cpu']:.2f} "
+                  f"| {r['against_rtf_wall']:.2f} / {r['against_rtf_cpu']:.2f} "
+                  f"| {r['ratio_wall']:.2f} / {r['ratio_cpu']:.2f} |", flush=True)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(res, indent=1))

@@ -211,6 +211,8 @@ class PronkController:
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
         self._q_stand = standing_joints(robot)
+        self._kp_posture = np.tile([self.gains.kp_hx, 0.0, 0.0], N_LEGS)  # (12,), per joint
+        self._kd_posture = np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS)
         self._q_land: np.ndarray | None = None
 
     @property
@@ -330,8 +332,8 @@ class PronkController:
             tau = self._flight_pd(state)
         else:
             p_b, J = self.kin.one(qj)
-            contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
             if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
+                contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
                 self._forces = self._mpc_forces(state, contact)
                 self._last_solve = state.t
             f_base = -(self._forces @ state.R)  # force the foot exerts, base frame (rows R^T f)
@@ -339,10 +341,8 @@ class PronkController:
             tau += self.leg_gravity.torques(qj, state.R)
             if self.phase == "land":
                 tau += self._landing_impedance(state, p_b, J)
-            # small posture terms: hold hip abduction, damp the legs
-            tau[0::3] += g.kp_hx * (self._q_stand[0::3] - qj[0::3]) - g.kd_hx * dqj[0::3]
-            tau[1::3] -= g.kd_stance * dqj[1::3]
-            tau[2::3] -= g.kd_stance * dqj[2::3]
+            # small posture terms: hold hip abduction (kp_hx, kd_hx), damp the legs (kd_stance)
+            tau += self._kp_posture * (self._q_stand - qj) - self._kd_posture * dqj
         return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
 
     def _flight_pd(self, state) -> np.ndarray:
