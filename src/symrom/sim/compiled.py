@@ -210,9 +210,10 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     return tau
 
 
-def warm_up() -> None:
-    """Compile (or load from the disk cache) every routine here now, as the first tick of a
-    simulation would; for benchmarks that time the ticks apart from the start-up."""
+def warm_up(froggy: bool = True) -> None:
+    """Compile (or load from the disk cache) the routines here now, as the first tick of a
+    simulation would: those every motion uses, and with ``froggy`` the froggy controller's
+    (the slowest to compile, about 10 s the first time)."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
@@ -220,6 +221,8 @@ def warm_up() -> None:
     q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
     unit = np.array([0.0, 0.0, 0.0, 1.0])
     base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
+    if not froggy:
+        return
     feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
     q[14] = 0.3
     froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
