@@ -128,8 +128,8 @@ def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
     """
     grf = np.empty((N_LEGS, 3))
     compiled.distribute(np.ascontiguousarray(foot_pos, dtype=float), np.asarray(centre, dtype=float),
-                            np.asarray(legs, dtype=np.int64), np.asarray(force, dtype=float),
-                            np.asarray(moment, dtype=float), float(mu), grf)
+                        np.asarray(legs, dtype=np.int64), np.asarray(force, dtype=float),
+                        np.asarray(moment, dtype=float), float(mu), grf)
     return grf
 
 

@@ -240,8 +240,8 @@ class World:
         dq = np.empty(N_Q)
         R = np.empty((3, 3))
         omega = np.array(omega)
-        base_state(np.array(com_pos), np.array(com_orn), np.array(v_com), omega, self._off_pos,
-                         self._off_orn, q, dq, R)
+        base_state(np.array(com_pos), np.array(com_orn), np.array(v_com), omega, self._off_pos, self._off_orn,
+                   q, dq, R)  # the link frame's pose and rates from the inertial frame's
         q[JOINTS] = [s[0] for s in js]
         dq[JOINTS] = [s[1] for s in js]
         q[JOINTS] *= self.signs
