@@ -218,3 +218,19 @@ def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "pybullet build time" not in r.stdout + r.stderr
     assert read_dataset(out).n_jumps == 2
+
+
+def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
+    """The runner stops an attempt once FlightWatch fails: only when the whole log would."""
+    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
+
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        n = int(rng.integers(2, 40))
+        air = rng.random(n) < rng.uniform(0.1, 0.9)
+        contact = np.repeat((~air)[:, None], 4, axis=1).astype(np.uint8)
+        watch = FlightWatch()
+        seen = [watch.update(c) for c in contact]
+        assert seen == sorted(seen)  # once failed, failed for good
+        log = {"q": np.zeros((n, 18)), "tau": np.zeros((n, 12)), "contact": contact}
+        assert watch.failed == (BRIEF_FLIGHT in check_jump(log, "go1", 0.002))

@@ -159,3 +159,70 @@ def test_divergence_is_reported_in_seconds_by_the_command_line(model_and_data, t
     rec = Metrics.read(out / "metrics.json")
     assert rec.format_version == 2 and rec.horizons["full"].scored_samples == full["scored_samples"]
     assert rec.to_dict() == m
+
+
+@pytest.mark.parametrize("latent_dim, poly_order", [(1, 1), (3, 1), (2, 2)])
+def test_compiled_rk4_matches_numpy_for_other_sizes_and_libraries(planted_block, latent_dim, poly_order):
+    """Term programs with powers and products (p = 2) and the generated code for l = 1, 3."""
+    ds, _ = planted_block
+    model = train(ds, TrainConfig(latent_dim=latent_dim, poly_order=poly_order))
+    jumps = ds.jumps_in("test")
+    ref = rollout(model, ds, jumps, RolloutOptions("rk4", reset=0.1, backend="numpy"))
+    for backend in ("table", "generated"):
+        ro = rollout(model, ds, jumps, RolloutOptions("rk4", reset=0.1, backend=backend))
+        np.testing.assert_array_equal(ro.diverged_at, ref.diverged_at)
+        for x, y in zip(ro.xi, ref.xi):
+            np.testing.assert_allclose(x, y, rtol=1e-10, atol=1e-10)
+
+
+def _c_rollout(model, ds, j, reset, substeps=2):
+    """The latent path (n, 2l) of jump j by the exported C's RK4 step (compiled with cc)."""
+    import ctypes
+    import shutil
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from symrom.model.export import export
+    from symrom.rollout.integrate import reset_mask
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler")
+    tmp = Path(tempfile.mkdtemp())
+    files = export(model, "c", tmp)
+    subprocess.run([cc, "-std=c99", "-O2", "-shared", "-fPIC", "-o", str(tmp / "m.so"), str(files[1]), "-lm"],
+                   check=True, capture_output=True)
+    lib = ctypes.CDLL(str(tmp / "m.so"))
+    D = ctypes.POINTER(ctypes.c_double)
+    sysm = model.rollout_system(ds, np.array([j]))
+    x, v, nu, ph = sysm.x[0], sysm.v[0], sysm.drive["nu"][0], sysm.drive["phase"][0]
+    resets = reset_mask(len(x), reset, ds.dt)
+    out = np.empty((len(x), 2 * model.latent_dim))
+    for k in range(len(x)):
+        if resets[k]:
+            s = np.r_[x[k], v[k]]
+        out[k] = s
+        u = np.ascontiguousarray(nu[k])
+        for _ in range(substeps):
+            lib.symrom_rk4_step(ctypes.c_int(int(ph[k])), s.ctypes.data_as(D), u.ctypes.data_as(D),
+                                ctypes.c_double(ds.dt / substeps))
+    return out
+
+
+@pytest.mark.parametrize("reset", [None, 0.1])
+def test_compiled_and_exported_rollouts_agree_with_lsoda(model_and_data, reset):
+    """The fixed-step paths against LSODA at tight tolerances (at odeint's default tolerance
+    it is LSODA's own error, ~1e-6 over a jump, that shows)."""
+    model, ds = model_and_data
+    jumps = ds.jumps_in("test")
+    ref = rollout(model, ds, jumps, RolloutOptions("lsoda", reset=reset, rtol=1e-10, atol=1e-10))
+    for backend in ("table", "generated"):
+        ro = rollout(model, ds, jumps, RolloutOptions("rk4", reset=reset, backend=backend))
+        for x, y, vx, vy in zip(ro.xi, ref.xi, ro.dxi, ref.dxi):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-6)
+            np.testing.assert_allclose(vx, vy, rtol=0, atol=1e-6)
+    for i, j in enumerate(jumps):
+        path = _c_rollout(model, ds, int(j), reset)
+        np.testing.assert_allclose(path[:, :model.latent_dim], ref.xi[i], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(path[:, model.latent_dim:], ref.dxi[i], rtol=0, atol=1e-6)

@@ -6,8 +6,8 @@ what a selection over hundreds of candidates needs. For one model rolled out
 many times (evaluation, a planner, the benchmark) this module writes the
 model's equations themselves as straight-line code (sympy's Python printer,
 common subexpressions shared, only the active terms, each phase its own
-branch), so a step costs a few dozen floating-point operations and the trig
-functions it really uses. Compiling takes about a second per model; the
+branch, the latent state held in scalar variables), so a step costs a few dozen
+floating-point operations and the trig functions it really uses. Compiling takes about a second per model; the
 result is cached per model (its library and coefficients) in this process.
 
 ``generated_integrator(model)`` has the interface of
@@ -34,81 +34,90 @@ from symrom.model.library import symbols
 _CACHE: OrderedDict[str, dict] = OrderedDict()
 CACHE_SIZE = 16  # compiled models kept per process
 
-_RK4 = '''
+def _rk4_source(l: int) -> str:
+    """Python source of ``rollout`` (the RK4 integrator of ``generated_integrator``) and
+    ``rhs`` (LSODA's right-hand side) for latent dimension l: the state is held in 2l
+    scalar variables and every loop over it is written out, so that the compiled step
+    is straight-line code."""
+    n = 2 * l
+    S = [f"s{i}" for i in range(n)]
+    U = [f"u{i}" for i in range(l)]
+    T = [f"t{i}" for i in range(n)]
+
+    def call(args: list[str], out: str) -> str:
+        lhs = ", ".join(f"{out}{d}" for d in range(l)) + ("," if l == 1 else "")
+        return f"{lhs} = accel_s(ph, {', '.join(args + U)})"
+
+    # classical RK4 on (x, v): k1 = (v, a), k2 = (w, b), k3 = (y, c), k4 = (v + h c, e)
+    step = [call(S, "a")]
+    step += [f"t{d} = s{d} + 0.5 * h * s{l + d}" for d in range(l)]
+    step += [f"t{l + d} = s{l + d} + 0.5 * h * a{d}" for d in range(l)]
+    step += [call(T, "b")] + [f"w{d} = t{l + d}" for d in range(l)]
+    step += [f"t{d} = s{d} + 0.5 * h * w{d}" for d in range(l)]
+    step += [f"t{l + d} = s{l + d} + 0.5 * h * b{d}" for d in range(l)]
+    step += [call(T, "c")] + [f"y{d} = t{l + d}" for d in range(l)]
+    step += [f"t{d} = s{d} + h * y{d}" for d in range(l)]
+    step += [f"t{l + d} = s{l + d} + h * c{d}" for d in range(l)]
+    step += [call(T, "e")]
+    step += [f"s{d} = s{d} + h / 6.0 * (s{l + d} + 2.0 * w{d} + 2.0 * y{d} + t{l + d})" for d in range(l)]
+    step += [f"s{l + d} = s{l + d} + h / 6.0 * (a{d} + 2.0 * b{d} + 2.0 * c{d} + e{d})" for d in range(l)]
+    ind = " " * 16
+    bound = " and ".join(f"abs(s{i}) <= limit[j, {i}]" for i in range(n))  # False for NaN too
+    nl = "\n"
+    return f"""
 def rollout(x_true, v_true, nu, phase, lens, resets, dt, substeps, limit, X, V, div_at):
-    J, n_max, l = x_true.shape
     h = dt / substeps
-    s = np.empty(2 * l)
-    k1, k2, k3, k4 = np.empty(l), np.empty(l), np.empty(l), np.empty(l)
-    st = np.empty(2 * l)
-    for j in range(J):
+    for j in range(x_true.shape[0]):
         div_at[j] = -1
+        {" = ".join(S)} = 0.0
         for k in range(lens[j]):
             if k == 0 or resets[k]:
-                for d in range(l):
-                    s[d] = x_true[j, k, d]
-                    s[l + d] = v_true[j, k, d]
-            ok = True
-            for d in range(2 * l):
-                if not (abs(s[d]) <= limit[j, d]):  # also catches NaN
-                    ok = False
-            if not ok:
+{nl.join(f"{ind}s{d} = x_true[j, k, {d}]" for d in range(l))}
+{nl.join(f"{ind}s{l + d} = v_true[j, k, {d}]" for d in range(l))}
+            if not ({bound}):
                 div_at[j] = k
                 break
-            for d in range(l):
-                X[j, k, d] = s[d]
-                V[j, k, d] = s[l + d]
+{nl.join(f"            X[j, k, {d}] = s{d}" for d in range(l))}
+{nl.join(f"            V[j, k, {d}] = s{l + d}" for d in range(l))}
             if k == lens[j] - 1:
                 break
             ph = phase[j, k]
-            u = nu[j, k]
+{nl.join(f"            u{d} = nu[j, k, {d}]" for d in range(l))}
             for _ in range(substeps):
-                # classical RK4 on (x, v): the position stages use the velocity stages
-                accel(ph, s, u, k1)
-                for d in range(l):
-                    st[d] = s[d] + 0.5 * h * s[l + d]
-                    st[l + d] = s[l + d] + 0.5 * h * k1[d]
-                accel(ph, st, u, k2)
-                for d in range(l):
-                    st[d] = s[d] + 0.5 * h * (s[l + d] + 0.5 * h * k1[d])
-                    st[l + d] = s[l + d] + 0.5 * h * k2[d]
-                accel(ph, st, u, k3)
-                for d in range(l):
-                    st[d] = s[d] + h * (s[l + d] + 0.5 * h * k2[d])
-                    st[l + d] = s[l + d] + h * k3[d]
-                accel(ph, st, u, k4)
-                for d in range(l):
-                    v = s[l + d]
-                    s[d] = s[d] + h / 6.0 * (v + 2.0 * (v + 0.5 * h * k1[d]) + 2.0 * (v + 0.5 * h * k2[d])
-                                            + (v + h * k3[d]))
-                    s[l + d] = v + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+{nl.join(ind + line for line in step)}
+
+
+def accel(ph, s, nu, out):
+    r = accel_s(ph, {", ".join(f"s[{i}]" for i in range(n))}, {", ".join(f"nu[{d}]" for d in range(l))})
+{nl.join(f"    out[{d}] = r[{d}]" for d in range(l))}
 
 
 def rhs(y, t, ph, u):
-    l = u.shape[0]
-    out = np.empty(2 * l)
-    out[:l] = y[l:]
-    accel(ph, y, u, out[l:])
+    out = np.empty({n})
+{nl.join(f"    out[{d}] = y[{l + d}]" for d in range(l))}
+    accel(ph, y, u, out[{l}:])
     return out
-'''
+"""
 
 
 def model_source(model: HybridModel) -> str:
-    """Python source of ``accel(ph, s, nu, out)``: ddxi (l,) into ``out`` for phase index
-    ``ph`` at state s = [xi, dxi] (2l,) and inputs nu (l,); then the RK4 rollout and
-    the LSODA right-hand side that call it."""
+    """Python source of ``accel_s(ph, s0, ..., s_{2l-1}, u0, ..., u_{l-1})``: the tuple
+    ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu (NaN for
+    an unknown phase), ``accel(ph, s, nu, out)`` writing it into ``out``, then the RK4
+    rollout and the LSODA right-hand side that call it."""
     l = model.latent_dim
     s, nu = symbols(l)
     sub = {v: sympy.Symbol(f"s{i}") for i, v in enumerate(s)} | {v: sympy.Symbol(f"u{i}") for i, v in enumerate(nu)}
     printer = PythonCodePrinter({"fully_qualified_modules": True})
-    lines = ["def accel(ph, s, nu, out):"]
-    lines += [f"    s{i} = s[{i}]" for i in range(2 * l)] + [f"    u{i} = nu[{i}]" for i in range(l)]
+    tail = "," if l == 1 else ""
+    lines = [f"def accel_s(ph, {', '.join([f's{i}' for i in range(2 * l)] + [f'u{i}' for i in range(l)])}):"]
     for k, rows in enumerate(dynamics_expressions(model)):
         repl, reduced = sympy.cse([e.xreplace(sub) for e in rows], symbols=sympy.numbered_symbols("c"))
         lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
         lines += [f"        {v} = {printer.doprint(e)}" for v, e in repl]
-        lines += [f"        out[{j}] = {printer.doprint(e)}" for j, e in enumerate(reduced)]
-    return "\n".join(lines) + "\n" + _RK4
+        lines.append(f"        return {', '.join(f'float({printer.doprint(e)})' for e in reduced)}{tail}")
+    lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
+    return "\n".join(lines) + "\n" + _rk4_source(l)
 
 
 def _key(model: HybridModel) -> str:
@@ -128,8 +137,8 @@ def _compiled(model: HybridModel) -> dict:
     t0 = time.perf_counter()
     ns: dict = {"math": math, "np": np}
     exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
-    accel = numba.njit(ns["accel"])
-    ns["accel"] = accel
+    for name in ("accel_s", "accel"):  # compiled before the functions that call them
+        ns[name] = numba.njit(ns[name])
     rollout, rhs = numba.njit(ns["rollout"]), numba.njit(ns["rhs"])
     l = model.latent_dim
     z = np.zeros((1, 2, l))

@@ -8,7 +8,11 @@ one compiled routine, whatever its blocks; a library with other terms
 (``Custom`` expressions beyond products of these factors) has no table and
 runs on the NumPy path.
 
-``rk4_windows`` rolls many windows of the hybrid latent model out at once
+``rk4_rollout`` (the ``table`` backend of the rollouts, the default) reads the
+table as per-phase term programs (``term_programs``): each active term is the
+list of its factors' places in [1, s, sin s, cos s, nu], the sines and cosines a
+phase uses are evaluated once per stage, and the coefficients are stored by
+active term. ``rk4_windows`` rolls many windows of the hybrid latent model out at once
 with classical Runge-Kutta, optionally with the exact parameter
 sensitivities (see ``symrom.model.shooting``, whose NumPy implementation is
 the reference this kernel is tested against). Functions are compiled on first
@@ -248,22 +252,41 @@ def kernels():
             one_window(w, xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
                        dt, substeps, limit, stride, want_sens, X, V, S_out, alive)
 
+    @numba.njit(cache=True, inline="always")
+    def program_accel(ph, s, val, fidx, nfac, coef, n_act, trig, acc):
+        """acc (l,) = ddxi in phase ph at state s (2l,), by the phase's term program: val
+        holds [1, s, sin s, cos s, nu] (the inputs already set), each active term a is the
+        product of val[fidx[ph, a, :nfac[ph, a]]] (val[0] = 1 for the constant)."""
+        n = s.shape[0]
+        for i in range(n):
+            x = s[i]
+            val[1 + i] = x
+            if trig[ph, i] & 1:
+                val[1 + n + i] = np.sin(x)
+            if trig[ph, i] & 2:
+                val[1 + 2 * n + i] = np.cos(x)
+        for j in range(acc.shape[0]):
+            acc[j] = 0.0
+        for a in range(n_act[ph]):
+            th = val[fidx[ph, a, 0]]
+            for f in range(1, nfac[ph, a]):
+                th *= val[fidx[ph, a, f]]
+            for j in range(acc.shape[0]):
+                acc[j] += th * coef[ph, a, j]
+
     @njit
-    def rk4_rollout(x_true, v_true, nu, phase, lens, resets, Xi, kind, var, power, count, active, n_active,
+    def rk4_rollout(x_true, v_true, nu, phase, lens, resets, fidx, nfac, coef, n_act, trig,
                     dt, substeps, limit, X, V, div_at):
         """J jumps from their true start, reset to the truth where ``resets``; the
         semantics of ``symrom.rollout.integrate.integrate_rk4`` (NaN from the first
-        bad sample on, whose index goes to div_at)."""
-        J, n_max, l = x_true.shape
-        p = kind.shape[0]
+        bad sample on, whose index goes to div_at). The model is given as per-phase
+        term programs (``term_programs``)."""
+        J, _, l = x_true.shape
         h = dt / substeps
-        theta = np.empty(p)
-        dtheta = np.zeros((p, 2 * l))
-        fv, dv = np.empty(kind.shape[1]), np.empty(kind.shape[1])
-        dummy_S = np.zeros((2 * l, 0))
-        dummy_i = np.zeros(0, dtype=np.int64)
+        val = np.ones(1 + 7 * l)
         s, st = np.empty(2 * l), np.empty(2 * l)
-        k1, k2, k3, k4 = np.empty(2 * l), np.empty(2 * l), np.empty(2 * l), np.empty(2 * l)
+        k1, k2, k3, k4 = np.empty(l), np.empty(l), np.empty(l), np.empty(l)
+        v2, v3 = np.empty(l), np.empty(l)
         for j in range(J):
             div_at[j] = -1
             for k in range(lens[j]):
@@ -282,27 +305,76 @@ def kernels():
                 if k == lens[j] - 1:
                     break
                 ph = phase[j, k]
-                u = nu[j, k]
+                for d in range(l):
+                    val[1 + 6 * l + d] = nu[j, k, d]
                 for _ in range(substeps):
-                    field(s, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, fv, dv, k1, dummy_S, False)
-                    for d in range(2 * l):
-                        st[d] = s[d] + 0.5 * h * k1[d]
-                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, fv, dv, k2, dummy_S, False)
-                    for d in range(2 * l):
-                        st[d] = s[d] + 0.5 * h * k2[d]
-                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, fv, dv, k3, dummy_S, False)
-                    for d in range(2 * l):
-                        st[d] = s[d] + h * k3[d]
-                    field(st, dummy_S, u, ph, Xi, kind, var, power, count, dummy_i, dummy_i, dummy_i,
-                          active, n_active, theta, dtheta, fv, dv, k4, dummy_S, False)
-                    for d in range(2 * l):
-                        s[d] = s[d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
+                    program_accel(ph, s, val, fidx, nfac, coef, n_act, trig, k1)
+                    for d in range(l):
+                        st[d] = s[d] + 0.5 * h * s[l + d]
+                        st[l + d] = s[l + d] + 0.5 * h * k1[d]
+                    program_accel(ph, st, val, fidx, nfac, coef, n_act, trig, k2)
+                    for d in range(l):
+                        v2[d] = st[l + d]
+                        st[d] = s[d] + 0.5 * h * v2[d]
+                        st[l + d] = s[l + d] + 0.5 * h * k2[d]
+                    program_accel(ph, st, val, fidx, nfac, coef, n_act, trig, k3)
+                    for d in range(l):
+                        v3[d] = st[l + d]
+                        st[d] = s[d] + h * v3[d]
+                        st[l + d] = s[l + d] + h * k3[d]
+                    program_accel(ph, st, val, fidx, nfac, coef, n_act, trig, k4)
+                    for d in range(l):
+                        v4 = st[l + d]
+                        s[d] = s[d] + h / 6.0 * (s[l + d] + 2.0 * v2[d] + 2.0 * v3[d] + v4)
+                        s[l + d] = s[l + d] + h / 6.0 * (k1[d] + 2.0 * k2[d] + 2.0 * k3[d] + k4[d])
 
     _KERNELS.update(features=features, rk4_windows=rk4_windows, rk4_rollout=rk4_rollout)
     return _KERNELS
+
+
+def term_programs(table: TermTable, Xi: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The model as per-phase programs for the compiled RK4: every active term as the
+    list of its factors, indices into v = [1, s (2l), sin s (2l), cos s (2l), nu (l)].
+
+    Returns fidx (P, A, W) factor indices (0, the constant 1, pads), nfac (P, A) factors
+    per term, coef (P, A, l) the terms' coefficients, n_act (P,) active terms per phase
+    and trig (P, 2l) which sin (bit 1) and cos (bit 2) each phase uses.
+    """
+    P, p, l = Xi.shape
+    n = 2 * l
+    active, n_act = active_terms(Xi != 0)
+    lists = []
+    for t in range(p):
+        f = []
+        for c in range(table.count[t]):
+            kind, var, power = table.kind[t, c], table.var[t, c], table.power[t, c]
+            if kind == STATE_POWER:
+                f += [1 + var] * int(power)
+            elif kind == SIN:
+                f.append(1 + n + var)
+            elif kind == COS:
+                f.append(1 + 2 * n + var)
+            else:
+                f.append(1 + 3 * n + var)
+        lists.append(f or [0])
+    A = max(1, int(n_act.max()))
+    W = max(len(f) for f in lists)
+    fidx = np.zeros((P, A, W), dtype=np.int64)
+    nfac = np.zeros((P, A), dtype=np.int64)
+    coef = np.zeros((P, A, l))
+    trig = np.zeros((P, n), dtype=np.int64)
+    for ph in range(P):
+        for a in range(n_act[ph]):
+            t = active[ph, a]
+            fidx[ph, a, :len(lists[t])] = lists[t]
+            nfac[ph, a] = len(lists[t])
+            coef[ph, a] = Xi[ph, t]
+            for c in lists[t]:
+                if 1 + n <= c < 1 + 2 * n:
+                    trig[ph, c - 1 - n] |= 1
+                elif 1 + 2 * n <= c < 1 + 3 * n:
+                    trig[ph, c - 1 - 2 * n] |= 2
+    return fidx, nfac, coef, n_act, trig
 
 
 def compiled_rollout(library: Library, Xi: np.ndarray):
@@ -316,8 +388,7 @@ def compiled_rollout(library: Library, Xi: np.ndarray):
         k = kernels()["rk4_rollout"]
     except ImportError:
         return None
-    Xi = np.ascontiguousarray(Xi, dtype=float)
-    active, n_active = active_terms(Xi != 0)
+    program = term_programs(table, np.ascontiguousarray(Xi, dtype=float))
 
     def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
         """Padded (J, n_max, l) truth, drive {nu (J, n_max, l), phase (J, n_max)} ->
@@ -327,9 +398,8 @@ def compiled_rollout(library: Library, Xi: np.ndarray):
         div_at = np.full(J, -1, dtype=np.int64)
         k(np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
           np.ascontiguousarray(drive["nu"], dtype=float), np.ascontiguousarray(drive["phase"], dtype=np.int64),
-          np.asarray(lens, dtype=np.int64), np.asarray(resets, dtype=np.bool_), Xi, table.kind, table.var,
-          table.power, table.count, active, n_active, float(dt), int(substeps),
-          np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
+          np.asarray(lens, dtype=np.int64), np.asarray(resets, dtype=np.bool_), *program, float(dt),
+          int(substeps), np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
         return X, V, div_at
 
     return integrate

@@ -87,6 +87,7 @@ class LegKinematics:
             self.chains.append(elems)
             self.chain_joint_index.append(cols)
         self._stacked = self._stack_chains()
+        self._flat: tuple | None = None  # the chains as arrays (``chain_arrays``)
 
     def _stack_chains(self) -> tuple | None:
         """The four chains as arrays over legs, when they share one structure (the usual
@@ -167,6 +168,32 @@ class LegKinematics:
     def jacobians(self, q_joints: np.ndarray) -> np.ndarray:
         """Leg Jacobians d p_foot / d q_leg in the base frame: (N, 12) -> (N, 4, 3, 3)."""
         return self.foot_positions_and_jacobians(q_joints)[1]
+
+    def chain_arrays(self) -> tuple[np.ndarray, ...]:
+        """The leg chains as arrays, as ``symrom.robots.compiled.legs_one`` takes them:
+        n_el (4,) elements per chain, xyz (4, E, 3), rot (4, E, 3, 3), axis (4, E, 3),
+        col (4, E) (the joint's column in the 12 angles, -1 for a fixed joint)."""
+        if self._flat is None:
+            n = max(len(ch) for ch in self.chains)
+            xyz, rot = np.zeros((N_LEGS, n, 3)), np.zeros((N_LEGS, n, 3, 3))
+            axis, col = np.zeros((N_LEGS, n, 3)), np.full((N_LEGS, n), -1, dtype=np.int64)
+            for k, (ch, cols) in enumerate(zip(self.chains, self.chain_joint_index)):
+                for e, (el, c) in enumerate(zip(ch, cols)):
+                    xyz[k, e], rot[k, e], col[k, e] = el.xyz, el.rot, c
+                    if el.axis is not None:
+                        axis[k, e] = el.axis
+            n_el = np.array([len(ch) for ch in self.chains], dtype=np.int64)
+            self._flat = (n_el, xyz, rot, axis, col)
+        return self._flat
+
+    def one(self, q_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Feet (4, 3) m and Jacobians (4, 3, 3) m/rad of one configuration (12,) rad,
+        base frame: the compiled path for controllers (``symrom.robots.compiled``)."""
+        from symrom.robots.compiled import legs_one
+
+        pos, J = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3, 3))
+        legs_one(np.ascontiguousarray(q_joints, dtype=float), *self.chain_arrays(), pos, J)
+        return pos, J
 
     def foot_positions_and_jacobians(self, q_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Both at once: (N, 12) rad -> (N, 4, 3) m and (N, 4, 3, 3) m/rad."""

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.integrate import odeint
 
 from symrom.data.dataset import Dataset
-from symrom.rollout.system import Rollable
+from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
 # auto: rk4 by the compiled term-table kernel (no compilation per model), lsoda with the
@@ -45,6 +45,7 @@ BACKENDS = ("auto", "table", "generated", "numpy")
 class RolloutOptions:
     """method: ``lsoda`` or ``rk4``; reset: s between resets (None = full horizon);
     substeps: RK4 steps per sample; max_steps: LSODA step budget per sample;
+    rtol, atol: LSODA's relative and absolute tolerances (the defaults are odeint's);
     bound: divergence bound as a multiple of the model's yardstick; backend: ``auto``,
     ``table``, ``generated`` or ``numpy`` (see ``BACKENDS``; a model without compiled
     code runs on NumPy with ``auto``)."""
@@ -55,6 +56,8 @@ class RolloutOptions:
     max_steps: int = 2000
     bound: float = 50.0
     backend: str = "auto"
+    rtol: float = 1.49012e-8
+    atol: float = 1.49012e-8
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
@@ -110,11 +113,12 @@ Accel = Callable[[int, np.ndarray, np.ndarray], np.ndarray]
 
 def integrate_lsoda(rhs: Callable, args: Callable[[int], tuple], x_true: np.ndarray, v_true: np.ndarray,
                     resets: np.ndarray, limit: np.ndarray, dt: float,
-                    max_steps: int) -> tuple[np.ndarray, np.ndarray, int]:
+                    max_steps: int, rtol: float = 1.49012e-8,
+                    atol: float = 1.49012e-8) -> tuple[np.ndarray, np.ndarray, int]:
     """One jump of y' = rhs(y, t, *args(k)) with LSODA over each sample interval k.
 
     y = [x, v]; x_true, v_true (n, d) give the start and reset states; resets (n,)
-    bool; limit (2d,) bound on |[x, v]|. Returns X, V (n, d), NaN from the first bad
+    bool; limit (2d,) bound on |[x, v]|; rtol, atol: LSODA's tolerances. Returns X, V (n, d), NaN from the first bad
     sample on, and that sample's index (-1 if none).
     """
     n, d = x_true.shape
@@ -131,7 +135,8 @@ def integrate_lsoda(rhs: Callable, args: Callable[[int], tuple], x_true: np.ndar
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # odeint warns on an exhausted budget; we check its message
-            sol, info = odeint(rhs, y, [0.0, dt], args=args(k), mxstep=max_steps, full_output=True)
+            sol, info = odeint(rhs, y, [0.0, dt], args=args(k), mxstep=max_steps, full_output=True,
+                               rtol=rtol, atol=atol)
         if info["message"] != "Integration successful.":
             return X, V, k + 1
         y = sol[1]
@@ -173,20 +178,18 @@ def integrate_rk4(acc: Accel, x_true: np.ndarray, v_true: np.ndarray, lens: np.n
     return [X[j, :lens[j]] for j in range(J)], [V[j, :lens[j]] for j in range(J)], div_at
 
 
-def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
-            options: RolloutOptions = RolloutOptions(),
-            progress: Callable[[int, int], None] | None = None) -> Rollout:
-    """Roll ``model`` out along the logged ``jumps`` of ``ds`` (default: all).
+def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
+                     progress: Callable[[int, int], None] | None = None
+                     ) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """Integrate a model's ``RolloutSystem`` (its J jumps) with ``options``.
 
-    Returns its predictions in the units of q (rad, m); ValueError with one
-    clear message when the data do not fit the model.
+    Returns per jump the state paths X, V (n_j, d), NaN from the first bad sample
+    on, and that sample per jump (J,) (-1 if none); dt is the sample period, s.
+    This is ``rollout`` without the model's set-up and the map back to its
+    components (what the benchmarks time).
     """
-    jumps = np.arange(ds.n_jumps) if jumps is None else np.asarray(jumps, dtype=int)
-    comps = tuple(model.components)
-    if jumps.size == 0:
-        return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int), comps, ds.dt)
-    sysm = model.rollout_system(ds, jumps)
     limit = options.bound * sysm.scale  # (J, 2d)
+    n_jumps = len(sysm.x)
     generated = sysm.generated() if options.backend == "generated" and sysm.generated else None
     if options.backend == "generated" and generated is None:
         raise ValueError("this model has no generated code; use backend 'auto' or 'numpy'")
@@ -204,30 +207,45 @@ def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None =
                     return np.concatenate([state[d:], a[0]])
 
                 args = (lambda k: (k,))
-            X, V, d = integrate_lsoda(rhs, args, x, v, reset_mask(x.shape[0], options.reset, ds.dt), limit[i],
-                                      ds.dt, options.max_steps)
+            X, V, d = integrate_lsoda(rhs, args, x, v, reset_mask(x.shape[0], options.reset, dt), limit[i],
+                                      dt, options.max_steps, options.rtol, options.atol)
             Xs.append(X)
             Vs.append(V)
             div.append(d)
             if progress:
-                progress(i + 1, len(jumps))
-        div_at = np.array(div, dtype=int)
+                progress(i + 1, n_jumps)
+        return Xs, Vs, np.array(div, dtype=int)
+    lens = np.array([x.shape[0] for x in sysm.x])
+    drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
+    resets = reset_mask(int(lens.max()), options.reset, dt)
+    if options.backend == "table" and sysm.compiled is None:
+        raise ValueError("this model has no compiled integrator; use backend 'numpy'")
+    fast = generated[0] if generated is not None else sysm.compiled if options.backend != "numpy" else None
+    if fast is not None:
+        X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, dt, options.substeps)
+        Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]
     else:
-        lens = np.array([x.shape[0] for x in sysm.x])
-        drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
-        resets = reset_mask(int(lens.max()), options.reset, ds.dt)
-        if options.backend == "table" and sysm.compiled is None:
-            raise ValueError("this model has no compiled integrator; use backend 'numpy'")
-        fast = generated[0] if generated is not None else sysm.compiled if options.backend != "numpy" else None
-        if fast is not None:
-            X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, ds.dt,
-                                options.substeps)
-            Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]
-        else:
-            Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
-                {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
-                lens, resets, limit, ds.dt, options.substeps)
-        if progress:
-            progress(len(jumps), len(jumps))
+        Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
+            {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
+            lens, resets, limit, dt, options.substeps)
+    if progress:
+        progress(n_jumps, n_jumps)
+    return Xs, Vs, div_at
+
+
+def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
+            options: RolloutOptions = RolloutOptions(),
+            progress: Callable[[int, int], None] | None = None) -> Rollout:
+    """Roll ``model`` out along the logged ``jumps`` of ``ds`` (default: all).
+
+    Returns its predictions in the units of q (rad, m); ValueError with one
+    clear message when the data do not fit the model.
+    """
+    jumps = np.arange(ds.n_jumps) if jumps is None else np.asarray(jumps, dtype=int)
+    comps = tuple(model.components)
+    if jumps.size == 0:
+        return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int), comps, ds.dt)
+    sysm = model.rollout_system(ds, jumps)
+    Xs, Vs, div_at = integrate_system(sysm, options, ds.dt, progress)
     q_pred = [sysm.observe(i, X) for i, X in enumerate(Xs)]
     return Rollout(jumps, q_pred, Xs, Vs, div_at >= 0, div_at, comps, ds.dt)

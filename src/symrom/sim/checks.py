@@ -3,6 +3,8 @@
 ``check_jump`` applies the checks common to all motions (``JumpChecks``); a
 motion adds its own through its plug-in's ``check`` (e.g. froggy's rear-only
 push). Each failed check is one human-readable reason, recorded with the retry.
+``FlightWatch`` sees, while a jump runs, when one of these checks is already
+certain to fail, so that the runner can stop the attempt there.
 """
 
 from __future__ import annotations
@@ -73,7 +75,7 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
         if (b - a) * dt < checks.min_flight - 1e-9:
             bad.append(f"flight {(b - a) * dt:.3f} s")
         if flights[0][0] != a:
-            bad.append("a brief flight before the main one")
+            bad.append(BRIEF_FLIGHT)
     z = q[:, BASE_POS][:, 2]
     if z.max() - z[0] < checks.min_apex_gain:
         bad.append(f"apex gain {z.max() - z[0]:.3f} m")
@@ -82,3 +84,33 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
     if travel < checks.min_travel:
         bad.append(f"travel {travel:.3f} m")
     return bad
+
+
+BRIEF_FLIGHT = "a brief flight before the main one"
+
+
+class FlightWatch:
+    """Watches the logged contact flags of a running jump for a certain failure of the
+    check "a brief flight before the main one" (``check_jump``: the first run of samples
+    with no foot down must be the longest, the first of equals).
+
+    ``update(contact (4,))`` per logged sample; ``failed`` turns true once a later
+    airborne run has grown longer than the first one ended at: the whole log will fail
+    that check whatever follows.
+    """
+
+    def __init__(self) -> None:
+        self.first: int | None = None  # length of the first airborne run, once it ended
+        self.run = 0  # length of the current airborne run
+        self.failed = False
+
+    def update(self, contact: np.ndarray) -> bool:
+        if not contact.any():
+            self.run += 1
+            if self.first is not None and self.run > self.first:
+                self.failed = True
+        else:
+            if self.run and self.first is None:
+                self.first = self.run
+            self.run = 0
+        return self.failed

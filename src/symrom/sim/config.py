@@ -14,7 +14,7 @@ from typing import Any
 from symrom.sim.checks import JumpChecks
 from symrom.sim.world import WorldConfig
 
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2  # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise)
 
 
 @dataclass(frozen=True)

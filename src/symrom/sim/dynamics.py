@@ -118,8 +118,8 @@ class LegGravity:
     def torques(self, q_joints: np.ndarray, R: np.ndarray) -> np.ndarray:
         """(12,) N m for joint angles (12,) rad and base orientation R (3, 3) base -> world."""
         p = self._p
-        g_base = R.T @ np.array([0.0, 0.0, -GRAVITY])
-        p.setGravity(*g_base, physicsClientId=self.cid)
+        g_base = -GRAVITY * R[2]  # R^T (0, 0, -g)
+        p.setGravity(*g_base.tolist(), physicsClientId=self.cid)
         q = (np.asarray(q_joints, dtype=float) * self._signs)[self._inv]
         tau = p.calculateInverseDynamics(self.rob, q.tolist(), self._zeros, self._zeros,
                                          physicsClientId=self.cid)

@@ -33,10 +33,12 @@ import numpy as np
 from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import nominal_feet, start_pose
+from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
 from symrom.sim.world import RobotState, World
 
+STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
 REAR = (2, 3)  # RR, RL
 
@@ -122,19 +124,12 @@ def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
     Least-norm solution of sum F_k = force (3,) N and sum (p_k - centre) x F_k =
     moment (3,) N m, with foot_pos (4, 3) m and centre (3,) m in the world; then
     pulls are dropped and horizontal parts clipped to the friction cone ``mu``.
+    Compiled (``symrom.sim.compiled``).
     """
-    A = np.zeros((6, 3 * len(legs)))
-    for i, k in enumerate(legs):
-        r = foot_pos[k] - centre
-        A[:3, 3 * i:3 * i + 3] = np.eye(3)
-        A[3:, 3 * i:3 * i + 3] = [[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]]
-    sol = (np.linalg.pinv(A) @ np.r_[force, moment]).reshape(len(legs), 3)
-    sol[:, 2] = np.maximum(sol[:, 2], 0.0)
-    horiz = np.linalg.norm(sol[:, :2], axis=1)
-    scale = np.minimum(1.0, mu * sol[:, 2] / np.maximum(horiz, 1e-9))
-    sol[:, :2] *= scale[:, None]
-    grf = np.zeros((N_LEGS, 3))
-    grf[list(legs)] = sol
+    grf = np.empty((N_LEGS, 3))
+    compiled.distribute(np.ascontiguousarray(foot_pos, dtype=float), np.asarray(centre, dtype=float),
+                        np.asarray(legs, dtype=np.int64), np.asarray(force, dtype=float),
+                        np.asarray(moment, dtype=float), float(mu), grf)
     return grf
 
 
@@ -157,6 +152,8 @@ class FroggyController:
         self.t_flight = None  # time the flight stage began
         self.t_land = None
         self._p0 = None  # (feet (4, 3), base (3,)) in the world when the push starts, m
+        self._prm: np.ndarray | None = None  # the parameters as ``compiled.froggy_torque`` takes them
+        self._chains: tuple = ()
         p = params
         self._t_push = p.t_settle + p.t_crouch + p.t_hold
         self._t_rear = self._t_push + p.t_push_all
@@ -195,12 +192,30 @@ class FroggyController:
         return "flight"
 
     def torque(self, s: RobotState) -> np.ndarray:
-        """Joint torques (12,) N m for state ``s``."""
+        """Joint torques (12,) N m for state ``s``.
+
+        The stages above pick the targets; ``symrom.sim.compiled.froggy_torque`` does the
+        arithmetic (it reads as ``torque_numpy``, the reference it is tested against).
+        """
+        self.phase = self._stage(s)
+        stage = STAGES.index(self.phase)
+        if self.phase in ("push_all", "push_rear") and self._p0 is None:
+            self._p0 = (s.foot_pos.copy(), s.q[12:15].copy())
+        feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
+        if self._prm is None:
+            self._prm = np.array([float(getattr(self.params, n)) for n in compiled.FROGGY_PARAMS])
+            self._chains = self.kin.chain_arrays()
+        return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
+                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
+                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
+                                      self.limit, *self._chains)
+
+    def torque_numpy(self, s: RobotState) -> np.ndarray:
+        """``torque`` in NumPy, the reference of the compiled arithmetic (the same stages)."""
         p = self.params
         self.phase = self._stage(s)
         qj, dqj = s.q[JOINTS], s.dq[JOINTS]
-        pos, J = self.kin.foot_positions_and_jacobians(qj)
-        pos, J = pos[0], J[0]
+        pos, J = self.kin.one(qj)
         vel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))
         # Stance targets are body-fixed (their offsets give the body its attitude stiffness);
         # in flight they are level (yaw-only frame), so the legs hang plumb for landing.

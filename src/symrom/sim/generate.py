@@ -112,7 +112,8 @@ def _worker(cfg: GenerateConfig, jump: int, parts: str) -> dict:
 
 
 def _mp_context(cfg: GenerateConfig):
-    """Fresh worker processes: forkserver (with the runner and the motion preloaded) where
+    """Fresh worker processes: forkserver (with the runner, the motion and the compiled
+    routines preloaded) where
     there is one, else spawn. Plain fork could inherit locks held by the caller's threads
     (e.g. a progress bar)."""
     import multiprocessing as mp
@@ -120,7 +121,7 @@ def _mp_context(cfg: GenerateConfig):
     if "forkserver" in mp.get_all_start_methods():
         ctx = get_context("forkserver")
         plugin = get_motion(cfg.motion).plugin.partition(":")[0]
-        ctx.set_forkserver_preload(["symrom.sim.runner", plugin, "pybullet"])
+        ctx.set_forkserver_preload(["symrom.sim.runner", plugin, "pybullet", "symrom.sim.warm"])
         return ctx
     return get_context("spawn")
 

@@ -211,6 +211,8 @@ class PronkController:
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
         self._q_stand = standing_joints(robot)
+        self._kp_posture = np.tile([self.gains.kp_hx, 0.0, 0.0], N_LEGS)  # (12,), per joint
+        self._kd_posture = np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS)
         self._q_land: np.ndarray | None = None
 
     @property
@@ -287,13 +289,14 @@ class PronkController:
         x0 = srb_state(state.q[BASE_RPY], p_com, state.omega, v_com, GRAVITY)
         # keep the yaw reference continuous with the measured yaw
         yaw_ref = self.params.yaw
-        x_ref = np.empty((cfg.horizon, 13))
+        x_ref = np.zeros((cfg.horizon, 13))  # srb_state of the references: level, not turning
+        x_ref[:, 2], x_ref[:, 12] = yaw_ref, GRAVITY
         contact = np.empty((cfg.horizon, N_LEGS))
         off_ref = self._com_offset()
         for k in range(cfg.horizon):
             tk = state.t + (k + 1) * cfg.dt
             pos, vel, c = self._ref_base(tk)
-            x_ref[k] = srb_state(np.array([0.0, 0.0, yaw_ref]), pos + off_ref, np.zeros(3), vel, GRAVITY)
+            x_ref[k, 3:6], x_ref[k, 9:12] = pos + off_ref, vel
             contact[k] = c
         contact[0] = np.minimum(contact[0], contact_now)
         if self.phase == "land":
@@ -328,24 +331,19 @@ class PronkController:
         if self.phase == "flight":
             tau = self._flight_pd(state)
         else:
-            p_b, J = self.kin.foot_positions_and_jacobians(qj[None])
-            p_b, J = p_b[0], J[0]
-            contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
+            p_b, J = self.kin.one(qj)
             if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
+                contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
                 self._forces = self._mpc_forces(state, contact)
                 self._last_solve = state.t
-            f_base = (state.R.T @ (-self._forces).T).T  # force the foot exerts, base frame
-            for k in range(N_LEGS):
-                s = slice(3 * k, 3 * k + 3)
-                tau[s] = J[k].T @ f_base[k]
+            f_base = -(self._forces @ state.R)  # force the foot exerts, base frame (rows R^T f)
+            tau = np.einsum("kji,kj->ki", J, f_base).reshape(N_JOINTS)  # J_k^T f_k per leg
             tau += self.leg_gravity.torques(qj, state.R)
             if self.phase == "land":
                 tau += self._landing_impedance(state, p_b, J)
-            # small posture terms: hold hip abduction, damp the legs
-            tau[0::3] += g.kp_hx * (self._q_stand[0::3] - qj[0::3]) - g.kd_hx * dqj[0::3]
-            tau[1::3] -= g.kd_stance * dqj[1::3]
-            tau[2::3] -= g.kd_stance * dqj[2::3]
-        return np.clip(tau, -self.torque_limit, self.torque_limit)
+            # small posture terms: hold hip abduction (kp_hx, kd_hx), damp the legs (kd_stance)
+            tau += self._kp_posture * (self._q_stand - qj) - self._kd_posture * dqj
+        return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
 
     def _flight_pd(self, state) -> np.ndarray:
         """Joint PD to the landing posture, feet ahead of the hips by foot_forward * vx."""
@@ -370,17 +368,12 @@ class PronkController:
         g = self.gains
         pos, _ = self._ref_land(state.t)
         h_ref = pos[2] - self.body.foot_radius
-        tau = np.zeros(N_JOINTS)
-        dqj = state.dq[JOINTS]
         p_land = self._p_land if self._q_land is not None else p_b
-        for k in range(N_LEGS):
-            s = slice(3 * k, 3 * k + 3)
-            v_rel = J[k] @ dqj[s]
-            target = p_land[k].copy() if not state.contact[k] else p_b[k].copy()
-            target[2] = -h_ref
-            F = g.k_land * (target - p_b[k]) - g.d_land * v_rel
-            tau[s] = J[k].T @ F
-        return tau
+        v_rel = np.einsum("kij,kj->ki", J, state.dq[JOINTS].reshape(N_LEGS, 3))
+        target = np.where(state.contact[:, None] != 0, p_b, p_land)  # a new array
+        target[:, 2] = -h_ref
+        F = g.k_land * (target - p_b) - g.d_land * v_rel
+        return np.einsum("kji,kj->ki", J, F).reshape(N_JOINTS)
 
     def done(self, state) -> bool:
         """True once settled after landing (or when the jump has run ``max_time``)."""
@@ -388,7 +381,8 @@ class PronkController:
             return True
         if self.phase != "land" or self._t_td is None:
             return False
-        settled = (np.linalg.norm(state.dq[BASE_POS]) < 0.15 and np.linalg.norm(state.omega) < 0.6)
+        v, w = state.dq[BASE_POS], state.omega
+        settled = float(v @ v) < 0.15 ** 2 and float(w @ w) < 0.6 ** 2
         return state.t - self._t_td >= self.params.settle_time and settled
 
 

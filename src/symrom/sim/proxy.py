@@ -188,14 +188,15 @@ class ProxyWorld:
         """The corrupted ``RobotState`` a controller and a log of the real robot would see."""
         return self.sensors.corrupt(self.world.state())
 
-    def step(self, tau: np.ndarray) -> np.ndarray:
-        """Send ``tau`` (12,) N m; returns the torque (12,) actually applied this tick."""
+    def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
+        """Send ``tau`` (12,) N m; returns the torque (12,) actually applied this tick (None
+        with ``report=False``, as ``World.step``)."""
         from symrom.sim.bullet import p
 
         w = self.world
         jv = np.array([js[1] for js in p.getJointStates(w.robot, w.joint_ids, physicsClientId=w.client)])
         jv = jv * w.signs  # symrom's joint signs, as the torques
-        return self.world.step(self.motors.apply(tau, jv))
+        return self.world.step(self.motors.apply(tau, jv), report)
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         self.world.apply_base_force(force_world)

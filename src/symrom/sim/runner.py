@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
-from symrom.sim.checks import check_jump
+from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
 from symrom.sim.config import GenerateConfig, NoiseConfig
 from symrom.sim.controller import load_motion
 from symrom.sim.parts import LOG_KEYS, jsonable
@@ -74,6 +74,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     log: dict[str, list] = {k: [] for k in LOG_KEYS}
     every = cfg.world.log_every
     finished = False
+    watch = FlightWatch()
     try:
         world.reset(q0)
         for tick in range(int(round(params.max_time * cfg.world.physics_hz)) + 1):
@@ -86,14 +87,18 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
             tau = ctrl.torque(s)
             if force is not None and force[1] <= s.t < force[2]:
                 world.apply_base_force(force[0])
-            applied = world.step(tau)
-            if tick % every == 0:
+            logged = tick % every == 0
+            applied = world.step(tau, report=logged)
+            if logged:
                 log["t"].append(tick * cfg.world.dt)
                 log["q"].append(s.q)
                 log["dq"].append(s.dq)
                 log["tau"].append(applied)
                 log["contact"].append(s.contact)
                 log["foot_pos"].append(s.foot_pos)
+                if watch.update(s.contact):  # the attempt fails whatever follows: stop here
+                    info["stopped"] = f"{BRIEF_FLIGHT} (stopped at {tick * cfg.world.dt:.3f} s)"
+                    break
     finally:
         world.close()
     info["finished"] = finished
@@ -117,7 +122,10 @@ def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarr
     failures = []
     for attempt in range(cfg.max_attempts):
         log, info = run_jump(cfg, jump_seed(cfg.seed, jump, attempt))
-        bad = check_jump(log, cfg.robot, dt, cfg.checks, info["finished"]) + motion.check(log, dt, cfg.checks)
+        if "stopped" in info:  # failed for certain while it ran; the other checks were not run
+            bad = [info["stopped"]]
+        else:
+            bad = check_jump(log, cfg.robot, dt, cfg.checks, info["finished"]) + motion.check(log, dt, cfg.checks)
         if not bad:
             record = {"jump": jump, "attempt": attempt, "spawn_key": [jump, attempt],
                       "retries": failures, "samples": int(log["t"].shape[0]), **info}

@@ -25,6 +25,7 @@ import pybullet_data
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
+from symrom.sim.compiled import base_state
 
 
 @dataclass(frozen=True)
@@ -120,7 +121,8 @@ class World:
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
         self.signs = self.spec.signs  # (12,) symrom angle = sign x URDF angle
         self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
-        self._driven = list(range(N_JOINTS))  # joints driven by torque: all but the held ones
+        self._driven = np.arange(N_JOINTS)  # joints driven by torque: all but the held ones
+        self._held_ids: list[int] = []
         self.client = p.connect(p.DIRECT)
         self.t = 0.0
         self._pending_force: np.ndarray | None = None
@@ -174,6 +176,7 @@ class World:
         dyn = p.getDynamicsInfo(self.robot, -1, physicsClientId=c)
         self._inertial = (tuple(dyn[3]), tuple(dyn[4]))  # link frame -> inertial frame
         self._inertial_inv = p.invertTransform(*self._inertial)
+        self._off_pos, self._off_orn = (np.array(v, dtype=float) for v in self._inertial_inv)
         self.mass = sum(p.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
                         for i in range(-1, p.getNumJoints(self.robot, physicsClientId=c)))  # kg
         shapes = p.getCollisionShapeData(self.robot, self.foot_ids[0], physicsClientId=c)
@@ -232,22 +235,17 @@ class World:
         c, rob = self.client, self.robot
         com_pos, com_orn = p.getBasePositionAndOrientation(rob, physicsClientId=c)
         v_com, omega = p.getBaseVelocity(rob, physicsClientId=c)
-        pos, orn = p.multiplyTransforms(com_pos, com_orn, *self._inertial_inv)
-        R = np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        rpy = matrix_to_rpy(R)
-        omega = np.asarray(omega)
-        pos = np.asarray(pos)
-        v_base = np.asarray(v_com) + np.cross(omega, pos - np.asarray(com_pos))
         js = p.getJointStates(rob, self.joint_ids, physicsClientId=c)
         q = np.empty(N_Q)
         dq = np.empty(N_Q)
+        R = np.empty((3, 3))
+        omega = np.array(omega)
+        base_state(np.array(com_pos), np.array(com_orn), np.array(v_com), omega, self._off_pos, self._off_orn,
+                   q, dq, R)  # the link frame's pose and rates from the inertial frame's
         q[JOINTS] = [s[0] for s in js]
         dq[JOINTS] = [s[1] for s in js]
         q[JOINTS] *= self.signs
         dq[JOINTS] *= self.signs
-        q[BASE_POS], q[BASE_RPY] = pos, rpy
-        dq[BASE_POS] = v_base
-        dq[BASE_RPY] = np.linalg.solve(euler_rate_matrix(rpy), omega)
         ls = p.getLinkStates(rob, self.foot_ids, computeLinkVelocity=1, computeForwardKinematics=1,
                              physicsClientId=c)
         foot_pos = np.array([s[4] for s in ls])
@@ -268,13 +266,15 @@ class World:
         return flags
 
     # ---------------------------------------------------------------- driving
-    def step(self, tau: np.ndarray) -> np.ndarray:
+    def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
         """Apply joint torques ``tau`` (12,) N m for one physics tick; return the applied (12,).
 
-        Requests beyond the robot's torque limits are saturated.
+        Requests beyond the robot's torque limits are saturated. ``report=False`` returns
+        None instead: what held joints' motors applied then need not be read back (a
+        caller logging every other tick asks only on those).
         """
-        tau = np.clip(np.asarray(tau, dtype=float), -self.torque_limit, self.torque_limit)
-        if tau.shape != (N_JOINTS,) or not np.all(np.isfinite(tau)):
+        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), -self.torque_limit), self.torque_limit)
+        if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
             raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
         c = self.client
         p.setJointMotorControlArray(self.robot, self._driven_ids, p.TORQUE_CONTROL,
@@ -286,8 +286,10 @@ class World:
             self._pending_force = None
         p.stepSimulation(physicsClientId=c)
         self.t += self.config.dt
+        if not report:
+            return None
         if self.held.size:  # what the solver's motors applied to hold them
-            js = p.getJointStates(self.robot, [self.joint_ids[k] for k in self.held], physicsClientId=c)
+            js = p.getJointStates(self.robot, self._held_ids, physicsClientId=c)
             tau = tau.copy()
             tau[self.held] = np.array([s[3] for s in js]) * self.signs[self.held]
         return tau
@@ -297,8 +299,9 @@ class World:
         ``reset``: PyBullet's position motors lock them within the torque limits, the torques
         given to ``step`` for them are ignored, and ``step`` returns the torques that held them."""
         self.held = np.asarray(sorted(set(int(k) for k in joints)), dtype=int)
-        self._driven = [k for k in range(N_JOINTS) if k not in set(self.held.tolist())]
+        self._driven = np.array([k for k in range(N_JOINTS) if k not in set(self.held.tolist())], dtype=int)
         self._driven_ids = [self.joint_ids[k] for k in self._driven]
+        self._held_ids = [self.joint_ids[k] for k in self.held]
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         """Push the base's centre of mass with ``force_world`` (3,) N during the next tick only."""

@@ -1,0 +1,229 @@
+"""Compiled (numba) pieces of the per-tick work of a simulation: the base state, the froggy controller.
+
+A physics tick at 1 kHz leaves a few hundred microseconds for everything
+Python does around it; NumPy's per-call overhead on 3-vectors would take most
+of that. These routines do the same arithmetic as one compiled call each.
+Compiled on first use and cached on disk; import this module only where it runs
+(it imports numba).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from symrom.robots.compiled import legs_one
+
+njit = numba.njit(cache=True)
+
+@njit
+def quat_matrix(x, y, z, w, R):
+    """R (3, 3) of the unit quaternion (x, y, z, w) (PyBullet's order)."""
+    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    R[0, 1] = 2.0 * (x * y - z * w)
+    R[0, 2] = 2.0 * (x * z + y * w)
+    R[1, 0] = 2.0 * (x * y + z * w)
+    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    R[1, 2] = 2.0 * (y * z - x * w)
+    R[2, 0] = 2.0 * (x * z - y * w)
+    R[2, 1] = 2.0 * (y * z + x * w)
+    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+
+@njit
+def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
+    """The base link's pose and rates from its inertial frame's.
+
+    com_pos (3,) m, com_orn (4,) quaternion (x, y, z, w), v_com (3,) m/s, omega (3,)
+    rad/s (world) of the inertial frame; off_pos (3,), off_orn (4,): the inertial ->
+    link frame transform. Writes q[12:18] = x, y, z, roll, pitch, yaw (ZYX),
+    dq[12:18] = base velocity (m/s) and Euler-angle rates (rad/s), R (3, 3) base -> world.
+    """
+    x1, y1, z1, w1 = com_orn[0], com_orn[1], com_orn[2], com_orn[3]
+    x2, y2, z2, w2 = off_orn[0], off_orn[1], off_orn[2], off_orn[3]
+    # orientation of the link frame: com_orn * off_orn
+    x = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+    y = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+    z = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+    w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+    n = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / n, y / n, z / n, w / n
+    Rc = np.empty((3, 3))
+    quat_matrix(x1, y1, z1, w1, Rc)
+    lever = np.empty(3)
+    for a in range(3):
+        lever[a] = Rc[a, 0] * off_pos[0] + Rc[a, 1] * off_pos[1] + Rc[a, 2] * off_pos[2]
+        q[12 + a] = com_pos[a] + lever[a]
+    quat_matrix(x, y, z, w, R)
+    s = min(max(R[2, 0], -1.0), 1.0)
+    roll, pitch, yaw = np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(s), np.arctan2(R[1, 0], R[0, 0])
+    q[15], q[16], q[17] = roll, pitch, yaw
+    # v_base = v_com + omega x (base - com)
+    dq[12] = v_com[0] + omega[1] * lever[2] - omega[2] * lever[1]
+    dq[13] = v_com[1] + omega[2] * lever[0] - omega[0] * lever[2]
+    dq[14] = v_com[2] + omega[0] * lever[1] - omega[1] * lever[0]
+    # omega = E d(rpy)/dt, E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]]: solved in closed form
+    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+    droll = (cy * omega[0] + sy * omega[1]) / cp
+    dpitch = -sy * omega[0] + cy * omega[1]
+    dq[15], dq[16], dq[17] = droll, dpitch, omega[2] + sp * droll
+
+@njit
+def distribute(foot_pos, centre, legs, force, moment, mu, grf):
+    """``symrom.sim.froggy.distribute`` compiled: ground reactions grf (4, 3) N of the feet
+    ``legs`` (int array) giving the body wrench (force, moment), least norm, pulls
+    dropped, horizontal parts clipped to the friction cone mu."""
+    m = legs.shape[0]
+    A = np.zeros((6, 3 * m))
+    for i in range(m):
+        k = legs[i]
+        r0, r1, r2 = foot_pos[k, 0] - centre[0], foot_pos[k, 1] - centre[1], foot_pos[k, 2] - centre[2]
+        for a in range(3):
+            A[a, 3 * i + a] = 1.0
+        A[3, 3 * i + 1], A[3, 3 * i + 2] = -r2, r1
+        A[4, 3 * i + 0], A[4, 3 * i + 2] = r2, -r0
+        A[5, 3 * i + 0], A[5, 3 * i + 1] = -r1, r0
+    b = np.empty(6)
+    b[:3], b[3:] = force, moment
+    sol = np.linalg.pinv(A) @ b
+    grf[:, :] = 0.0
+    for i in range(m):
+        fx, fy, fz = sol[3 * i], sol[3 * i + 1], max(sol[3 * i + 2], 0.0)
+        scale = min(1.0, mu * fz / max(np.sqrt(fx * fx + fy * fy), 1e-9))
+        k = legs[i]
+        grf[k, 0], grf[k, 1], grf[k, 2] = fx * scale, fy * scale, fz
+
+
+# Froggy stages (``symrom.sim.froggy``), by index.
+SETTLE, CROUCH, HOLD, PUSH_ALL, PUSH_REAR, FLIGHT, LAND = range(7)
+# Positions of the froggy parameters in the vector ``froggy_torque`` takes.
+FROGGY_PARAMS = ("stand_height", "crouch_height", "crouch_shift", "crouch_pitch", "push_speed", "push_rise",
+                 "t_settle", "t_crouch", "force_all", "force_rear", "angle", "raibert", "kp_stance",
+                 "kd_stance", "kp_push", "kd_push", "kp_swing", "kd_swing", "kp_land", "kd_land", "xy_ratio",
+                 "k_att", "d_att")
+(_STAND, _CROUCH_H, _SHIFT, _PITCH, _SPEED, _RISE, _T_SETTLE, _T_CROUCH, _F_ALL, _F_REAR, _ANGLE, _RAIBERT,
+ _KP_ST, _KD_ST, _KP_PUSH, _KD_PUSH, _KP_SW, _KD_SW, _KP_LAND, _KD_LAND, _XY, _K_ATT, _D_ATT) = range(23)
+
+
+@njit
+def smooth(s):
+    """Cosine blend 0 -> 1 on s in [0, 1] (clipped), zero slope at both ends."""
+    s = min(max(s, 0.0), 1.0)
+    return 0.5 - 0.5 * np.cos(np.pi * s)
+
+
+@njit
+def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact, foot_pos, feet0,
+                  feet_w, b0, limit, n_el, xyz, rot, axis, col):
+    """Joint torques (12,) N m of the froggy controller (``FroggyController.torque``) in
+    ``stage`` at time t s; prm: the parameters in ``FROGGY_PARAMS`` order; t_push: start of
+    the push, s; t_land: touch-down time, s; mass kg; the state q, dq (18,), R (3, 3),
+    omega (3,), contact (4,), foot_pos (4, 3) m; feet0 (4, 3) level-frame feet; feet_w
+    (4, 3), b0 (3,): feet and base in the world when the push began; limit (12,) N m; the
+    leg chains as ``symrom.robots.compiled.legs_one`` takes them."""
+    pos, J = np.empty((4, 3)), np.empty((4, 3, 3))
+    legs_one(q[:12], n_el, xyz, rot, axis, col, pos, J)
+    vel = np.zeros((4, 3))
+    for k in range(4):
+        for a in range(3):
+            vel[k, a] = J[k, a, 0] * dq[3 * k] + J[k, a, 1] * dq[3 * k + 1] + J[k, a, 2] * dq[3 * k + 2]
+    cyaw, syaw = np.cos(q[17]), np.sin(q[17])
+    Y = np.array([[cyaw, -syaw, 0.0], [syaw, cyaw, 0.0], [0.0, 0.0, 1.0]])
+    to_base = np.eye(3)
+    if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
+        to_base = R.T @ Y
+    weight = mass * 9.81
+    shift = 0.0
+    kp, kd = np.full(4, prm[_KP_ST]), np.full(4, prm[_KD_ST])
+    grf = np.zeros((4, 3))
+    z_leg = np.full(4, -prm[_STAND])
+    x_off = np.zeros(4)
+    v_d = np.zeros((4, 3))
+    xy = prm[_XY]
+    base = q[12:15].copy()
+    pitch_ref = 0.0
+    if stage == CROUCH or stage == HOLD or stage == PUSH_ALL:
+        pitch_ref = prm[_PITCH] * smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
+    err = np.array([q[15], q[16] - pitch_ref, 0.0])
+    level = -prm[_K_ATT] * (R @ err)
+    level[0] -= prm[_D_ATT] * omega[0]
+    level[1] -= prm[_D_ATT] * omega[1]
+    all_legs = np.arange(4)
+    p_stroke = np.zeros((4, 3))
+    if stage <= HOLD:
+        if stage != SETTLE:
+            a = smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
+            for k in range(4):
+                z_leg[k] = -(prm[_STAND] + a * (prm[_CROUCH_H] - prm[_STAND])) + a * prm[_PITCH] * feet0[k, 0]
+            shift = a * prm[_SHIFT]
+        distribute(foot_pos, base, all_legs, np.array([0.0, 0.0, weight]), level, 0.6, grf)
+    elif stage == PUSH_ALL or stage == PUSH_REAR:
+        sa, ca = np.sin(prm[_ANGLE]), np.cos(prm[_ANGLE])
+        direction = Y @ np.array([sa, 0.0, ca])
+        b_d = b0 + prm[_SPEED] * (t - t_push) * direction
+        b_d[2] = min(b_d[2], b0[2] + prm[_RISE])
+        p_stroke = (feet_w - b_d) @ Y
+        for k in range(4):
+            v_d[k, 0], v_d[k, 1], v_d[k, 2] = -prm[_SPEED] * sa, 0.0, -prm[_SPEED] * ca
+        thrust = prm[_F_ALL] * direction
+        kp[:], kd[:] = prm[_KP_PUSH], prm[_KD_PUSH]
+        xy = 1.0
+        if stage == PUSH_ALL:
+            distribute(foot_pos, base, all_legs, thrust, level, 0.6, grf)
+        else:
+            distribute(foot_pos, base, np.arange(2, 4), prm[_F_REAR] / prm[_F_ALL] * thrust, level, 0.6, grf)
+            for k in range(2):  # front feet tuck up and forward
+                z_leg[k], x_off[k] = -prm[_CROUCH_H] + 0.04, 0.04
+                kp[k], kd[k] = prm[_KP_SW], prm[_KD_SW]
+                v_d[k, :] = 0.0
+    elif stage == FLIGHT:
+        kp[:], kd[:] = prm[_KP_SW], prm[_KD_SW]
+        x_off[:] = prm[_RAIBERT] * dq[12]
+    else:  # land
+        kp[:], kd[:] = prm[_KP_LAND], prm[_KD_LAND]
+        a = smooth((t - t_land) / 0.3)  # the weight support ramps in over 0.3 s
+        down = np.flatnonzero(contact)
+        if down.size:
+            distribute(foot_pos, base, down, np.array([0.0, 0.0, weight]), level, 0.6, grf)
+            grf *= a
+    p_d = np.empty((4, 3))
+    for k in range(4):
+        lv = np.array([feet0[k, 0] + x_off[k] + shift, feet0[k, 1], feet0[k, 2] + z_leg[k]])
+        p_d[k] = to_base @ lv
+    if stage == PUSH_ALL:
+        p_d[:, :] = p_stroke
+    elif stage == PUSH_REAR:
+        p_d[2:, :] = p_stroke[2:]
+    tau = np.empty(12)
+    for k in range(4):
+        f = np.empty(3)
+        for a in range(3):
+            ax = 1.0 if a == 2 else xy
+            f_ff = -(grf[k, 0] * R[0, a] + grf[k, 1] * R[1, a] + grf[k, 2] * R[2, a])
+            f[a] = kp[k] * ax * (p_d[k, a] - pos[k, a]) + kd[k] * ax * (v_d[k, a] - vel[k, a]) + f_ff
+        over = 1.0
+        for j in range(3):
+            tj = J[k, 0, j] * f[0] + J[k, 1, j] * f[1] + J[k, 2, j] * f[2]
+            tau[3 * k + j] = tj
+            over = max(over, abs(tj) / limit[3 * k + j])
+        for j in range(3):  # the leg's torques scaled together into the limits
+            tau[3 * k + j] /= over
+    return tau
+
+
+def warm_up(froggy: bool = True) -> None:
+    """Compile (or load from the disk cache) the routines here now, as the first tick of a
+    simulation would: those every motion uses, and with ``froggy`` the froggy controller's
+    (the slowest to compile, about 10 s the first time)."""
+    from symrom.robots import leg_kinematics
+
+    kin = leg_kinematics("go1")
+    kin.one(np.zeros(12))
+    q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
+    unit = np.array([0.0, 0.0, 0.0, 1.0])
+    base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
+    if not froggy:
+        return
+    feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+    q[14] = 0.3
+    froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
+                  np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())
