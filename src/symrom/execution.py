@@ -236,6 +236,7 @@ class RayBackend(Backend):
             raise BackendError(RAY_MISSING)
         super().__init__(workers, max_retries)
         self.address = address or os.environ.get("RAY_ADDRESS") or None
+        _host_port(self.address)  # a malformed address fails here, before any work
         self._owner = False  # whether start() made the connection (and close() ends it)
         self.cluster: dict[str, Any] = {}
 
@@ -244,6 +245,7 @@ class RayBackend(Backend):
 
         if not ray.is_initialized():
             where = f"the Ray cluster at {self.address}" if self.address else "a local Ray instance"
+            _check_reachable(self.address)
             try:
                 ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
             except Exception as e:  # noqa: BLE001 - Ray raises many kinds; name the address
@@ -305,6 +307,30 @@ class RayBackend(Backend):
         finally:
             for ref in running:
                 ray.cancel(ref, force=True)
+
+
+def _host_port(address: str | None) -> tuple[str, int] | None:
+    """(host, port) of a ``host:port`` or ``ray://host:port`` address; None for ``auto``,
+    ``local`` or none; ``BackendError`` for anything else."""
+    if not address or address in ("auto", "local"):
+        return None
+    host, sep, port = address.removeprefix("ray://").rstrip("/").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise BackendError(f"Ray address {address!r}: expected host:port, ray://host:port or auto")
+    return host.strip("[]"), int(port)
+
+
+def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
+    """``BackendError`` unless something accepts connections at ``address`` (Ray itself would
+    keep retrying for minutes)."""
+    hp = _host_port(address)
+    if hp is None:
+        return
+    try:
+        socket.create_connection(hp, timeout=timeout).close()
+    except OSError as e:
+        raise BackendError(f"cannot reach the Ray cluster at {address}: {e.strerror or e} "
+                           f"(is its head running? see ray start --head)") from None
 
 
 # ------------------------------------------------------------------ by name

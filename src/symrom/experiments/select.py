@@ -47,10 +47,8 @@ split by NaN changes nothing.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -60,13 +58,14 @@ import numpy as np
 from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
+from symrom.execution import Backend, LocalBackend
 from symrom.model.encoders import unit_floored
 from symrom.model.hybrid import HybridModel
 from symrom.model.training import TrainConfig, data_hash, train
 from symrom.names import BASE_NAMES, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
-SELECTION_VERSION = 1
+SELECTION_VERSION = 2
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
 
 
@@ -279,17 +278,6 @@ def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
     return picked + rest[:k - len(picked)]
 
 
-_WORKER: dict[str, Any] = {}
-
-
-def _init_worker(ds: Dataset, cfg: SelectionConfig) -> None:
-    _WORKER["ds"], _WORKER["cfg"] = ds, cfg
-
-
-def _worker_cell(cell: tuple[str, int, str]) -> list[dict[str, Any]]:
-    return run_cell(_WORKER["ds"], _WORKER["cfg"], *cell)
-
-
 @dataclass
 class Selection:
     """The table (one row per candidate), the index of the chosen row and its model."""
@@ -301,6 +289,7 @@ class Selection:
     data_sha256: str = ""
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
+    execution: dict[str, Any] = field(default_factory=dict)
 
     def rule(self) -> str:
         """The score and the choice, in words."""
@@ -316,7 +305,7 @@ class Selection:
         return {"version": SELECTION_VERSION, "config": asdict(self.config), "data_sha256": self.data_sha256,
                 "rule": self.rule(),
                 "chosen": self.chosen, "seconds": round(self.seconds, 2), "notes": self.notes,
-                "rows": self.rows}
+                "execution": self.execution, "rows": self.rows}
 
 
 def check_splits(ds: Dataset) -> None:
@@ -326,30 +315,32 @@ def check_splits(ds: Dataset) -> None:
 
 
 def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
-           progress: SelectProgress | None = None) -> Selection:
-    """Run the grid on ``ds`` (train and val splits only) and return the selection."""
+           progress: SelectProgress | None = None, backend: Backend | None = None) -> Selection:
+    """Run the grid on ``ds`` (train and val splits only) and return the selection.
+
+    The cells run as tasks on ``backend`` (default: ``cfg.workers`` local processes), the
+    refinements then in this process; the table does not depend on where they ran.
+    ``execution`` of the selection records the back end and every attempt lost to a dying
+    worker.
+    """
     check_splits(ds)
     t0 = time.perf_counter()
     say = progress or (lambda done, total, what: None)
+    backend = backend or LocalBackend(cfg.workers)
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top
     rows: list[dict] = []
-    if cfg.workers == 1 or len(cells) == 1:
-        for i, cell in enumerate(cells):
-            rows += run_cell(ds, cfg, *cell)
-            say(i + 1, total, f"{cell[0]} l={cell[1]} {cell[2]}")
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(cfg.workers, len(cells)), mp_context=ctx,
-                                 initializer=_init_worker, initargs=(ds, cfg)) as pool:
-            futures = {pool.submit(_worker_cell, c): c for c in cells}
-            for i, fut in enumerate(as_completed(futures)):
-                rows += fut.result()
-                c = futures[fut]
-                say(i + 1, total, f"{c[0]} l={c[1]} {c[2]}")
+    retries: list[dict] = []
+    for i, task in enumerate(backend.map(run_cell, [(c, c) for c in cells], (ds, cfg), label="selection cell")):
+        rows += task.value
+        c = task.key
+        retries += [{"task": f"{c[0]} l={c[1]} {c[2]}", **r} for r in task.retries]
+        say(i + 1, total, f"{c[0]} l={c[1]} {c[2]}")
     order = {c: i for i, c in enumerate(cells)}
     rows.sort(key=lambda r: (order[(r["encoder"], r["latent_dim"], r["library"])], r["threshold"]))
     refined_models = {}
+    # The refinements (refine_top of them) run in this process, which compiles the refinement
+    # kernel once; a fresh worker process would compile it again before refining.
     for k, i in enumerate(to_refine(rows, cfg.refine_top, cfg.reference is not None)):
         row = rows[i]
         new, model = run_refined(ds, cfg, row)
@@ -365,7 +356,8 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
             ds, cfg.train_config(r["encoder"], r["latent_dim"], r["library"], r["threshold"], r["refine"]))
         model.info["selection"] = {k: r[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine",
                                                      "score", "active_terms")}
-    return Selection(rows, chosen, model, cfg, data_hash(ds), time.perf_counter() - t0, notes)
+    execution = {**backend.describe(), "retries": retries}
+    return Selection(rows, chosen, model, cfg, data_hash(ds), time.perf_counter() - t0, notes, execution)
 
 
 def write_selection(sel: Selection, out: str | Path) -> Path:
