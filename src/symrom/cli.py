@@ -243,6 +243,8 @@ def train_cmd(
                          "split (the options above are then not used).")] = False,
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
     workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="--select: continue an interrupted selection (its finished cells are in OUT.parts).")] = False,
     backend: BackendName = "local",
     address: Address = None,
     force: Force = False,
@@ -258,9 +260,9 @@ def train_cmd(
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
     if select:
-        return _train_select(data, out, select_dims, workers, backend, address, force)
-    if backend != "local" or address is not None:
-        raise ValueError("--backend and --address apply to --select (training one model is one task)")
+        return _train_select(data, out, select_dims, workers, backend, address, resume, force)
+    if backend != "local" or address is not None or resume:
+        raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
@@ -282,8 +284,12 @@ def train_cmd(
 
 
 def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, backend: str,
-                  address: str | None, force: bool) -> None:
-    """``train --select``: the validation selection, its table and the chosen model."""
+                  address: str | None, resume: bool, force: bool) -> None:
+    """``train --select``: the validation selection, its table and the chosen model. Each
+    finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
+    that ``--resume`` continues an interrupted selection."""
+    import shutil
+
     from symrom.atomic import atomic_dir
     from symrom.data.io import read_dataset
     from symrom.experiments.select import SelectionConfig, check_splits, select, write_selection
@@ -291,20 +297,28 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     from symrom.model.persistence import save_model
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers)
+    parts = Path(str(out) + ".parts")
+    if parts.exists() and not resume and not force:
+        raise ValueError(f"{parts} holds an interrupted selection; use --resume to continue it or --force "
+                         "to start over")
     ds = read_dataset(data)
     check_splits(ds)
     runner = _start_backend(backend, workers, address)
+    if parts.exists() and not resume:
+        shutil.rmtree(parts)  # --force: start over
     out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
         sel = select(ds, cfg, progress=lambda done, total, what: bar.update(
-            task, completed=done, total=total, description=f"selection: {what}"), backend=runner)
+            task, completed=done, total=total, description=f"selection: {what}"), backend=runner,
+                     cells_dir=parts)
     with atomic_dir(out, force) as tmp:
         write_selection(sel, tmp)
         if sel.model is not None:
             sel.model.info["data_path"] = str(data)
             save_model(sel.model, tmp / "model.json")
             (tmp / "equations.txt").write_text(sel.model.equations_text() + "\n")
+    shutil.rmtree(parts, ignore_errors=True)
     if sel.model is None:
         raise ValueError(f"every one of the {len(sel.rows)} candidates diverged on a validation jump; "
                          f"the table is in {out / 'selection.json'}")

@@ -4,7 +4,7 @@ Layout of ``DIR`` (every step is skipped when its output exists, so an
 interrupted run resumes where it stopped and datasets are never regenerated):
 
     data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
-    <exp>/     model.json (the selected model), eval/, selection/selection.json,
+    <exp>/     model.json (the selected model), eval/, selection/ (selection.json, cells/),
                paper_defaults/ (model.json, eval/),
                aslip/, aslip_rollout/, newton/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
@@ -219,7 +219,8 @@ def _selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig,
     if _done(table) and _done(d / "model.json"):
         return load_model(d / "model.json"), json.loads(table.read_text())
     sel: Selection = select(ds, cfg.selection_for(exp), progress=lambda done, total, what: say(
-        f"{exp.name}: selection {done}/{total} ({what})", transient=True), backend=cfg.execution())
+        f"{exp.name}: selection {done}/{total} ({what})", transient=True), backend=cfg.execution(),
+                            cells_dir=d / "selection" / "cells")
     if sel.model is None:
         raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
     write_selection(sel, d / "selection")
