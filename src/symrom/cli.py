@@ -48,7 +48,7 @@ _STATE = {"debug": False}
 Force = Annotated[bool, typer.Option("--force", help="Overwrite an existing output.")]
 BackendName = Annotated[str, typer.Option(
     "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
-                      "pip install 'symrom[ray]').")]
+                      "pip install 'symrom\\[ray]').")]
 Address = Annotated[Optional[str], typer.Option(
     "--address", help="Ray cluster address (host:port, ray://host:10001 or auto); default $RAY_ADDRESS, "
                       "else a new Ray instance on this machine.")]

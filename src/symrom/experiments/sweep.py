@@ -63,7 +63,8 @@ SweepProgress = Callable[[int, int, dict[str, Any]], None]
 class SweepConfig:
     """latent_dims: dimensions to train; seeds: a count n (seeds 0..n-1) or explicit
     seeds; poly_order: library order p; solver: ``exact`` or ``adam``; lam: the
-    L_mod weight lambda; workers: local processes (1 = in this process);
+    L_mod weight lambda; workers: local processes (1 = in this process) when
+    ``run_sweep`` is given no back end;
     threshold: sparsity threshold; rmse_test: also roll out the test split;
     adam: settings of the ``adam`` solver."""
 
