@@ -30,8 +30,8 @@ from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.data.io import write_dataset
 from symrom.data.preprocess import assemble
-from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.execution import Backend, LocalBackend
+from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
