@@ -50,8 +50,9 @@ BackendName = Annotated[str, typer.Option(
     "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
                       "pip install 'symrom\\[ray]').")]
 Address = Annotated[Optional[str], typer.Option(
-    "--address", help="Ray cluster address (host:port, ray://host:10001 or auto); default $RAY_ADDRESS, "
-                      "else a new Ray instance on this machine.")]
+    "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
+                      "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
+                      "instance on this machine.")]
 WORKERS_HELP = ("Worker processes (local back end; default {local}), or the most tasks at once on Ray "
                 "(default: the cluster's CPUs).")
 
