@@ -1,11 +1,28 @@
-"""Shared fixtures: planted datasets made once per test session."""
+"""Shared fixtures: planted datasets made once per test session, one local Ray instance."""
 
 from __future__ import annotations
+
+import os
 
 import numpy as np
 import pytest
 
 from symrom.testing import make_planted_dataset
+
+# Read by Ray when it is imported, so set before any test imports it (and inherited by the
+# command-line runs the tests start): no usage reports, and every address of the test
+# instance on the loopback interface (Ray's single-machine mode).
+os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+
+
+@pytest.fixture(scope="session")
+def ray_address():
+    """One local Ray instance with 2 CPUs for the whole session; its address."""
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING", log_to_driver=False)
+    yield ray.get_runtime_context().gcs_address
+    ray.shutdown()
 
 
 @pytest.fixture(scope="session")

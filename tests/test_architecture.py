@@ -13,7 +13,7 @@ SRC = Path(symrom.__file__).parent
 # Layers from the ground floor up (docs/design.md, "Layout"): a module may import its own
 # layer and those below it.
 LAYERS: dict[str, int] = {
-    "names": 0, "atomic": 0, "motions": 0,
+    "names": 0, "atomic": 0, "motions": 0, "execution": 0,
     "robots": 1,
     "data": 2,
     "sim": 3, "rollout": 3,

@@ -1,5 +1,6 @@
 """Selection on validation data: the test split is never read, the rule is applied as stated."""
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -92,3 +93,54 @@ def test_cli_train_select(planted_block, tmp_path):
     one_line_error(CliRunner().invoke(app, ["train", str(no_val), "--select", "--out", str(tmp_path / "n")]),
                    "'val'")
     assert not (tmp_path / "n").exists()
+
+
+def _table(rows):
+    """Rows as JSON would store them, without their timings."""
+    return [{k: v for k, v in r.items() if k != "seconds"} for r in json.loads(json.dumps(rows))]
+
+
+def test_interrupted_selection_resumes_from_its_cells(selected, tmp_path):
+    ds, sel = selected
+    cells = tmp_path / "cells"
+
+    class Interrupted(Exception):
+        pass
+
+    def stop_after_one(done, total, what):
+        if done == 1:
+            raise Interrupted
+
+    with pytest.raises(Interrupted):
+        select(ds, GRID, progress=stop_after_one, cells_dir=cells)
+    assert len(list(cells.glob("*.json"))) == 1
+    seen = []
+    again = select(ds, GRID, progress=lambda done, total, what: seen.append(what), cells_dir=cells)
+    assert sum(w.endswith("(reused)") for w in seen) == 1
+    assert again.execution["cells_reused"] == 1 and again.execution["cells_run"] == 1
+    assert _table(again.rows) == _table(sel.rows) and again.chosen == sel.chosen
+    assert len(list(cells.glob("*.json"))) == 2
+    # A setting that changes the rows of a cell leaves the stored cells unused.
+    other = select(ds, replace(GRID, alpha=1e-3), cells_dir=cells)
+    assert other.execution["cells_reused"] == 0
+
+
+def test_cli_train_select_resume(planted_block, tmp_path):
+    ds, _ = planted_block
+    data = tmp_path / "d.h5"
+    write_dataset(ds, data)
+    out = tmp_path / "m"
+    parts = tmp_path / "m.parts"
+    parts.mkdir()
+    (parts / "all_l02_poly1+inputs.json").write_text("{}")  # a stale cell: run again
+    args = ["train", str(data), "--select", "--select-dims", "2", "--out", str(out)]
+    one_line_error(CliRunner().invoke(app, args), "m.parts holds an interrupted selection", "--resume")
+    one_line_error(CliRunner().invoke(app, ["train", str(data), "--out", str(out), "--resume"]),
+                   "--resume apply to --select")
+    r = CliRunner().invoke(app, [*args, "--resume"])
+    assert r.exit_code == 0, r.output
+    assert not parts.exists() and (out / "selection.json").exists()
+    table = json.loads((out / "selection.json").read_text())
+    assert table["version"] == 2 and table["execution"]["backend"] == "local"
+    assert table["execution"]["cells_run"] == len(SelectionConfig(latent_dims=(2,)).cells())
+    assert table["execution"]["cells_reused"] == 0

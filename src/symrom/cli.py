@@ -17,6 +17,7 @@ from typing import Annotated, Optional
 import typer
 from typer.core import TyperCommand, TyperGroup
 from rich.console import Console
+from rich.markup import escape
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 def _flags_without_type(params: list) -> list:
@@ -45,6 +46,30 @@ out_console = Console()
 _STATE = {"debug": False}
 
 Force = Annotated[bool, typer.Option("--force", help="Overwrite an existing output.")]
+BackendName = Annotated[str, typer.Option(
+    "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
+                      "pip install 'symrom\\[ray]').")]
+Address = Annotated[Optional[str], typer.Option(
+    "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
+                      "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
+                      "instance on this machine.")]
+WORKERS_HELP = ("Worker processes (local back end; default {local}), or the most tasks at once on Ray "
+                "(default: the cluster's CPUs).")
+
+
+def _start_backend(name: str, workers: int | None, address: str | None, local_default: int = 1):
+    """The execution back end of the options, started (a Ray back end connects here, so a bad
+    address fails before any work)."""
+    from symrom.execution import make_backend
+
+    backend = make_backend(name, local_default if workers is None and name == "local" else workers, address)
+    if name == "ray":
+        with console.status("connecting to Ray"):
+            backend.start()
+        info = backend.describe()
+        console.print(f"ray: {info['nodes']} node(s), {info['cpus']} CPUs, {backend.workers} tasks at once",
+                      highlight=False)
+    return backend
 
 
 @app.callback()
@@ -68,7 +93,7 @@ def guarded(fn: Callable) -> Callable:
             if _STATE["debug"]:
                 raise
             msg = str(e).strip().splitlines()[0] if str(e).strip() else e.__class__.__name__
-            console.print(f"[red]error:[/red] {msg}", highlight=False, soft_wrap=True)
+            console.print(f"[red]error:[/red] {escape(msg)}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
 
     return wrapper
@@ -218,7 +243,11 @@ def train_cmd(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
                          "split (the options above are then not used).")] = False,
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
-    workers: Annotated[int, typer.Option("--workers", help="Worker processes of --select.")] = 1,
+    workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="--select: continue an interrupted selection (its finished cells are in OUT.parts).")] = False,
+    backend: BackendName = "local",
+    address: Address = None,
     force: Force = False,
 ) -> None:
     """Train a hybrid symbolic model on the dataset's train split (or select it on val)."""
@@ -232,7 +261,9 @@ def train_cmd(
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
     if select:
-        return _train_select(data, out, select_dims, workers, force)
+        return _train_select(data, out, select_dims, workers, backend, address, resume, force)
+    if backend != "local" or address is not None or resume:
+        raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
@@ -253,28 +284,42 @@ def train_cmd(
     _model_warnings(model)
 
 
-def _train_select(data: Path, out: Path, select_dims: str, workers: int, force: bool) -> None:
-    """``train --select``: the validation selection, its table and the chosen model."""
+def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, backend: str,
+                  address: str | None, resume: bool, force: bool) -> None:
+    """``train --select``: the validation selection, its table and the chosen model. Each
+    finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
+    that ``--resume`` continues an interrupted selection."""
+    import shutil
+
     from symrom.atomic import atomic_dir
     from symrom.data.io import read_dataset
     from symrom.experiments.select import SelectionConfig, check_splits, select, write_selection
     from symrom.experiments.sweep import parse_latent_dims
     from symrom.model.persistence import save_model
 
-    cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=workers)
+    cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers)
+    parts = Path(str(out) + ".parts")
+    if parts.exists() and not resume and not force:
+        raise ValueError(f"{parts} holds an interrupted selection; use --resume to continue it or --force "
+                         "to start over")
     ds = read_dataset(data)
     check_splits(ds)
+    runner = _start_backend(backend, workers, address)
+    if parts.exists() and not resume:
+        shutil.rmtree(parts)  # --force: start over
     out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
         sel = select(ds, cfg, progress=lambda done, total, what: bar.update(
-            task, completed=done, total=total, description=f"selection: {what}"))
+            task, completed=done, total=total, description=f"selection: {what}"), backend=runner,
+                     cells_dir=parts)
     with atomic_dir(out, force) as tmp:
         write_selection(sel, tmp)
         if sel.model is not None:
             sel.model.info["data_path"] = str(data)
             save_model(sel.model, tmp / "model.json")
             (tmp / "equations.txt").write_text(sel.model.equations_text() + "\n")
+    shutil.rmtree(parts, ignore_errors=True)
     if sel.model is None:
         raise ValueError(f"every one of the {len(sel.rows)} candidates diverged on a validation jump; "
                          f"the table is in {out / 'selection.json'}")
@@ -483,9 +528,12 @@ def export_cmd(
 def reproduce_cmd(
     out: Annotated[Path, typer.Option("--out", help="Run directory; existing datasets and results are reused.")],
     quick: Annotated[bool, typer.Option("--quick", help="A reduced run that takes a few minutes.")] = False,
-    workers: Annotated[int, typer.Option("--workers", help="Worker processes for generation and the sweep.")] = 2,
+    workers: Annotated[Optional[int], typer.Option(
+        "--workers", help="Generation, selection and sweep: " + WORKERS_HELP.format(local=2))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of every dataset and training run.")] = 0,
     no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML/Markdown report.")] = False,
+    backend: BackendName = "local",
+    address: Address = None,
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     import shlex
@@ -493,9 +541,9 @@ def reproduce_cmd(
 
     from symrom.experiments.reproduce import ReproduceConfig, reproduce
 
-    if workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {workers}")
-    cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=workers, seed=seed)
+    runner = _start_backend(backend, workers, address, local_default=2)
+    cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=runner.workers, seed=seed,
+                  backend=backend, address=getattr(runner, "address", None))
     command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with console.status("reproduce") as status:
         def say(msg: str, transient: bool = False) -> None:
@@ -711,35 +759,43 @@ def generate_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
     proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
-    workers: Annotated[int, typer.Option("--workers", help="Worker processes.")] = 1,
+    workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
+    backend: BackendName = "local",
+    address: Address = None,
     force: Force = False,
 ) -> None:
     """Simulate jumps in PyBullet, check them and write a dataset file."""
     from symrom.robots import get_robot
-    from symrom.sim.generate import GenerateConfig, NoiseConfig, check_config, generate
+    from symrom.sim.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
+                                     run_record_path)
 
-    if out.exists() and not force:  # fail before drawing the progress bar
-        raise FileExistsError(f"{out} exists; use --force to overwrite it")
+    check_output(out, resume, force)  # fail before connecting or drawing the progress bar
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
                                          noise=NoiseConfig() if noise else None))
+    runner = _start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion}"
     with progress_bar() as bar:
         task = bar.add_task(label, total=jumps)
-        retries = [0]
+        retries, lost = [0], [0]
 
         def _progress(done: int, total: int, info: dict) -> None:
             retries[0] += int(info.get("retries", 0))
+            lost[0] += int(info.get("worker_retries", 0))
             note = f" ({info['resumed']} resumed)" if info.get("resumed") else ""
+            note += f", {lost[0]} lost to dying workers" if lost[0] else ""
             bar.update(task, completed=done, total=total,
                        description=f"{label}: jump {done}/{total}, {retries[0]} retries{note}")
 
-        ds = generate(config, out, workers=workers, resume=resume, force=force,
-                      progress_callback=_progress)
+        ds = generate(config, out, resume=resume, force=force, progress_callback=_progress, backend=runner)
     counts = {s: int((ds.split == s).sum()) for s in ("train", "val", "test")}
+    record = json.loads(run_record_path(out).read_text())
+    lost_note = (f"; {record['worker_retries']} attempt(s) lost to dying workers, run again"
+                 if record["worker_retries"] else "")
     out_console.print(f"data: {out}  ({ds.n_jumps} jumps, {ds.n_samples} samples, "
-                      f"{ds.generator['retries']} retries; split {counts})", highlight=False)
+                      f"{ds.generator['retries']} retries; split {counts}){lost_note}\n"
+                      f"run record: {run_record_path(out)}", highlight=False)
 
 
 @app.command("show", cls=_Command)
@@ -773,8 +829,10 @@ def sweep_cmd(
     solver: Annotated[str, typer.Option("--solver", help="exact (closed form) or adam (torch).")] = "exact",
     poly_order: Annotated[int, typer.Option("--poly-order", help="Polynomial order p of the library.")] = 1,
     lam: Annotated[float, typer.Option("--lambda", help="Complexity weight of L_mod.")] = 0.001,
-    workers: Annotated[int, typer.Option("--workers", help="Local worker processes.")] = 1,
+    workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     rmse_test: Annotated[bool, typer.Option("--rmse-test/--no-rmse-test", help="Also roll out the test split (rk4) per cell.")] = True,
+    backend: BackendName = "local",
+    address: Address = None,
     force: Force = False,
 ) -> None:
     """Accuracy vs complexity over latent dimensions and seeds; resumes from OUT/cells."""
@@ -784,9 +842,10 @@ def sweep_cmd(
 
     dims = parse_latent_dims(latent_dims)
     config = SweepConfig(latent_dims=dims, seeds=seeds, poly_order=poly_order, solver=solver,
-                         lam=lam, workers=workers, rmse_test=rmse_test)
+                         lam=lam, workers=1 if workers is None else workers, rmse_test=rmse_test)
     check_output_file(out / "sweep.json", force, inputs=(data,))
     ds = read_dataset(data)
+    runner = _start_backend(backend, workers, address)
     with progress_bar() as bar:
         task = bar.add_task("sweep", total=len(dims) * len(config.seeds))
 
@@ -795,7 +854,7 @@ def sweep_cmd(
             bar.update(task, completed=done,
                        description=f"sweep: l={info['latent_dim']} seed {info['seed']} {what}")
 
-        result = run_sweep(ds, config, out, progress=tick)
+        result = run_sweep(ds, config, out, progress=tick, backend=runner)
     for d, e, a, lm in zip(result["latent_dims"], result["E_dec_mean"], result["active_terms_mean"],
                            result["L_mod"]):
         out_console.print(f"l={d:2d}  E_dec {e:.3e}  |Xi| {a:7.1f}  L_mod {lm:.4e}", highlight=False)

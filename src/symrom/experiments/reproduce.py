@@ -4,7 +4,7 @@ Layout of ``DIR`` (every step is skipped when its output exists, so an
 interrupted run resumes where it stopped and datasets are never regenerated):
 
     data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
-    <exp>/     model.json (the selected model), eval/, selection/selection.json,
+    <exp>/     model.json (the selected model), eval/, selection/ (selection.json, cells/),
                paper_defaults/ (model.json, eval/),
                aslip/, aslip_rollout/, newton/, newton_fitted/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
@@ -48,6 +48,7 @@ from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.outputs import write_evaluation
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
+from symrom.execution import Backend, make_backend
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, save_model
@@ -110,6 +111,13 @@ class ReproduceConfig:
     seed: int = 0
     workers: int = 2
     integrator: str = "lsoda"
+    backend: str = "local"
+    address: str | None = None
+
+    def execution(self) -> Backend:
+        """The back end of the heavy steps (generation, selection, sweep): ``backend`` with
+        ``workers`` (local processes, or the most Ray tasks at once) at ``address`` (Ray)."""
+        return make_backend(self.backend, self.workers, self.address)
 
     def selection_for(self, exp: ExperimentSpec) -> SelectionConfig:
         """The selection of ``exp``: its latent dimensions and, for an experiment with a row in
@@ -158,7 +166,7 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
     gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed, proxy=spec.proxy,
                         noise=NoiseConfig() if spec.noise else None)
-    generate(gc, path, workers=cfg.workers, resume=True,
+    generate(gc, path, backend=cfg.execution(), resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))
     return path
@@ -211,7 +219,8 @@ def _selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig,
     if _done(table) and _done(d / "model.json"):
         return load_model(d / "model.json"), json.loads(table.read_text())
     sel: Selection = select(ds, cfg.selection_for(exp), progress=lambda done, total, what: say(
-        f"{exp.name}: selection {done}/{total} ({what})", transient=True))
+        f"{exp.name}: selection {done}/{total} ({what})", transient=True), backend=cfg.execution(),
+                            cells_dir=d / "selection" / "cells")
     if sel.model is None:
         raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
     write_selection(sel, d / "selection")
@@ -397,7 +406,8 @@ def run_sweep_step(run: Path, data: Path, cfg: ReproduceConfig, say: Say) -> dic
     ds = read_dataset(data)
     sc = SweepConfig(latent_dims=tuple(cfg.sweep_dims), seeds=cfg.sweep_seeds, lam=cfg.sweep_lambda,
                      workers=cfg.workers)
-    result = run_sweep(ds, sc, d, progress=lambda done, total, info: say(f"sweep: {done}/{total} cells", transient=True))
+    result = run_sweep(ds, sc, d, progress=lambda done, total, info: say(f"sweep: {done}/{total} cells", transient=True),
+                       backend=cfg.execution())
     enc = d / "encoders"
     enc.mkdir(parents=True, exist_ok=True)
     for l in sorted({2, max(cfg.sweep_dims)}):

@@ -46,11 +46,10 @@ split by NaN changes nothing.
 
 from __future__ import annotations
 
+import hashlib
 import json
-import multiprocessing
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -60,13 +59,18 @@ import numpy as np
 from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
+from symrom.execution import Backend, LocalBackend
 from symrom.model.encoders import unit_floored
 from symrom.model.hybrid import HybridModel
 from symrom.model.training import TrainConfig, data_hash, train
 from symrom.names import BASE_NAMES, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
-SELECTION_VERSION = 1
+SELECTION_VERSION = 2
+CELL_VERSION = 1
+# The settings the rows of a cell depend on (besides the data and the cell itself).
+CELL_SETTINGS = ("thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight", "contact_phase",
+                 "substeps", "reference")
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
 
 
@@ -243,6 +247,30 @@ def run_cell(ds: Dataset, cfg: SelectionConfig, encoder: str, l: int, library: s
     return rows
 
 
+def cell_key(cfg: SelectionConfig, data_sha256: str, cell: tuple[str, int, str]) -> str:
+    """Hash of everything the rows of ``cell`` depend on (not the rest of the grid, the
+    workers, the refinement or the rule), to match stored cells on a resumed run."""
+    settings = asdict(cfg)
+    spec = {"version": CELL_VERSION, "data": data_sha256, "cell": list(cell),
+            **{k: settings[k] for k in CELL_SETTINGS}}
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()
+
+
+def cell_path(folder: str | Path, cell: tuple[str, int, str]) -> Path:
+    """The file of ``cell`` in a folder of finished cells: ``base_pose_l02_poly1+inputs.json``."""
+    encoder, l, library = cell
+    return Path(folder) / f"{encoder}_l{l:02d}_{library}.json"
+
+
+def _stored_rows(path: Path, key: str) -> list[dict[str, Any]] | None:
+    """The rows of a stored cell if it exists, parses and carries ``key``; else None."""
+    try:
+        stored = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return stored["rows"] if isinstance(stored, dict) and stored.get("key") == key else None
+
+
 def run_refined(ds: Dataset, cfg: SelectionConfig, row: dict) -> tuple[dict[str, Any], HybridModel]:
     """The refined version of a candidate row, scored."""
     t0 = time.perf_counter()
@@ -279,17 +307,6 @@ def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
     return picked + rest[:k - len(picked)]
 
 
-_WORKER: dict[str, Any] = {}
-
-
-def _init_worker(ds: Dataset, cfg: SelectionConfig) -> None:
-    _WORKER["ds"], _WORKER["cfg"] = ds, cfg
-
-
-def _worker_cell(cell: tuple[str, int, str]) -> list[dict[str, Any]]:
-    return run_cell(_WORKER["ds"], _WORKER["cfg"], *cell)
-
-
 @dataclass
 class Selection:
     """The table (one row per candidate), the index of the chosen row and its model."""
@@ -301,6 +318,7 @@ class Selection:
     data_sha256: str = ""
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
+    execution: dict[str, Any] = field(default_factory=dict)
 
     def rule(self) -> str:
         """The score and the choice, in words."""
@@ -316,7 +334,7 @@ class Selection:
         return {"version": SELECTION_VERSION, "config": asdict(self.config), "data_sha256": self.data_sha256,
                 "rule": self.rule(),
                 "chosen": self.chosen, "seconds": round(self.seconds, 2), "notes": self.notes,
-                "rows": self.rows}
+                "execution": self.execution, "rows": self.rows}
 
 
 def check_splits(ds: Dataset) -> None:
@@ -326,30 +344,51 @@ def check_splits(ds: Dataset) -> None:
 
 
 def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
-           progress: SelectProgress | None = None) -> Selection:
-    """Run the grid on ``ds`` (train and val splits only) and return the selection."""
+           progress: SelectProgress | None = None, backend: Backend | None = None,
+           cells_dir: str | Path | None = None) -> Selection:
+    """Run the grid on ``ds`` (train and val splits only) and return the selection.
+
+    The cells run as tasks on ``backend`` (default: ``cfg.workers`` local processes), the
+    refinements then in this process; the table does not depend on where they ran.
+    ``execution`` of the selection records the back end and every attempt lost to a dying
+    worker. ``cells_dir``: a folder where each finished cell is written at once
+    (``cell_path``, JSON) and from which the cells of an interrupted run are reused when
+    their key (``cell_key``) matches.
+    """
     check_splits(ds)
     t0 = time.perf_counter()
     say = progress or (lambda done, total, what: None)
+    backend = backend or LocalBackend(cfg.workers)
+    sha = data_hash(ds)
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top
     rows: list[dict] = []
-    if cfg.workers == 1 or len(cells) == 1:
-        for i, cell in enumerate(cells):
-            rows += run_cell(ds, cfg, *cell)
-            say(i + 1, total, f"{cell[0]} l={cell[1]} {cell[2]}")
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(cfg.workers, len(cells)), mp_context=ctx,
-                                 initializer=_init_worker, initargs=(ds, cfg)) as pool:
-            futures = {pool.submit(_worker_cell, c): c for c in cells}
-            for i, fut in enumerate(as_completed(futures)):
-                rows += fut.result()
-                c = futures[fut]
-                say(i + 1, total, f"{c[0]} l={c[1]} {c[2]}")
+    todo = []
+    for c in cells:
+        stored = None if cells_dir is None else _stored_rows(cell_path(cells_dir, c), cell_key(cfg, sha, c))
+        if stored is None:
+            todo.append(c)
+        else:
+            rows += stored
+            say(cells.index(c) + 1 - len(todo), total, f"{c[0]} l={c[1]} {c[2]} (reused)")
+    retries: list[dict] = []
+    done = len(cells) - len(todo)
+    for task in backend.map(run_cell, [(c, c) for c in todo], (ds, cfg), label="selection cell"):
+        c, what = task.key, f"{task.key[0]} l={task.key[1]} {task.key[2]}"
+        rows += task.value
+        retries += [{"task": what, **r} for r in task.retries]
+        if cells_dir is not None:
+            write_text_atomic(cell_path(cells_dir, c), json.dumps(
+                {"key": cell_key(cfg, sha, c), "cell": list(c), "rows": task.value,
+                 "execution": {"backend": backend.name, "worker": task.worker, "retries": task.retries}},
+                indent=1, allow_nan=False) + "\n")
+        done += 1
+        say(done, total, what)
     order = {c: i for i, c in enumerate(cells)}
     rows.sort(key=lambda r: (order[(r["encoder"], r["latent_dim"], r["library"])], r["threshold"]))
     refined_models = {}
+    # The refinements (refine_top of them) run in this process, which compiles the refinement
+    # kernel once; a fresh worker process would compile it again before refining.
     for k, i in enumerate(to_refine(rows, cfg.refine_top, cfg.reference is not None)):
         row = rows[i]
         new, model = run_refined(ds, cfg, row)
@@ -365,7 +404,9 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
             ds, cfg.train_config(r["encoder"], r["latent_dim"], r["library"], r["threshold"], r["refine"]))
         model.info["selection"] = {k: r[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine",
                                                      "score", "active_terms")}
-    return Selection(rows, chosen, model, cfg, data_hash(ds), time.perf_counter() - t0, notes)
+    execution = {**backend.describe(), "cells_run": len(todo), "cells_reused": len(cells) - len(todo),
+                 "retries": retries}
+    return Selection(rows, chosen, model, cfg, sha, time.perf_counter() - t0, notes, execution)
 
 
 def write_selection(sel: Selection, out: str | Path) -> Path:

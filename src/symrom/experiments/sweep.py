@@ -23,21 +23,23 @@ bootstrap resample of the training jumps (with replacement, the same draw for
 every l) and the spread over seeds is a real error bar; with ``adam`` the seed
 sets the initialisation on the unchanged training split.
 
-Each cell is written to ``OUT/cells/l{l:02d}_s{s}.json`` as soon as it is done
-and reused on a rerun when its key (data hash and every setting that changes a
-cell) matches, so an interrupted sweep resumes. Cells depend only on (data,
-settings, l, s), so results do not depend on the number of workers.
+Cells run as tasks of an execution back end (``symrom.execution``: local
+processes, or a Ray cluster). A task returns its cell; the driver writes it to
+``OUT/cells/l{l:02d}_s{s}.json`` as soon as it is done, with how it ran
+(``execution``: back end, worker, attempts lost to a dying worker), and reuses
+it on a rerun when its key (data hash and every setting that changes a cell)
+matches, so an interrupted sweep resumes. Cells depend only on (data,
+settings, l, s), so ``sweep.json`` depends neither on the back end nor on the
+number of workers.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import multiprocessing
 import re
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -46,6 +48,7 @@ import numpy as np
 
 from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
+from symrom.execution import Backend, LocalBackend
 from symrom.model.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
 from symrom.names import N_Q, TABLE2_COMPONENTS
 
@@ -60,7 +63,8 @@ SweepProgress = Callable[[int, int, dict[str, Any]], None]
 class SweepConfig:
     """latent_dims: dimensions to train; seeds: a count n (seeds 0..n-1) or explicit
     seeds; poly_order: library order p; solver: ``exact`` or ``adam``; lam: the
-    L_mod weight lambda; workers: local processes (1 = in this process);
+    L_mod weight lambda; workers: local processes (1 = in this process) when
+    ``run_sweep`` is given no back end;
     threshold: sparsity threshold; rmse_test: also roll out the test split;
     adam: settings of the ``adam`` solver."""
 
@@ -181,18 +185,6 @@ def run_cell(ds: Dataset, config: SweepConfig, latent_dim: int, seed: int) -> di
     return cell
 
 
-# Worker-process state: the dataset and configuration, sent once per process.
-_WORKER: dict[str, Any] = {}
-
-
-def _init_worker(ds: Dataset, config: SweepConfig) -> None:
-    _WORKER["ds"], _WORKER["config"] = ds, config
-
-
-def _worker_cell(latent_dim: int, seed: int) -> dict[str, Any]:
-    return run_cell(_WORKER["ds"], _WORKER["config"], latent_dim, seed)
-
-
 def _cell_path(out: Path, latent_dim: int, seed: int) -> Path:
     return out / "cells" / f"l{latent_dim:02d}_s{seed}.json"
 
@@ -234,11 +226,11 @@ def summarise(cells: dict[tuple[int, int], dict[str, Any]], config: SweepConfig,
 
 
 def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
-              progress: SweepProgress | None = None) -> dict[str, Any]:
+              progress: SweepProgress | None = None, backend: Backend | None = None) -> dict[str, Any]:
     """Run (or resume) the sweep into directory ``out``; write and return ``sweep.json``'s dict.
 
-    Cells already in ``out/cells`` with a matching key are reused; the others
-    are computed in ``config.workers`` local processes and stored as they finish.
+    Cells already in ``out/cells`` with a matching key are reused; the others run on
+    ``backend`` (default: ``config.workers`` local processes) and are stored as they finish.
     """
     out = Path(out)
     (out / "cells").mkdir(parents=True, exist_ok=True)
@@ -255,31 +247,16 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
     tell = progress or (lambda done, n, info: None)
     for (d, s) in cells:
         tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": True})
-
-    def store(d: int, s: int, cell: dict[str, Any]) -> None:
+    backend = backend or LocalBackend(config.workers)
+    # Large dimensions first: they take longest, so the workers stay busy to the end.
+    todo.sort(key=lambda c: (-c[0], c[1]))
+    for task in backend.map(run_cell, [((d, s), (d, s)) for d, s in todo], (ds, config), label="sweep cell"):
+        (d, s), cell = task.key, task.value
         cell["key"] = cell_key(config, sha, d, s)
+        cell["execution"] = {"backend": backend.name, "worker": task.worker, "retries": task.retries}
         write_text_atomic(_cell_path(out, d, s), json.dumps(cell, indent=1) + "\n")
         cells[(d, s)] = cell
-        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": False})
-
-    # Large dimensions first: they take longest, so the pool stays busy to the end.
-    todo.sort(key=lambda c: (-c[0], c[1]))
-    if config.workers == 1 or len(todo) <= 1:
-        for d, s in todo:
-            store(d, s, run_cell(ds, config, d, s))
-    else:
-        # spawn: a fresh interpreter per worker, safe with threaded BLAS and torch.
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(config.workers, len(todo)), mp_context=ctx,
-                                 initializer=_init_worker, initargs=(ds, config)) as pool:
-            futures = {pool.submit(_worker_cell, d, s): (d, s) for d, s in todo}
-            try:
-                for fut in as_completed(futures):
-                    store(*futures[fut], fut.result())
-            except BaseException:
-                for fut in futures:  # finished cells are stored; drop the queue and stop
-                    fut.cancel()
-                raise
+        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": False, "retries": len(task.retries)})
     result = summarise(cells, config, sha)
     write_text_atomic(out / "sweep.json", json.dumps(result, indent=1) + "\n")
     return result

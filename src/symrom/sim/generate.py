@@ -1,42 +1,48 @@
-"""Simulated jump datasets: run checked jumps in worker processes and write a dataset file.
+"""Simulated jump datasets: run checked jumps on a back end and write a dataset file.
 
 ``generate(config, out)`` runs ``config.n_jumps`` jumps (``symrom.sim.runner``)
-in worker processes, each in its own PyBullet client with the seed
-``SeedSequence(seed, spawn_key=(jump, attempt))``, so the file does not depend
-on the worker count. Each finished jump is written at once to a part file
-(``symrom.sim.parts``), and ``resume`` reuses them. The dataset is assembled
-with ``symrom.data.preprocess.assemble`` and written atomically; the parts
-folder is removed afterwards. The library never prints: progress goes to a
+as tasks of an execution back end (``symrom.execution``: local processes by
+default, or a Ray cluster), each in its own PyBullet client with the seed
+``SeedSequence(seed, spawn_key=(jump, attempt))``, so the file depends neither
+on the back end nor on the worker count. A task returns its jump's arrays; the
+driver writes each finished jump at once to a part file (``symrom.sim.parts``),
+and ``resume`` reuses them. The dataset is assembled with
+``symrom.data.preprocess.assemble`` and written atomically, beside it the run's
+record ``OUT.run.json`` (back end, time per jump, workers lost and retried),
+and the parts folder is removed. The library never prints: progress goes to a
 callback.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import shutil
+import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
+from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.data.io import write_dataset
 from symrom.data.preprocess import assemble
+from symrom.execution import Backend, LocalBackend
 from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
-from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
+from symrom.sim.parts import jsonable, part_execution, part_path, parts_dir, read_part, write_part
 from symrom.sim.runner import GenerationError, jump_seed, run_checked_jump
 
 __all__ = ["GenerateConfig", "GenerationError", "NoiseConfig", "build_dataset", "generate", "jump_seed",
-           "motion_available", "parts_dir", "split_counts", "split_labels"]
+           "motion_available", "parts_dir", "run_record_path", "split_counts", "split_labels"]
 
 ProgressCallback = Callable[[int, int, dict], None]
+RUN_RECORD_VERSION = 1
 
 
 def motion_available(motion: str) -> bool:
@@ -104,26 +110,20 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
                     dt=dt, generator=generator)
 
 
-def _worker(cfg: GenerateConfig, jump: int, parts: str) -> dict:
-    log, record = run_checked_jump(cfg, jump)
-    write_part(part_path(Path(parts), jump), log, record, cfg.fingerprint())
-    return {"jump": jump, "retries": len(record["retries"]), "samples": record["samples"],
-            **record["diagnostics"]}
+def _jump_task(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarray], dict]:
+    """One jump, run where the back end puts it: its log arrays and record (no file written)."""
+    return run_checked_jump(cfg, jump)
 
 
-def _mp_context(cfg: GenerateConfig):
-    """Fresh worker processes: forkserver (with the runner, the motion and the compiled
-    routines preloaded) where
-    there is one, else spawn. Plain fork could inherit locks held by the caller's threads
-    (e.g. a progress bar)."""
-    import multiprocessing as mp
+def _preload(cfg: GenerateConfig) -> list[str]:
+    """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet and
+    the compiled simulation routines (``symrom.sim.warm``)."""
+    return ["symrom.sim.runner", get_motion(cfg.motion).plugin.partition(":")[0], "pybullet", "symrom.sim.warm"]
 
-    if "forkserver" in mp.get_all_start_methods():
-        ctx = get_context("forkserver")
-        plugin = get_motion(cfg.motion).plugin.partition(":")[0]
-        ctx.set_forkserver_preload(["symrom.sim.runner", plugin, "pybullet", "symrom.sim.warm"])
-        return ctx
-    return get_context("spawn")
+
+def run_record_path(out: str | os.PathLike) -> Path:
+    """The run's record beside the dataset ``out``: ``OUT.run.json``."""
+    return Path(str(out) + ".run.json")
 
 
 def check_config(cfg: GenerateConfig) -> GenerateConfig:
@@ -142,6 +142,19 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
     if not motion_available(cfg.motion):
         raise GenerationError(f"the {cfg.motion} controller ({entry.plugin}) is not installed")
     return cfg if robot == cfg.robot else replace(cfg, robot=robot)
+
+
+def check_output(out: str | os.PathLike, resume: bool, force: bool) -> Path:
+    """``out`` as a path; ``GenerationError`` if it exists (without ``force``) or if an
+    interrupted run left parts beside it (without ``resume`` or ``force``)."""
+    out = Path(out)
+    if out.exists() and not force:
+        raise GenerationError(f"{out} exists; use --force to overwrite it")
+    parts = parts_dir(out)
+    if parts.exists() and not resume and not force:
+        raise GenerationError(f"{parts} holds an interrupted run; use --resume to continue "
+                              f"it or --force to start over")
+    return out
 
 
 def _resumable_parts(cfg: GenerateConfig, parts: Path) -> list[int]:
@@ -165,29 +178,29 @@ def _resumable_parts(cfg: GenerateConfig, parts: Path) -> list[int]:
 
 def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1, resume: bool = False,
              force: bool = False, progress_callback: ProgressCallback | None = None,
-             stop_after: int | None = None) -> Dataset | None:
+             stop_after: int | None = None, backend: Backend | None = None) -> Dataset | None:
     """Generate the jumps of ``config`` into the HDF5 file ``out``; the written dataset.
 
-    workers: processes (1 runs in this process); resume: reuse the part files of
-    an interrupted run; force: overwrite an existing ``out`` and discard stale
-    parts; progress_callback(done, total, info) after each jump (info: jump,
-    retries, resumed, the controller's diagnostics). ``stop_after``: stop once
-    that many jumps exist as parts and return None without writing the file
-    (what an interrupted run leaves).
+    backend: where the jumps run (``symrom.execution``; default: ``workers`` local
+    processes, 1 running them in this process); resume: reuse the part files of an
+    interrupted run; force: overwrite an existing ``out`` and discard stale parts;
+    progress_callback(done, total, info) after each jump (info: jump, retries (failed
+    attempts of the jump), worker_retries (attempts lost to a dying worker), seconds,
+    worker, resumed, the controller's diagnostics). ``stop_after``: stop once that many
+    jumps exist as parts and return None without writing the file (what an interrupted
+    run leaves). Beside ``out`` goes its run record ``OUT.run.json`` (``run_record_path``).
     """
     cfg = check_config(config)
-    if workers < 1:
-        raise GenerationError(f"need at least one worker, got {workers}")
-    out = Path(out)
-    if out.exists() and not force:
-        raise GenerationError(f"{out} exists; use --force to overwrite it")
+    if backend is None:
+        if workers < 1:
+            raise GenerationError(f"need at least one worker, got {workers}")
+        backend = LocalBackend(workers)
+    out = check_output(out, resume, force)
     parts = parts_dir(out)
     if parts.exists() and not resume:
-        if not force:
-            raise GenerationError(f"{parts} holds an interrupted run; use --resume to continue "
-                                  f"it or --force to start over")
-        shutil.rmtree(parts)
+        shutil.rmtree(parts)  # --force: start over
     parts.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     have = _resumable_parts(cfg, parts)
     todo = [j for j in range(cfg.n_jumps) if j not in set(have)]
     if stop_after is not None:
@@ -195,31 +208,30 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     done, total = len(have), cfg.n_jumps
     say = progress_callback or (lambda d, t, info: None)
     say(done, total, {"resumed": len(have)})
-    if workers == 1 or len(todo) <= 1:
-        for j in todo:
-            res = _worker(cfg, j, str(parts))
-            done += 1
-            say(done, total, res)
-    else:
-        with ProcessPoolExecutor(max_workers=min(workers, len(todo)), mp_context=_mp_context(cfg)) as pool:
-            futures = [pool.submit(_worker, cfg, j, str(parts)) for j in todo]
-            try:
-                for fut in as_completed(futures):
-                    res = fut.result()
-                    done += 1
-                    say(done, total, res)
-            except BaseException:
-                for f in futures:
-                    f.cancel()
-                raise
+    fingerprint = cfg.fingerprint()
+    tasks = [(j, (j,)) for j in todo]
+    for task in backend.map(_jump_task, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
+        log, record = task.value
+        execution = {"seconds": round(task.seconds, 4), "worker": task.worker, "retries": task.retries}
+        write_part(part_path(parts, task.key), log, record, fingerprint, execution)
+        done += 1
+        say(done, total, {"jump": task.key, "retries": len(record["retries"]), "samples": record["samples"],
+                          "worker_retries": len(task.retries), "seconds": task.seconds, "worker": task.worker,
+                          **record["diagnostics"]})
     if done < total:
         return None
-    logs, records = [], []
+    logs, records, runs = [], [], []
     for j in range(total):
         lg, rec, _ = read_part(part_path(parts, j))
         logs.append(lg)
         records.append(rec)
+        runs.append({"jump": j, **(part_execution(part_path(parts, j)) or {}), "resumed": j in have})
     ds = build_dataset(cfg, logs, records)
     write_dataset(ds, out)
+    write_text_atomic(run_record_path(out), json.dumps(
+        {"version": RUN_RECORD_VERSION, "dataset": out.name, "fingerprint": fingerprint,
+         "execution": backend.describe(), "jumps": total, "resumed": len(have),
+         "wall_time_s": round(time.perf_counter() - t0, 3),
+         "worker_retries": sum(len(r.get("retries", [])) for r in runs), "tasks": runs}, indent=1) + "\n")
     shutil.rmtree(parts, ignore_errors=True)
     return ds

@@ -1,8 +1,9 @@
 """Part files: each finished jump saved at once, so an interrupted generation resumes.
 
 ``OUT.parts/jump_00012.npz`` holds one jump's log arrays and a JSON ``meta``
-string (the options' fingerprint and the jump's record); plain npz, no pickle,
-written atomically.
+string (the options' fingerprint, the jump's record and how its task ran: wall
+time, worker, attempts lost to a dying worker); plain npz, no pickle, written
+atomically by the driver (tasks return arrays, never files).
 """
 
 from __future__ import annotations
@@ -39,10 +40,12 @@ def part_path(parts: Path, jump: int) -> Path:
     return parts / f"jump_{jump:05d}.npz"
 
 
-def write_part(path: Path, log: dict[str, np.ndarray], record: dict, fingerprint: str) -> None:
-    """Write one jump's part atomically (npz, no pickle)."""
+def write_part(path: Path, log: dict[str, np.ndarray], record: dict, fingerprint: str,
+               execution: dict | None = None) -> None:
+    """Write one jump's part atomically (npz, no pickle); ``execution``: how its task ran."""
     tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.npz")
-    meta = json.dumps({"fingerprint": fingerprint, "record": jsonable(record)}, sort_keys=True)
+    meta = json.dumps({"fingerprint": fingerprint, "record": jsonable(record),
+                       "execution": jsonable(execution)}, sort_keys=True)
     np.savez(tmp, meta=np.array(meta), **log)
     os.replace(tmp, path)
 
@@ -53,3 +56,9 @@ def read_part(path: Path) -> tuple[dict[str, np.ndarray], dict, str]:
         meta = json.loads(str(z["meta"]))
         log = {k: z[k] for k in LOG_KEYS}
     return log, meta["record"], meta["fingerprint"]
+
+
+def part_execution(path: Path) -> dict | None:
+    """How the task of a part file ran (seconds, worker, retries), if recorded."""
+    with np.load(path, allow_pickle=False) as z:
+        return json.loads(str(z["meta"])).get("execution")

@@ -1,0 +1,349 @@
+"""Where the heavy tasks run: local processes or a Ray cluster, behind one small interface.
+
+A back end maps a function over keyed tasks and yields each task's result as it
+finishes (a ``Done``: key, value, the attempt's wall time in the worker, the
+worker, the attempts lost before it). Every caller (generation, the sweep, the
+selection grid) does the rest itself, in the driver: it skips the tasks whose
+outputs exist (resume), writes each result atomically as it arrives, and
+records the retries. Tasks return arrays and plain data, never paths on a
+worker's disk.
+
+- ``LocalBackend(workers)``: today's behaviour. One worker runs the tasks in
+  this process; more run them in a process pool (spawn, or forkserver with
+  ``preload`` modules imported once), at most ``workers`` at a time.
+- ``RayBackend(address, workers)``: ``ray.remote`` tasks on the cluster at
+  ``address`` (or ``$RAY_ADDRESS``, or a cluster started on this machine with
+  ``ray start``; else a new Ray instance here). Ray is an optional extra (``pip install 'symrom[ray]'``) and is
+  imported only here, only when this back end is used.
+
+A worker that dies (a crashed or killed process, a lost node, a task killed
+for memory) costs its task one attempt: the task is submitted again, up to
+``max_retries`` times, and each lost attempt is recorded with its cause. An
+exception raised by the task itself is not retried: it is raised in the
+driver as the task raised it. The same task gives the same value on any back
+end, so results do not depend on the back end or the worker count.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import os
+import socket
+import time
+from abc import ABC, abstractmethod
+from collections import deque
+from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+BACKENDS = ("local", "ray")
+DEFAULT_MAX_RETRIES = 3
+RAY_MISSING = "the ray back end needs Ray, which is not installed: pip install 'symrom[ray]'"
+
+Task = tuple[Hashable, tuple]  # (key, positional arguments after the shared ones)
+
+
+class BackendError(RuntimeError):
+    """A back end cannot be made or reached (unknown name, Ray missing, no cluster)."""
+
+
+class WorkerLostError(BackendError):
+    """A task lost more attempts to dying workers than it may be retried."""
+
+
+@dataclass
+class Done:
+    """A finished task: its key and value, the wall time of the attempt that finished (s,
+    measured in the worker), the worker (``host:pid``) and every attempt lost before it
+    (``{"attempt": k, "cause": ...}``)."""
+
+    key: Hashable
+    value: Any
+    seconds: float
+    worker: str
+    retries: list[dict[str, Any]] = field(default_factory=list)
+
+
+def _worker_name() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def run_task(fn: Callable, shared: tuple, args: tuple) -> tuple[Any, float, str]:
+    """Run ``fn(*shared, *args)`` and return (value, seconds, worker): the body of every task."""
+    t0 = time.perf_counter()
+    value = fn(*shared, *args)
+    return value, time.perf_counter() - t0, _worker_name()
+
+
+def _first_line(e: BaseException) -> str:
+    text = str(e).strip()
+    return f"{type(e).__name__}: {text.splitlines()[0]}" if text else type(e).__name__
+
+
+class Backend(ABC):
+    """Maps tasks to results; see the module docstring."""
+
+    name: str = ""
+
+    def __init__(self, workers: int | None, max_retries: int = DEFAULT_MAX_RETRIES) -> None:
+        if workers is not None and workers < 1:
+            raise BackendError(f"need at least one worker, got {workers}")
+        if max_retries < 0:
+            raise BackendError(f"max_retries must be >= 0, got {max_retries}")
+        self.workers = workers
+        self.max_retries = max_retries
+
+    def start(self) -> Backend:
+        """Make the back end ready (a Ray back end connects); ``self``. ``map`` calls it too."""
+        return self
+
+    def close(self) -> None:
+        """Release what ``start`` acquired."""
+
+    def __enter__(self) -> Backend:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @abstractmethod
+    def map(self, fn: Callable, tasks: Iterable[Task], shared: tuple = (), *, label: str = "task",
+            preload: Sequence[str] = ()) -> Iterator[Done]:
+        """Run ``fn(*shared, *args)`` for every ``(key, args)`` of ``tasks`` and yield a ``Done``
+        per task as it finishes (in any order). ``fn`` must be importable by name (a
+        module-level function); ``shared`` is sent once rather than with every task; ``label``
+        names the tasks in errors and in the cluster's task list; ``preload``: modules a fresh
+        worker process should import before its first task. Closing the iterator early
+        cancels the tasks not yet finished."""
+
+    def describe(self) -> dict[str, Any]:
+        """What ran the tasks, JSON-ready (for the records of a run)."""
+        return {"backend": self.name, "workers": self.workers, "max_retries": self.max_retries}
+
+    def _lose(self, lost: dict[Hashable, list[dict]], key: Hashable, label: str, cause: str) -> None:
+        """Record a lost attempt of ``key``; ``WorkerLostError`` once it may not be retried."""
+        lost.setdefault(key, []).append({"attempt": len(lost[key]), "cause": cause})
+        if len(lost[key]) > self.max_retries:
+            causes = "; ".join(r["cause"] for r in lost[key])
+            raise WorkerLostError(f"{label} {key}: its worker died {len(lost[key])} times, more than the "
+                                  f"{self.max_retries} retries allowed ({causes})")
+
+
+# ------------------------------------------------------------------ local processes
+_SHARED: dict[str, tuple] = {}
+
+
+def _init_local(shared: tuple) -> None:
+    _SHARED["args"] = shared
+
+
+def _local_task(fn: Callable, args: tuple) -> tuple[Any, float, str]:
+    return run_task(fn, _SHARED["args"], args)
+
+
+def _mp_context(preload: Sequence[str]):
+    """Fresh worker processes: forkserver with ``preload`` imported once where there is one
+    (and something to preload), else spawn, safe with threaded BLAS and torch. Plain fork
+    could inherit locks held by the caller's threads (e.g. a progress bar)."""
+    import multiprocessing as mp
+
+    if preload and "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(list(preload))
+        return ctx
+    return mp.get_context("spawn")
+
+
+class LocalBackend(Backend):
+    """Processes on this machine: one worker runs the tasks in this process, more in a process
+    pool with at most ``workers`` tasks at once (so a pool that breaks when a worker dies
+    loses exactly the tasks that were running; they are run again in a new pool)."""
+
+    name = "local"
+
+    def __init__(self, workers: int = 1, max_retries: int = DEFAULT_MAX_RETRIES) -> None:
+        super().__init__(int(workers), max_retries)
+
+    def map(self, fn: Callable, tasks: Iterable[Task], shared: tuple = (), *, label: str = "task",
+            preload: Sequence[str] = ()) -> Iterator[Done]:
+        tasks = list(tasks)
+        if self.workers == 1 or len(tasks) <= 1:
+            for key, args in tasks:
+                value, seconds, worker = run_task(fn, tuple(shared), tuple(args))
+                yield Done(key, value, seconds, worker)
+            return
+        yield from self._pool_map(fn, tasks, tuple(shared), label, preload)
+
+    def _pool_map(self, fn: Callable, tasks: list[Task], shared: tuple, label: str,
+                  preload: Sequence[str]) -> Iterator[Done]:
+        from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        pending: deque[Task] = deque(tasks)
+        lost: dict[Hashable, list[dict]] = {}
+        ctx = _mp_context(preload)
+        while pending:
+            n = min(self.workers, len(pending))
+            with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_local,
+                                     initargs=(shared,)) as pool:
+                running: dict = {}
+                broken: list[Task] = []
+                try:
+                    while (pending and not broken) or running:
+                        while pending and not broken and len(running) < n:
+                            key, args = pending.popleft()
+                            running[pool.submit(_local_task, fn, tuple(args))] = (key, args)
+                        finished, _ = wait(running, return_when=FIRST_COMPLETED)
+                        for fut in finished:
+                            key, args = running.pop(fut)
+                            try:
+                                value, seconds, worker = fut.result()
+                            except BrokenProcessPool:
+                                broken.append((key, args))
+                                continue
+                            yield Done(key, value, seconds, worker, list(lost.get(key, [])))
+                finally:
+                    for fut in running:
+                        fut.cancel()
+                # A dead worker breaks the whole pool: every task that was running lost its
+                # attempt. They go first into a new pool.
+                for key, _ in broken:
+                    self._lose(lost, key, label, "a worker process died (the process pool broke "
+                                                 "and was started again)")
+                pending.extendleft(reversed(broken))
+
+
+# ------------------------------------------------------------------ Ray
+def ray_available() -> bool:
+    """Whether the optional Ray extra is installed."""
+    return importlib.util.find_spec("ray") is not None
+
+
+class RayBackend(Backend):
+    """``ray.remote`` tasks on a Ray cluster (one CPU each). ``address``: the cluster's
+    address (``host:port``, ``ray://host:10001``, ``auto`` or ``local``); None: ``$RAY_ADDRESS``,
+    else the cluster last started on this machine with ``ray start``, else a new Ray instance
+    on this machine (Ray's own rule; ``local`` always starts a new one). If this process is
+    already connected to Ray, that connection is used. ``workers``: at most this many tasks at once (None: as many as the
+    cluster has CPUs when the back end starts). Ray's own retries are off, so that every
+    lost attempt is counted and recorded here."""
+
+    name = "ray"
+
+    def __init__(self, address: str | None = None, workers: int | None = None,
+                 max_retries: int = DEFAULT_MAX_RETRIES) -> None:
+        if not ray_available():
+            raise BackendError(RAY_MISSING)
+        super().__init__(workers, max_retries)
+        self.address = address or os.environ.get("RAY_ADDRESS") or None
+        _host_port(self.address)  # a malformed address fails here, before any work
+        self._owner = False  # whether start() made the connection (and close() ends it)
+        self.cluster: dict[str, Any] = {}
+
+    def start(self) -> RayBackend:
+        import ray
+
+        if not ray.is_initialized():
+            where = f"the Ray cluster at {self.address}" if self.address else "a local Ray instance"
+            _check_reachable(self.address)
+            try:
+                ray.init(address=self.address, logging_level=logging.WARNING, log_to_driver=False)
+            except Exception as e:  # noqa: BLE001 - Ray raises many kinds; name the address
+                raise BackendError(f"cannot start or reach {where}: {_first_line(e)}") from e
+            self._owner = True
+        cpus = int(ray.cluster_resources().get("CPU", 0))
+        if cpus < 1:
+            raise BackendError("the Ray cluster has no CPU to run tasks on")
+        self.cluster = {"nodes": sum(1 for n in ray.nodes() if n.get("Alive")), "cpus": cpus}
+        if self.workers is None:
+            self.workers = cpus
+        return self
+
+    def close(self) -> None:
+        if self._owner:
+            import ray
+
+            ray.shutdown()
+            self._owner = False
+
+    def describe(self) -> dict[str, Any]:
+        return {**super().describe(), "address": self.address, **self.cluster}
+
+    def map(self, fn: Callable, tasks: Iterable[Task], shared: tuple = (), *, label: str = "task",
+            preload: Sequence[str] = ()) -> Iterator[Done]:
+        import ray
+        from ray import exceptions as rx
+
+        self.start()
+        # A dead worker or node, a lost result, a task killed for memory: run it again.
+        lost_kinds = (rx.WorkerCrashedError, rx.NodeDiedError, rx.ObjectLostError, rx.OutOfMemoryError,
+                      rx.LocalRayletDiedError)
+        remote = ray.remote(num_cpus=1, max_retries=0, retry_exceptions=False)(run_task)
+        shared_ref = ray.put(tuple(shared))
+        pending: deque[Task] = deque(tasks)
+        lost: dict[Hashable, list[dict]] = {}
+        running: dict = {}
+        try:
+            while pending or running:
+                while pending and len(running) < self.workers:
+                    key, args = pending.popleft()
+                    ref = remote.options(name=f"symrom {label} {key}").remote(fn, shared_ref, tuple(args))
+                    running[ref] = (key, args)
+                ready, _ = ray.wait(list(running), num_returns=1)
+                for ref in ready:
+                    key, args = running.pop(ref)
+                    try:
+                        value, seconds, worker = ray.get(ref)
+                    except rx.RayTaskError as e:  # the task raised: raise it here as it was raised
+                        cause = e.cause if isinstance(getattr(e, "cause", None), BaseException) else None
+                        if cause is None:
+                            raise
+                        raise cause from e
+                    except lost_kinds as e:
+                        self._lose(lost, key, label, _first_line(e))
+                        pending.appendleft((key, args))
+                        continue
+                    yield Done(key, value, seconds, worker, list(lost.get(key, [])))
+        finally:
+            for ref in running:
+                ray.cancel(ref, force=True)
+
+
+def _host_port(address: str | None) -> tuple[str, int] | None:
+    """(host, port) of a ``host:port`` or ``ray://host:port`` address; None for ``auto``,
+    ``local`` or none; ``BackendError`` for anything else."""
+    if not address or address in ("auto", "local"):
+        return None
+    host, sep, port = address.removeprefix("ray://").rstrip("/").rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise BackendError(f"Ray address {address!r}: expected host:port, ray://host:port or auto")
+    return host.strip("[]"), int(port)
+
+
+def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
+    """``BackendError`` unless something accepts connections at ``address`` (Ray itself would
+    keep retrying for minutes)."""
+    hp = _host_port(address)
+    if hp is None:
+        return
+    try:
+        socket.create_connection(hp, timeout=timeout).close()
+    except OSError as e:
+        raise BackendError(f"cannot reach the Ray cluster at {address}: {e.strerror or e} "
+                           f"(is its head running? see ray start --head)") from None
+
+
+# ------------------------------------------------------------------ by name
+def make_backend(name: str = "local", workers: int | None = None, address: str | None = None,
+                 max_retries: int = DEFAULT_MAX_RETRIES) -> Backend:
+    """The back end called ``name`` (``local`` or ``ray``). ``workers``: local processes
+    (default 1), or for Ray the most tasks at once (default: the cluster's CPUs);
+    ``address``: the Ray cluster (Ray only)."""
+    if name not in BACKENDS:
+        raise BackendError(f"unknown back end {name!r}; choose from {', '.join(BACKENDS)}")
+    if name == "local":
+        if address:
+            raise BackendError("--address names a Ray cluster: use it with --backend ray")
+        return LocalBackend(1 if workers is None else workers, max_retries)
+    return RayBackend(address, workers, max_retries)

@@ -1,0 +1,81 @@
+"""Execution back ends without Ray: results, worker deaths retried and recorded, errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+import _tasks
+from conftest import one_line_error
+from symrom import execution
+from symrom.execution import BackendError, LocalBackend, WorkerLostError, make_backend
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_local_map_gives_every_result_once(workers):
+    done = list(LocalBackend(workers).map(_tasks.square, [(f"k{x}", (x,)) for x in range(5)], (100,)))
+    assert sorted(d.key for d in done) == [f"k{x}" for x in range(5)]
+    assert {d.key: d.value for d in done} == {f"k{x}": 100 + x * x for x in range(5)}
+    assert all(d.seconds >= 0 and ":" in d.worker and d.retries == [] for d in done)
+    if workers == 2:  # in worker processes, not in this one
+        assert all(not d.worker.endswith(f":{__import__('os').getpid()}") for d in done)
+
+
+def test_local_worker_that_dies_is_retried_and_recorded(tmp_path):
+    done = {d.key: d for d in LocalBackend(2).map(_tasks.die_once, [(x, (x,)) for x in range(3)], (str(tmp_path),),
+                                                  label="square")}
+    assert {k: d.value for k, d in done.items()} == {0: 0, 1: 10, 2: 20}
+    # Every task died once: each lost exactly its running attempt(s), recorded with the cause.
+    for d in done.values():
+        assert len(d.retries) >= 1 and d.retries[0]["attempt"] == 0
+        assert "worker process died" in d.retries[0]["cause"]
+
+
+def test_local_retries_are_bounded(tmp_path):
+    with pytest.raises(WorkerLostError, match=r"doomed [01]: its worker died 2 times, more than the 1 retries allowed"):
+        list(LocalBackend(2, max_retries=1).map(_tasks.always_die, [(0, (0,)), (1, (1,))], label="doomed"))
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_task_error_is_raised_as_it_was_raised(workers):
+    with pytest.raises(ValueError, match="task 2 refuses: a bad input"):
+        list(LocalBackend(workers).map(_tasks.refuse, [(x, (x,)) for x in range(4)]))
+
+
+def test_backends_by_name():
+    assert make_backend("local").workers == 1 and make_backend("local", 3).workers == 3
+    with pytest.raises(BackendError, match="unknown back end 'dask'; choose from local, ray"):
+        make_backend("dask")
+    with pytest.raises(BackendError, match="--address names a Ray cluster: use it with --backend ray"):
+        make_backend("local", address="10.0.0.1:6379")
+    with pytest.raises(BackendError, match="at least one worker"):
+        make_backend("local", 0)
+    assert make_backend("local").describe() == {"backend": "local", "workers": 1, "max_retries": 3}
+
+
+def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path):
+    monkeypatch.setattr(execution, "ray_available", lambda: False)
+    with pytest.raises(BackendError, match=r"pip install 'symrom\[ray\]'"):
+        make_backend("ray")
+    from symrom.cli import app
+
+    out = tmp_path / "d.h5"
+    r = CliRunner().invoke(app, ["generate", "--robot", "go1", "--motion", "pronk", "--jumps", "1", "--out", str(out),
+                                 "--backend", "ray"])
+    one_line_error(r, "needs Ray", "symrom[ray]")
+    assert not out.exists()
+
+
+def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
+    code = ("import sys, symrom, symrom.cli, symrom.execution, symrom.sim.generate, symrom.experiments.sweep, "
+            "symrom.experiments.select, symrom.experiments.reproduce\n"
+            "from symrom.execution import LocalBackend\n"
+            "import _tasks\n"
+            "assert [d.value for d in LocalBackend(1).map(_tasks.square, [(0, (3,))], (1,))] == [10]\n"
+            "assert 'ray' not in sys.modules, 'ray was imported'\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                       cwd=str(__import__("pathlib").Path(__file__).parent))
+    assert r.returncode == 0, r.stderr
