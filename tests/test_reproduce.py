@@ -78,7 +78,8 @@ def test_manifest_lists_every_experiment_with_its_role(run):
                 "go1_proxy": "fine_tuned", "sweep": "sweep"}
     for name in ("go1_sim", "a1_sim"):
         expected |= {name: "learned", f"{name}/paper_defaults": "learned", f"{name}/selection": "selection",
-                     f"{name}/aslip": "baseline", f"{name}/aslip_rollout": "baseline", f"{name}/newton": "baseline"}
+                     f"{name}/aslip": "baseline", f"{name}/aslip_rollout": "baseline", f"{name}/newton": "baseline",
+                     f"{name}/newton_fitted": "baseline"}
     assert roles == expected
     for e in entries:
         for key, rel in e.files.items():
