@@ -10,8 +10,8 @@ from typer.testing import CliRunner
 import symrom
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.model.hybrid import HybridModel, ModelDataError, PhaseInfo
-from symrom.model.library import Inputs, Library, Polynomial, Trigonometric
+from symrom.model.hybrid import HybridModel, ModelDataError
+from symrom.model.library import Inputs, Polynomial, Trigonometric
 from symrom.rollout.integrate import rollout
 from conftest import one_line_error
 

@@ -52,7 +52,7 @@ from symrom.execution import Backend, make_backend
 from symrom.model.finetune import FineTuneConfig, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, save_model
-from symrom.experiments.select import Selection, SelectionConfig, select, write_selection
+from symrom.experiments.select import Selection, SelectionConfig, select, selection_rule, write_selection
 from symrom.model.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
@@ -308,6 +308,11 @@ PROXY_SOURCES = ("refined", "exact")
 PROXY_METHODS = ("none", "acceleration", "rollout")
 
 
+def proxy_selection(cfg: ReproduceConfig) -> SelectionConfig:
+    """The rule the proxy's candidates are chosen by: the selection's, against the paper's proxy row."""
+    return replace(cfg.selection, reference=paper_reference("go1_proxy") if cfg.paper_reference else None)
+
+
 def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceConfig,
                  say: Say) -> tuple[list[dict], list[HybridModel | None], int | None]:
     """Every (source, fine-tuning) candidate scored on the proxy's val jumps against the paper's
@@ -317,7 +322,7 @@ def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceCon
     from symrom.experiments.select import choose, score_model
     from symrom.model.hybrid import ModelDataError
 
-    scfg = replace(cfg.selection, reference=paper_reference("go1_proxy") if cfg.paper_reference else None)
+    scfg = proxy_selection(cfg)
     yardstick = scfg.yardstick(ds)
     rows, models = [], []
     for src in PROXY_SOURCES:
@@ -357,9 +362,7 @@ def run_proxy(run: Path, noisy: Path, proxy: Path, settings: TrainConfig, cfg: R
             k = 0
         model = models[k]
         choice = {"version": 1, "rows": rows, "chosen": k, "split": "val",
-                  "rule": "scored on the proxy's val jumps against the paper's implied RMSE for the proxy; the "
-                          "sparsest candidate that meets it at both horizons, else the sparsest within "
-                          f"{100 * cfg.selection.tolerance:g} % of the best score"}
+                  "rule": selection_rule(proxy_selection(cfg))}
         save_model(model, d / "model.json")
         write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))
     mpath = d / "eval" / "metrics.json"

@@ -307,6 +307,17 @@ def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
     return picked + rest[:k - len(picked)]
 
 
+def selection_rule(cfg: SelectionConfig) -> str:
+    """The score and the choice of ``choose`` under ``cfg``, in words."""
+    tol = f"the sparsest within {cfg.tolerance:.0%} of the best score"
+    if cfg.reference is None:
+        return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
+                f"a diverged val jump rejected; {tol} chosen")
+    return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / reference_c; candidates with a "
+            "diverged val jump rejected; the sparsest at or below the reference on every component at both "
+            f"horizons chosen, else {tol}")
+
+
 @dataclass
 class Selection:
     """The table (one row per candidate), the index of the chosen row and its model."""
@@ -322,13 +333,7 @@ class Selection:
 
     def rule(self) -> str:
         """The score and the choice, in words."""
-        tol = f"the sparsest within {self.config.tolerance:.0%} of the best score"
-        if self.config.reference is None:
-            return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
-                    f"a diverged val jump rejected; {tol} chosen")
-        return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / reference_c; candidates with a "
-                "diverged val jump rejected; the sparsest at or below the reference on every component at both "
-                f"horizons chosen, else {tol}")
+        return selection_rule(self.config)
 
     def to_dict(self) -> dict[str, Any]:
         return {"version": SELECTION_VERSION, "config": asdict(self.config), "data_sha256": self.data_sha256,

@@ -163,10 +163,12 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         trajs = trajectories(ds, rows, ae, index)
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
                                 np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
-    threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
-    regressor = (Refine() if config.method == "rollout" else
-                 FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
-                          float(trained.get("alpha", 0.0))))
+    if config.method == "rollout":
+        regressor = Refine()
+    else:
+        threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
+        regressor = FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
+                             float(trained.get("alpha", 0.0)))
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
     Xi, mask = fit.Xi.copy(), fit.mask.copy()
     for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor

@@ -19,11 +19,16 @@ HEADER = ["encoder", "l", "library", "threshold", "refined", "active terms", "va
           "val score 0.1 s", "diverged val jumps (full, 0.1 s)", "chosen"]
 
 
+def _stat(r: dict, horizon: str, field: str) -> str:
+    """A row's per-horizon ``score`` or ``worst``, or a dash where it diverged."""
+    v = r["horizons"][horizon][field]
+    return DASH if v is None else f"{v:.3g}"
+
+
 def _row(r: dict, chosen: bool) -> list[str]:
     h = r["horizons"]
-    score = lambda k: DASH if h[k]["score"] is None else f"{h[k]['score']:.3g}"  # noqa: E731
     return [r["encoder"], str(r["latent_dim"]), r["library"], f"{r['threshold']:g}", "yes" if r["refine"] else "no",
-            str(r["active_terms"]), score("full"), score("0.1"),
+            str(r["active_terms"]), _stat(r, "full", "score"), _stat(r, "0.1", "score"),
             f"{h['full']['diverged_jumps']}, {h['0.1']['diverged_jumps']}", "★" if chosen else ""]
 
 
@@ -68,9 +73,8 @@ def _choice_row(r: dict, chosen: bool) -> list[str]:
     if r.get("refused"):
         return [r["source"], r["finetune"], DASH, DASH, DASH, DASH, DASH, f"refused: {r['refused']}", ""]
     h = r["horizons"]
-    num = lambda k, f: DASH if h[k][f] is None else f"{h[k][f]:.3g}"  # noqa: E731
-    return [r["source"], r["finetune"], str(r["active_terms"]), num("full", "score"), num("0.1", "score"),
-            num("full", "worst"), num("0.1", "worst"),
+    return [r["source"], r["finetune"], str(r["active_terms"]), _stat(r, "full", "score"), _stat(r, "0.1", "score"),
+            _stat(r, "full", "worst"), _stat(r, "0.1", "worst"),
             f"{h['full']['diverged_jumps']}, {h['0.1']['diverged_jumps']}", "★" if chosen else ""]
 
 
