@@ -6,7 +6,11 @@ samples, block embedding, seed 0). Paths, all integrating the same latent
 states with the inputs and the phase held over each 2 ms sample:
 
 - LSODA with the NumPy right-hand side (``backend="numpy"``, odeint's default
-  tolerances), and with the model's compiled right-hand side (``"generated"``);
+  tolerances), with the model's compiled right-hand side (``"generated"``), and
+  compiled as a whole (``lsoda_solver="numbalsoda"``: numbalsoda's LSODA called
+  from a numba loop with the generated right-hand side as a C callback; needs
+  ``pip install 'symrom[lsoda]'``), each compared with the first at the same
+  tolerances (``same_as_scipy_*``);
 - RK4 (2 steps per sample) in NumPy, by the compiled term-table kernel
   (``"table"``) and by the model's generated code (``"generated"``);
 - RK4 by the exported C (``symrom export --to c``, compiled with the system's
@@ -52,6 +56,7 @@ os.environ.setdefault("NUMBA_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-bench-n
 import numpy as np
 
 from symrom.model.codegen import generated_integrator
+from symrom.rollout import compiled_lsoda
 from symrom.model.export import export
 from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import (
@@ -244,6 +249,8 @@ def main() -> None:
         "machine": {"python": platform.python_version(), "cpu": platform.processor() or platform.machine(),
                     "numpy": np.__version__},
         "horizons": {}, "single_jump": {},
+        "compiled_lsoda": "numbalsoda" if compiled_lsoda.available() else
+                          "not run: " + compiled_lsoda.INSTALL_HINT,
     }
     tmp = Path(tempfile.mkdtemp(prefix="symrom-bench-"))
     c_model = None
@@ -294,6 +301,8 @@ def main() -> None:
         out = {
             "lsoda_numpy": (system(opts("lsoda", "numpy")), None, "lsoda"),
             "lsoda_generated": (system(opts("lsoda", "generated")), None, "lsoda"),
+            **({"lsoda_compiled": (system(opts("lsoda", "generated", lsoda_solver="numbalsoda")), None, "lsoda")}
+               if compiled_lsoda.available() else {}),
             "rk4_numpy": (padded(numpy_rk4), whole(opts("rk4", "numpy")), "rk4"),
             "rk4_table": (padded(sysm.compiled), whole(opts("rk4", "table")), "rk4"),
             "rk4_generated": (padded(generated_integrator(model)), whole(opts("rk4", "generated")), "rk4"),
@@ -304,13 +313,14 @@ def main() -> None:
         return out, ref, (sysm, lens, xp, vp, drive, resets)
 
     labels = {"lsoda_numpy": "LSODA, NumPy right-hand side", "lsoda_generated": "LSODA, compiled right-hand side",
+              "lsoda_compiled": "LSODA compiled (numbalsoda)",
               "rk4_numpy": "RK4, NumPy", "rk4_table": "RK4, compiled term table (`auto`)",
               "rk4_generated": "RK4, generated code", "rk4_c": "RK4, exported C", "peer": "PySINDy `simulate` (peer)"}
 
     def measure(sel: np.ndarray, reset: float | None, runs: int, slow_runs: int, n_peer: int) -> dict:
         fns, ref, (_sysm, lens, xp, vp, drive, resets) = paths(sel, reset)
         steps = int((lens - 1).sum()) * args.substeps
-        rows = {}
+        rows, scipy_paths = {}, None
         for name, (integ, end_to_end, kind) in fns.items():
             n_runs = slow_runs if kind == "lsoda" or name == "rk4_numpy" else runs
             t = timed(integ, n_runs)
@@ -318,6 +328,10 @@ def main() -> None:
             row = {"integration": t, "drift_xi": drift(Xs, ref[0]), "drift_dxi": drift(Vs, ref[1]),
                    "diverged": int((div >= 0).sum()), "diverged_at_matches_reference":
                    bool(np.array_equal(div, ref[2]))}
+            if name == "lsoda_numpy":
+                scipy_paths = (Xs, Vs)
+            elif kind == "lsoda":  # the same solver at the same tolerances
+                row["same_as_scipy_xi"], row["same_as_scipy_dxi"] = drift(Xs, scipy_paths[0]), drift(Vs, scipy_paths[1])
             if kind == "rk4":
                 row["rk4_steps_per_s"] = steps / t["cpu_median_s"]
                 row["rk4_steps_per_wall_s"] = steps / t["median_s"]
@@ -378,6 +392,12 @@ def main() -> None:
                   f"| {fmt_t(t['cpu_median_s'])} | {steps} "
                   f"| {row['speedup_vs_lsoda']:.3g}x | {row['speedup_vs_numpy_rk4']:.3g}x "
                   f"| {row['drift_xi']:.1e} / {row['drift_dxi']:.1e} | {first} | {whole} |")
+    for key, block in [*res["horizons"].items(), ("one jump", res["single_jump"])]:
+        for name, row in block["paths"].items():
+            if "same_as_scipy_xi" in row:
+                print(f"\n{labels[name]}, {key}: largest |difference| from SciPy's LSODA at the same tolerances "
+                      f"{row['same_as_scipy_xi']:.1e} (xi) / {row['same_as_scipy_dxi']:.1e} (dxi).", end="")
+    print()
     c = res["compile_s"]
     print(f"\nCompilation: generated code {c['generated']:.2f} s per model; exported C "
           f"{c['c'] if c['c'] is None else f'{c[chr(99)]:.2f} s'} (cc {c.get('c_flags', '')}); the term-table "

@@ -226,3 +226,57 @@ def test_compiled_and_exported_rollouts_agree_with_lsoda(model_and_data, reset):
         path = _c_rollout(model, ds, int(j), reset)
         np.testing.assert_allclose(path[:, :model.latent_dim], ref.xi[i], rtol=0, atol=1e-6)
         np.testing.assert_allclose(path[:, model.latent_dim:], ref.dxi[i], rtol=0, atol=1e-6)
+
+
+def test_the_stage_shift_of_sines_and_cosines_is_exact_to_rounding():
+    """The generated RK4 takes a later stage's sin and cos from the step's start by the angle
+    sum formulas: equal to math.sin/cos to rounding on both sides of its polynomial's range."""
+    import math
+
+    import numba
+
+    from symrom.model.codegen import SHIFT_MAX, SHIFT_SOURCE
+
+    ns = {"math": math}
+    exec(SHIFT_SOURCE, ns)  # noqa: S102 - the module's own source
+    shift = numba.njit(ns["shift"])
+    rng = np.random.default_rng(0)
+    s = rng.uniform(-4, 4, 4000)
+    d = np.r_[rng.uniform(-SHIFT_MAX, SHIFT_MAX, 3000), rng.uniform(-2, 2, 1000)]
+    got = np.array([shift(si + di, si, math.sin(si), math.cos(si)) for si, di in zip(s, d)])
+    want = np.c_[np.sin(s + d), np.cos(s + d)]
+    np.testing.assert_allclose(got, want, rtol=0, atol=4e-16)
+    assert np.abs(d).max() > SHIFT_MAX and np.abs(d[:3000]).max() > 0.9 * SHIFT_MAX
+
+
+@pytest.mark.parametrize("reset", [None, 0.1])
+def test_compiled_lsoda_matches_scipys(model_and_data, reset):
+    """numbalsoda's LSODA run from compiled code: the paths of SciPy's odeint given the same
+    (generated) right-hand side to rounding; against the NumPy right-hand side, whose other
+    rounding moves LSODA's step choices, to 2e-8 at odeint's default tolerances and 1e-9 at
+    1e-10; the same divergence sample for a model that blows up."""
+    pytest.importorskip("numbalsoda")
+    from dataclasses import replace
+
+    model, ds = model_and_data
+    jumps = ds.jumps_in("test")
+    for tol in (1.49012e-8, 1e-10):
+        o = {"reset": reset, "rtol": tol, "atol": tol}
+        a = rollout(model, ds, jumps, RolloutOptions("lsoda", lsoda_solver="numbalsoda", **o))
+        b = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="generated", **o))
+        c = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="numpy", **o))
+        for x, y, z in zip(a.xi + a.dxi, b.xi + b.dxi, c.xi + c.dxi):
+            np.testing.assert_allclose(x, y, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(x, z, rtol=0, atol=2e-8 if tol > 1e-9 else 1e-9)
+    Xi = model.Xi.copy()
+    Xi[0, model.library.feature_names.index("dxi1"), 0] = 60.0
+    bad = replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
+    a = rollout(bad, ds, jumps, RolloutOptions("lsoda", reset=reset, lsoda_solver="numbalsoda"))
+    b = rollout(bad, ds, jumps, RolloutOptions("lsoda", reset=reset))
+    assert a.diverged.any()
+    np.testing.assert_array_equal(a.diverged_at, b.diverged_at)
+
+
+def test_compiled_lsoda_needs_generated_code():
+    with pytest.raises(ValueError, match="numbalsoda.*generated code.*'table'"):
+        RolloutOptions("lsoda", backend="table", lsoda_solver="numbalsoda")

@@ -7,8 +7,17 @@ many times (evaluation, a planner, the benchmark) this module writes the
 model's equations themselves as straight-line code (sympy's Python printer,
 common subexpressions shared, only the active terms, each phase its own
 branch, the latent state held in scalar variables), so a step costs a few dozen
-floating-point operations and the trig functions it really uses. Compiling takes about a second per model; the
+floating-point operations. Compiling takes about a second per model; the
 result is cached per model (its library and coefficients) in this process.
+
+Sines and cosines of state variables dominate a step's cost. An RK4 step
+evaluates them once, at its start, with ``math.sin``/``math.cos``; its three
+later stages sit within h |ds/dt| of that state and get theirs from the angle
+sum formulas with a Taylor polynomial of the small shift (``shift``: exact to
+rounding while the shift stays below ``SHIFT_MAX``, ``math`` beyond it). The
+arithmetic may be contracted into fused multiply-adds and reassociated
+(``FASTMATH``), never assumed free of NaN or infinity, so the divergence
+checks stand.
 
 ``generated_integrator(model)`` has the interface of
 ``symrom.model.kernel.compiled_rollout`` (``RolloutSystem.compiled``), with
@@ -33,23 +42,46 @@ from symrom.model.library import symbols
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
 CACHE_SIZE = 16  # compiled models kept per process
+# LLVM's fast-math flags without nnan/ninf: a NaN or an overflow must still fail the bound test.
+FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
+# Largest shift |t - s| for which ``shift`` uses its polynomials: the first dropped terms,
+# d^11/11! and d^10/10!, are then below 3e-17.
+SHIFT_MAX = 0.1
 
-def _rk4_source(l: int) -> str:
+SHIFT_SOURCE = f"""
+def shift(t, s, sin_s, cos_s):
+    d = t - s
+    if abs(d) < {SHIFT_MAX!r}:
+        d2 = d * d
+        sd = d * (1.0 + d2 * (-1.0 / 6.0 + d2 * (1.0 / 120.0 + d2 * (-1.0 / 5040.0 + d2 * (1.0 / 362880.0)))))
+        cd = 1.0 + d2 * (-0.5 + d2 * (1.0 / 24.0 + d2 * (-1.0 / 720.0 + d2 * (1.0 / 40320.0))))
+        return sin_s * cd + cos_s * sd, cos_s * cd - sin_s * sd
+    return math.sin(t), math.cos(t)
+"""
+
+def _rk4_source(l: int, trig: list[int]) -> str:
     """Python source of ``rollout`` (the RK4 integrator of ``generated_integrator``) and
     ``rhs`` (LSODA's right-hand side) for latent dimension l: the state is held in 2l
     scalar variables and every loop over it is written out, so that the compiled step
-    is straight-line code."""
+    is straight-line code. ``trig``: the state variables whose sine and cosine
+    ``accel_s`` takes (see the module's note)."""
     n = 2 * l
     S = [f"s{i}" for i in range(n)]
     U = [f"u{i}" for i in range(l)]
     T = [f"t{i}" for i in range(n)]
+    SC = [f"{f}{i}" for i in trig for f in ("S", "C")]  # at the step's start
+    PQ = [f"{f}{i}" for i in trig for f in ("P", "Q")]  # at a later stage
 
     def call(args: list[str], out: str) -> str:
         lhs = ", ".join(f"{out}{d}" for d in range(l)) + ("," if l == 1 else "")
-        return f"{lhs} = accel_s(ph, {', '.join(args + U)})"
+        if args is S:
+            return f"{lhs} = accel_s(ph, {', '.join(args + U + SC)})"
+        moved = [f"P{i}, Q{i} = shift(t{i}, s{i}, S{i}, C{i})" for i in trig]
+        return "\n".join(moved + [f"{lhs} = accel_s(ph, {', '.join(args + U + PQ)})"])
 
     # classical RK4 on (x, v): k1 = (v, a), k2 = (w, b), k3 = (y, c), k4 = (v + h c, e)
-    step = [call(S, "a")]
+    step = [f"S{i} = math.sin(s{i})\nC{i} = math.cos(s{i})" for i in trig]
+    step += [call(S, "a")]
     step += [f"t{d} = s{d} + 0.5 * h * s{l + d}" for d in range(l)]
     step += [f"t{l + d} = s{l + d} + 0.5 * h * a{d}" for d in range(l)]
     step += [call(T, "b")] + [f"w{d} = t{l + d}" for d in range(l)]
@@ -84,11 +116,12 @@ def rollout(x_true, v_true, nu, phase, lens, resets, dt, substeps, limit, X, V, 
             ph = phase[j, k]
 {nl.join(f"            u{d} = nu[j, k, {d}]" for d in range(l))}
             for _ in range(substeps):
-{nl.join(ind + line for line in step)}
+{nl.join(ind + line for text in step for line in text.split(nl))}
 
 
 def accel(ph, s, nu, out):
-    r = accel_s(ph, {", ".join(f"s[{i}]" for i in range(n))}, {", ".join(f"nu[{d}]" for d in range(l))})
+    r = accel_s(ph, {", ".join([f"s[{i}]" for i in range(n)] + [f"nu[{d}]" for d in range(l)]
+                               + [f"math.{f}(s[{i}])" for i in trig for f in ("sin", "cos")])})
 {nl.join(f"    out[{d}] = r[{d}]" for d in range(l))}
 
 
@@ -97,27 +130,43 @@ def rhs(y, t, ph, u):
 {nl.join(f"    out[{d}] = y[{l + d}]" for d in range(l))}
     accel(ph, y, u, out[{l}:])
     return out
+
+
+def c_rhs(t, y, dy, p):
+{nl.join(f"    dy[{d}] = y[{l + d}]" for d in range(l))}
+    {", ".join(f"a{d}" for d in range(l))}{"," if l == 1 else ""} = accel_s(int(p[0]), {", ".join(
+        [f"y[{i}]" for i in range(n)] + [f"p[{d + 1}]" for d in range(l)]
+        + [f"math.{f}(y[{i}])" for i in trig for f in ("sin", "cos")])})
+{nl.join(f"    dy[{l + d}] = a{d}" for d in range(l))}
 """
 
 
 def model_source(model: HybridModel) -> str:
-    """Python source of ``accel_s(ph, s0, ..., s_{2l-1}, u0, ..., u_{l-1})``: the tuple
-    ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu (NaN for
-    an unknown phase), ``accel(ph, s, nu, out)`` writing it into ``out``, then the RK4
-    rollout and the LSODA right-hand side that call it."""
+    """Python source of ``accel_s(ph, s0, ..., s_{2l-1}, u0, ..., u_{l-1}, S_i, C_i, ...)``:
+    the tuple ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu
+    (NaN for an unknown phase), given S_i = sin(s_i) and C_i = cos(s_i) for each state
+    variable whose sine or cosine the model uses; ``accel(ph, s, nu, out)`` writing it
+    into ``out``, then ``shift``, the RK4 rollout and the LSODA right-hand side."""
     l = model.latent_dim
     s, nu = symbols(l)
     sub = {v: sympy.Symbol(f"s{i}") for i, v in enumerate(s)} | {v: sympy.Symbol(f"u{i}") for i, v in enumerate(nu)}
+    exprs = [[e.xreplace(sub) for e in rows] for rows in dynamics_expressions(model)]
+    state = {sympy.Symbol(f"s{i}"): i for i in range(2 * l)}
+    atoms = set().union(*(e.atoms(sympy.sin, sympy.cos) for rows in exprs for e in rows))
+    trig = sorted({state[a.args[0]] for a in atoms if a.args[0] in state})
+    named = {f(sympy.Symbol(f"s{i}")): sympy.Symbol(f"{c}{i}") for i in trig
+             for f, c in ((sympy.sin, "S"), (sympy.cos, "C"))}
     printer = PythonCodePrinter({"fully_qualified_modules": True})
     tail = "," if l == 1 else ""
-    lines = [f"def accel_s(ph, {', '.join([f's{i}' for i in range(2 * l)] + [f'u{i}' for i in range(l)])}):"]
-    for k, rows in enumerate(dynamics_expressions(model)):
-        repl, reduced = sympy.cse([e.xreplace(sub) for e in rows], symbols=sympy.numbered_symbols("c"))
+    args = [f"s{i}" for i in range(2 * l)] + [f"u{i}" for i in range(l)] + [f"{c}{i}" for i in trig for c in "SC"]
+    lines = [f"def accel_s(ph, {', '.join(args)}):"]
+    for k, rows in enumerate(exprs):
+        repl, reduced = sympy.cse([e.xreplace(named) for e in rows], symbols=sympy.numbered_symbols("c"))
         lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
         lines += [f"        {v} = {printer.doprint(e)}" for v, e in repl]
         lines.append(f"        return {', '.join(f'float({printer.doprint(e)})' for e in reduced)}{tail}")
     lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
-    return "\n".join(lines) + "\n" + _rk4_source(l)
+    return "\n".join(lines) + "\n" + SHIFT_SOURCE + _rk4_source(l, trig)
 
 
 def _key(model: HybridModel) -> str:
@@ -137,16 +186,16 @@ def _compiled(model: HybridModel) -> dict:
     t0 = time.perf_counter()
     ns: dict = {"math": math, "np": np}
     exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
-    for name in ("accel_s", "accel"):  # compiled before the functions that call them
-        ns[name] = numba.njit(ns[name])
-    rollout, rhs = numba.njit(ns["rollout"]), numba.njit(ns["rhs"])
+    for name in ("shift", "accel_s", "accel"):  # compiled before the functions that call them
+        ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
+    rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(fastmath=FASTMATH)(ns["rhs"])
     l = model.latent_dim
     z = np.zeros((1, 2, l))
     # Compile for the argument types the integrators pass, so that the first real call is fast.
     rollout(z, z, z, np.zeros((1, 2), np.int64), np.array([2], np.int64), np.ones(2, np.bool_), 0.002, 1,
             np.ones((1, 2 * l)), z.copy(), z.copy(), np.zeros(1, np.int64))
     rhs(np.zeros(2 * l), 0.0, 0, np.zeros(l))
-    entry = {"rollout": rollout, "rhs": rhs, "compile_s": time.perf_counter() - t0}
+    entry = {"rollout": rollout, "rhs": rhs, "c_rhs": ns["c_rhs"], "compile_s": time.perf_counter() - t0}
     _CACHE[key] = entry
     while len(_CACHE) > CACHE_SIZE:
         _CACHE.popitem(last=False)
@@ -178,3 +227,19 @@ def generated_integrator(model: HybridModel):
 def generated_rhs(model: HybridModel):
     """``rhs(y (2l,), t, phase index, nu (l,)) -> dy/dt (2l,)``, compiled, for SciPy's LSODA."""
     return _compiled(model)["rhs"]
+
+
+def generated_c_rhs(model: HybridModel) -> int:
+    """The address of the right-hand side as a C function ``void f(double t, double *y,
+    double *dy, double *p)``, p = [phase index, nu (l)], for a compiled LSODA
+    (``symrom.rollout.compiled_lsoda``); compiled on first use."""
+    entry = _compiled(model)
+    if "c_rhs_address" not in entry:
+        import numba
+        from numba import types
+
+        ptr = types.CPointer(types.double)
+        entry["c_rhs_cfunc"] = numba.cfunc(types.void(types.double, ptr, ptr, ptr),
+                                           fastmath=FASTMATH)(entry["c_rhs"])
+        entry["c_rhs_address"] = entry["c_rhs_cfunc"].address
+    return entry["c_rhs_address"]

@@ -223,9 +223,9 @@ class HybridModel:
         from symrom.model.kernel import compiled_rollout
 
         def generated():
-            from symrom.model.codegen import generated_integrator, generated_rhs
+            from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
 
-            return generated_integrator(self), generated_rhs(self)
+            return generated_integrator(self), generated_rhs(self), lambda: generated_c_rhs(self)
 
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,

@@ -12,7 +12,9 @@ set back to the true one every ``reset`` seconds (the paper's 0.1 s).
 Two integrators:
 - ``lsoda``: SciPy's LSODA (``odeint``) over each sample interval, the paper's
   choice; a step budget per interval keeps a stiff or exploding model from
-  hanging.
+  hanging. With ``lsoda_solver="numbalsoda"`` the same loop runs compiled, with
+  numbalsoda's LSODA and the model's generated right-hand side
+  (``symrom.rollout.compiled_lsoda``, the ``lsoda`` extra).
 - ``rk4``: fixed-step classical Runge-Kutta advancing all jumps at once as
   arrays; the fast path for batch evaluation and for MPC-style use.
 
@@ -31,6 +33,7 @@ import numpy as np
 from scipy.integrate import odeint
 
 from symrom.data.dataset import Dataset
+from symrom.rollout.compiled_lsoda import integrate_lsoda_compiled
 from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
@@ -39,6 +42,9 @@ METHODS = ("lsoda", "rk4")
 # second to compile per model, then the fastest); table: the term-table kernel;
 # numpy: the reference.
 BACKENDS = ("auto", "table", "generated", "numpy")
+# scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
+# solver compiled (needs the model's generated code).
+LSODA_SOLVERS = ("scipy", "numbalsoda")
 
 
 @dataclass
@@ -48,7 +54,9 @@ class RolloutOptions:
     rtol, atol: LSODA's relative and absolute tolerances (the defaults are odeint's);
     bound: divergence bound as a multiple of the model's yardstick; backend: ``auto``,
     ``table``, ``generated`` or ``numpy`` (see ``BACKENDS``; a model without compiled
-    code runs on NumPy with ``auto``)."""
+    code runs on NumPy with ``auto``); lsoda_solver: ``scipy`` or ``numbalsoda`` (see
+    ``LSODA_SOLVERS``; numbalsoda runs the model's generated code, with backend
+    ``auto`` or ``generated``)."""
 
     method: str = "lsoda"
     reset: float | None = None
@@ -58,12 +66,18 @@ class RolloutOptions:
     backend: str = "auto"
     rtol: float = 1.49012e-8
     atol: float = 1.49012e-8
+    lsoda_solver: str = "scipy"
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
             raise ValueError(f"unknown integrator {self.method!r}; choose from {METHODS}")
         if self.backend not in BACKENDS:
             raise ValueError(f"unknown rollout backend {self.backend!r}; choose from {BACKENDS}")
+        if self.lsoda_solver not in LSODA_SOLVERS:
+            raise ValueError(f"unknown LSODA solver {self.lsoda_solver!r}; choose from {LSODA_SOLVERS}")
+        if self.lsoda_solver == "numbalsoda" and self.backend not in ("auto", "generated"):
+            raise ValueError(f"lsoda_solver 'numbalsoda' runs the model's generated code; "
+                             f"backend {self.backend!r} cannot go with it (use 'auto' or 'generated')")
         if self.reset is not None and not self.reset > 0:
             raise ValueError(f"reset must be a positive duration in s, got {self.reset}")
 
@@ -190,25 +204,35 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
     """
     limit = options.bound * sysm.scale  # (J, 2d)
     n_jumps = len(sysm.x)
-    generated = sysm.generated() if options.backend == "generated" and sysm.generated else None
-    if options.backend == "generated" and generated is None:
-        raise ValueError("this model has no generated code; use backend 'auto' or 'numpy'")
+    compiled_lsoda = options.method == "lsoda" and options.lsoda_solver == "numbalsoda"
+    want = options.backend == "generated" or compiled_lsoda
+    generated = sysm.generated() if want and sysm.generated else None
+    if want and generated is None:
+        raise ValueError("this model has no generated code; use backend 'auto' or 'numpy' "
+                         "(and LSODA solver 'scipy')")
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
+        c_rhs = generated[2]() if compiled_lsoda else None
         for i, (x, v) in enumerate(zip(sysm.x, sysm.v)):
             drive = {name: d[i] for name, d in sysm.drive.items()}  # (n, ...)
-            if generated is not None:
-                rhs, args = generated[1], (lambda k, dr=drive: (int(dr["phase"][k]), dr["nu"][k]))
+            resets = reset_mask(x.shape[0], options.reset, dt)
+            if c_rhs is not None:
+                X, V, d = integrate_lsoda_compiled(c_rhs, x, v, drive["nu"], drive["phase"], resets, limit[i],
+                                                   dt, options.max_steps, options.rtol, options.atol)
             else:
-                d = x.shape[1]
+                if generated is not None:
+                    rhs, args = generated[1], (lambda k, dr=drive: (int(dr["phase"][k]), dr["nu"][k]))
+                else:
+                    d = x.shape[1]
 
-                def rhs(state, _t, k, dr=drive, d=d):
-                    a = sysm.acceleration({n: v[k][None] for n, v in dr.items()}, state[None, :d], state[None, d:])
-                    return np.concatenate([state[d:], a[0]])
+                    def rhs(state, _t, k, dr=drive, d=d):
+                        a = sysm.acceleration({n: v[k][None] for n, v in dr.items()}, state[None, :d],
+                                              state[None, d:])
+                        return np.concatenate([state[d:], a[0]])
 
-                args = (lambda k: (k,))
-            X, V, d = integrate_lsoda(rhs, args, x, v, reset_mask(x.shape[0], options.reset, dt), limit[i],
-                                      dt, options.max_steps, options.rtol, options.atol)
+                    args = (lambda k: (k,))
+                X, V, d = integrate_lsoda(rhs, args, x, v, resets, limit[i],
+                                          dt, options.max_steps, options.rtol, options.atol)
             Xs.append(X)
             Vs.append(V)
             div.append(d)

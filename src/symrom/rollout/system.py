@@ -38,7 +38,8 @@ class RolloutSystem:
     (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
     the system's own compiled code, (RK4 integrator, LSODA right-hand side
-    ``rhs(y, t, phase, nu)``), for the ``generated`` backend.
+    ``rhs(y, t, phase, nu)``, a function giving the address of that right-hand side
+    as a C function for a compiled LSODA), for the ``generated`` backend.
     """
 
     x: list[np.ndarray]
@@ -48,7 +49,7 @@ class RolloutSystem:
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
     compiled: Callable | None = None
-    generated: Callable[[], tuple[Callable, Callable]] | None = None
+    generated: Callable[[], tuple[Callable, Callable, Callable[[], int]]] | None = None
 
     @property
     def n_jumps(self) -> int:
