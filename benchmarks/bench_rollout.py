@@ -56,9 +56,9 @@ os.environ.setdefault("NUMBA_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-bench-n
 import numpy as np
 
 from symrom.model.codegen import generated_integrator
-from symrom.rollout import compiled_lsoda
 from symrom.model.export import export
 from symrom.model.training import TrainConfig, train
+from symrom.rollout import compiled_lsoda
 from symrom.rollout.integrate import (
     RolloutOptions,
     integrate_rk4,
