@@ -120,8 +120,7 @@ def rollout(x_true, v_true, nu, phase, lens, resets, dt, substeps, limit, X, V, 
 
 
 def accel(ph, s, nu, out):
-    r = accel_s(ph, {", ".join([f"s[{i}]" for i in range(n)] + [f"nu[{d}]" for d in range(l)]
-                               + [f"math.{f}(s[{i}])" for i in trig for f in ("sin", "cos")])})
+    r = accel_ref(ph, {", ".join([f"s[{i}]" for i in range(n)] + [f"nu[{d}]" for d in range(l)])})
 {nl.join(f"    out[{d}] = r[{d}]" for d in range(l))}
 
 
@@ -134,9 +133,8 @@ def rhs(y, t, ph, u):
 
 def c_rhs(t, y, dy, p):
 {nl.join(f"    dy[{d}] = y[{l + d}]" for d in range(l))}
-    {", ".join(f"a{d}" for d in range(l))}{"," if l == 1 else ""} = accel_s(int(p[0]), {", ".join(
-        [f"y[{i}]" for i in range(n)] + [f"p[{d + 1}]" for d in range(l)]
-        + [f"math.{f}(y[{i}])" for i in trig for f in ("sin", "cos")])})
+    {", ".join(f"a{d}" for d in range(l))}{"," if l == 1 else ""} = accel_ref(int(p[0]), {", ".join(
+        [f"y[{i}]" for i in range(n)] + [f"p[{d + 1}]" for d in range(l)])})
 {nl.join(f"    dy[{l + d}] = a{d}" for d in range(l))}
 """
 
@@ -146,7 +144,12 @@ def model_source(model: HybridModel) -> str:
     the tuple ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu
     (NaN for an unknown phase), given S_i = sin(s_i) and C_i = cos(s_i) for each state
     variable whose sine or cosine the model uses; ``accel(ph, s, nu, out)`` writing it
-    into ``out``, then ``shift``, the RK4 rollout and the LSODA right-hand side."""
+    into ``out``, then ``shift``, the RK4 rollout and the LSODA right-hand side.
+
+    LSODA's right-hand sides (``rhs``, ``c_rhs``) call ``accel_ref`` instead: the same
+    terms in the library's order, summed one by one as NumPy's reference does, and
+    compiled without fast-math, so that they round as it does (LSODA's step choices
+    follow the last bits of its right-hand side)."""
     l = model.latent_dim
     s, nu = symbols(l)
     sub = {v: sympy.Symbol(f"s{i}") for i, v in enumerate(s)} | {v: sympy.Symbol(f"u{i}") for i, v in enumerate(nu)}
@@ -165,6 +168,16 @@ def model_source(model: HybridModel) -> str:
         lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
         lines += [f"        {v} = {printer.doprint(e)}" for v, e in repl]
         lines.append(f"        return {', '.join(f'float({printer.doprint(e)})' for e in reduced)}{tail}")
+    lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
+    lines += [f"def accel_ref(ph, {', '.join(args[:3 * l])}):"]
+    feats = [printer.doprint(f.xreplace(sub)) for f in model.library.sympy_features()]
+    for k in range(len(model.phase_names)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
+        for j in range(l):
+            lines.append(f"        a{j} = 0.0")
+            lines += [f"        a{j} = a{j} + {feat} * {float(c)!r}"
+                      for feat, c in zip(feats, model.Xi[k][:, j]) if c != 0]
+        lines.append(f"        return {', '.join(f'a{j}' for j in range(l))}{tail}")
     lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
     return "\n".join(lines) + "\n" + SHIFT_SOURCE + _rk4_source(l, trig)
 
@@ -186,9 +199,11 @@ def _compiled(model: HybridModel) -> dict:
     t0 = time.perf_counter()
     ns: dict = {"math": math, "np": np}
     exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
-    for name in ("shift", "accel_s", "accel"):  # compiled before the functions that call them
+    for name in ("shift", "accel_s"):  # compiled before the functions that call them
         ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
-    rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(fastmath=FASTMATH)(ns["rhs"])
+    for name in ("accel_ref", "accel"):  # LSODA's: rounded as NumPy's reference
+        ns[name] = numba.njit(ns[name])
+    rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
     l = model.latent_dim
     z = np.zeros((1, 2, l))
     # Compile for the argument types the integrators pass, so that the first real call is fast.
@@ -239,7 +254,6 @@ def generated_c_rhs(model: HybridModel) -> int:
         from numba import types
 
         ptr = types.CPointer(types.double)
-        entry["c_rhs_cfunc"] = numba.cfunc(types.void(types.double, ptr, ptr, ptr),
-                                           fastmath=FASTMATH)(entry["c_rhs"])
+        entry["c_rhs_cfunc"] = numba.cfunc(types.void(types.double, ptr, ptr, ptr))(entry["c_rhs"])
         entry["c_rhs_address"] = entry["c_rhs_cfunc"].address
     return entry["c_rhs_address"]
