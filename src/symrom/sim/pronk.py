@@ -56,6 +56,7 @@ import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
+from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
 from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
@@ -201,6 +202,8 @@ class PronkController:
         self.gains = gains or PronkGains.scaled(*scales(robot))
         self.body = body_model(robot)
         self.kin = leg_kinematics(robot)
+        self._chains = self.kin.chain_arrays()
+        self._p_b, self._J = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3, 3))  # filled every tick
         self.mpc = ConvexMPC(self.body.mass, self.body.inertia_upper, self.gains.mpc)
         self.leg_gravity = LegGravity(robot)
         self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
@@ -236,20 +239,29 @@ class PronkController:
         return {"mpc_solve_times": [float(x) for x in self.mpc_solve_times]}
 
     # -------------------------------------------------------------- references
-    def _ref_base(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """Reference base position (3,), velocity (3,) and planned contact (0/1) at time t."""
+    def _references(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reference base positions (h, 3) m, velocities (h, 3) m/s and planned contact (h,)
+        (0/1) at the MPC's steps after t: t + k dt, k = 1..h."""
+        cfg = self.gains.mpc
+        ts = [t + (k + 1) * cfg.dt for k in range(cfg.horizon)]
+        if self.phase == "land" and self._t_td is not None:
+            pos, vel = self._ref_land(np.maximum(np.array(ts) - self._t_td, 0.0))
+            return pos, vel, np.ones(cfg.horizon)
+        pos, vel, contact = zip(*(self._ref_base(tk) for tk in ts))
+        return np.array(pos), np.array(vel), np.array(contact)
+
+    def _ref_base(self, t: float) -> tuple:
+        """Reference base position (3,), velocity (3,) (arrays or sequences) and planned contact
+        (0/1) at time t, before the landing."""
         pr, pl = self.params, self.plan
         x0, e = self._x0, self._e
-        if self.phase == "land" and self._t_td is not None:
-            return self._ref_land(t) + (1.0,)
         if t < pr.crouch_time:  # cosine from standing height down to the crouch
             s = 0.5 * (1 - np.cos(np.pi * t / pr.crouch_time))
             ds = 0.5 * np.pi / pr.crouch_time * np.sin(np.pi * t / pr.crouch_time)
             h0, h1 = self.spec.start_height, pr.crouch_height
-            return (np.array([x0[0], x0[1], h0 + (h1 - h0) * s]),
-                    np.array([0, 0, (h1 - h0) * ds]), 1.0)
+            return (x0[0], x0[1], h0 + (h1 - h0) * s), (0.0, 0.0, (h1 - h0) * ds), 1.0
         if t < pl.t_push:
-            return np.array([x0[0], x0[1], pr.crouch_height]), np.zeros(3), 1.0
+            return (x0[0], x0[1], pr.crouch_height), (0.0, 0.0, 0.0), 1.0
         tau = t - pl.t_push
         v_to = self._v_to  # take-off velocity
         if self._p_crouch is None:
@@ -262,21 +274,21 @@ class PronkController:
         vel = pl.vx * e + np.array([0, 0, pl.vz - GRAVITY * tf])
         return pos, vel, 0.0
 
-    def _ref_land(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Critically damped return from the touchdown state to rest at the standing height."""
+    def _ref_land(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Critically damped return from the touchdown state to rest at the standing height:
+        positions and velocities (n, 3) at the times tau (n,) s after touchdown."""
         g = self.gains
         p_td, v_td = self._td_state
-        tau = max(t - self._t_td, 0.0)
         # horizontal: exponential braking, v = v_td exp(-tau / brake_time)
-        decay = np.exp(-tau / g.brake_time)
+        decay = np.exp(-tau / g.brake_time)[:, None]
         pos = p_td + v_td * g.brake_time * (1 - decay)
         vel = v_td * decay
-        pos[2], vel[2] = self._ref_land_z(tau)
+        pos[:, 2], vel[:, 2] = self._ref_land_z(tau)
         return pos, vel
 
-    def _ref_land_z(self, tau: float) -> tuple[float, float]:
-        """Vertical part of ``_ref_land`` tau s after touchdown: height m and speed m/s,
-        critically damped from (z_td, vz_td) to the standing height."""
+    def _ref_land_z(self, tau):
+        """Vertical part of ``_ref_land`` tau s (float or array) after touchdown: height m and
+        speed m/s, critically damped from (z_td, vz_td) to the standing height."""
         w = self.gains.land_omega
         p_td, v_td = self._td_state
         z_f = self.spec.start_height - 0.01
@@ -298,13 +310,10 @@ class PronkController:
         yaw_ref = self.params.yaw
         x_ref = np.zeros((cfg.horizon, 13))  # srb_state of the references: level, not turning
         x_ref[:, 2], x_ref[:, 12] = yaw_ref, GRAVITY
+        pos, vel, c = self._references(state.t)
+        x_ref[:, 3:6], x_ref[:, 9:12] = pos + self._off_ref, vel
         contact = np.empty((cfg.horizon, N_LEGS))
-        off_ref = self._off_ref
-        for k in range(cfg.horizon):
-            tk = state.t + (k + 1) * cfg.dt
-            pos, vel, c = self._ref_base(tk)
-            x_ref[k, 3:6], x_ref[k, 9:12] = pos + off_ref, vel
-            contact[k] = c
+        contact[:] = c[:, None]
         contact[0] = np.minimum(contact[0], contact_now)
         if self.phase == "land":
             contact[:] = np.maximum(contact, contact_now)  # feet already down stay down
@@ -337,7 +346,8 @@ class PronkController:
             tau = self._flight_pd(state)
             return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
-        p_b, J = self.kin.one(qj)
+        p_b, J = self._p_b, self._J  # feet (4, 3) m and leg Jacobians (4, 3, 3), base frame
+        legs_one(qj, *self._chains, p_b, J)
         if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
             contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
             self._forces = self._mpc_forces(state, contact)

@@ -142,6 +142,8 @@ class World:
         self.spec: RobotDescription = get_robot(robot)
         self.config = config
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        self._neg_limit = -self.torque_limit
+        self._dt = config.dt  # s, physics tick
         self.signs = self.spec.signs  # (12,) symrom angle = sign x URDF angle
         self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
         self._driven = np.arange(N_JOINTS)  # joints driven by torque: all but the held ones
@@ -264,10 +266,8 @@ class World:
         R = np.empty((3, 3))
         # the link frame's pose and rates from the inertial frame's (PyBullet's tuples as they come)
         base_state(com_pos, com_orn, v_com, omega, self._off_pos, self._off_orn, q, dq, R)
-        q[JOINTS] = angles
-        dq[JOINTS] = rates
-        q[JOINTS] *= self.signs
-        dq[JOINTS] *= self.signs
+        np.multiply(angles, self.signs, out=q[JOINTS])
+        np.multiply(rates, self.signs, out=dq[JOINTS])
         links = tuple(zip(*p.getLinkStates(rob, self.foot_ids, computeLinkVelocity=1,
                                            computeForwardKinematics=1, physicsClientId=c)))
         # Toe links carry their inertial frame at the link origin, so links[6] is the foot velocity.
@@ -293,19 +293,22 @@ class World:
         None instead: what held joints' motors applied then need not be read back (a
         caller logging every other tick asks only on those).
         """
-        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), -self.torque_limit), self.torque_limit)
+        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), self._neg_limit), self.torque_limit)
         if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
             raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
         c = self.client
+        forces = tau * self.signs
+        if self.held.size:
+            forces = forces[self._driven]
         p.setJointMotorControlArray(self.robot, self._driven_ids, p.TORQUE_CONTROL,
-                                    forces=(tau * self.signs)[self._driven].tolist(), physicsClientId=c)
+                                    forces=forces.tolist(), physicsClientId=c)
         if self._pending_force is not None:
             com_pos, _ = p.getBasePositionAndOrientation(self.robot, physicsClientId=c)
             p.applyExternalForce(self.robot, -1, self._pending_force.tolist(), com_pos,
                                  p.WORLD_FRAME, physicsClientId=c)
             self._pending_force = None
         p.stepSimulation(physicsClientId=c)
-        self.t += self.config.dt
+        self.t += self._dt
         if not report:
             return None
         if self.held.size:  # what the solver's motors applied to hold them
