@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from symrom.robots import leg_kinematics
 from symrom.robots.stance import start_pose
-from symrom.sim import compiled
+from symrom.sim import bullet, compiled
 from symrom.sim.froggy import FroggyController, distribute, sample_params
 from symrom.sim.mpc import ConvexMPC, continuous_dynamics, discretize
 from symrom.sim.world import World, euler_rate_matrix, matrix_to_rpy
@@ -186,7 +186,25 @@ def test_a_reused_client_simulates_as_a_fresh_one():
         finally:
             world.close()
 
+    while bullet._SPARE:  # the first world on a new client
+        bullet.p.disconnect(physicsClientId=bullet._SPARE.pop())
     c1, x1 = run()
     c2, x2 = run()
     assert c2 == c1  # the closed world's client, emptied
     np.testing.assert_array_equal(x2, x1)
+
+
+def test_mpc_force_clipping_is_numpys_to_the_bit():
+    rng = np.random.default_rng(4)
+    for i in range(300):
+        U = rng.normal(size=(10, 4, 3)) * 200.0
+        special = rng.random(U.shape) < 0.2
+        U[special] = rng.choice([0.0, -0.0, 250.0, -250.0, np.inf, -np.inf, np.nan], special.sum())
+        c = rng.integers(0, 2, (10, 4)).astype(float)
+        ref = U.copy()
+        ref[..., 2] = np.clip(ref[..., 2], 0.0 * c, 250.0 * c)
+        lim = 0.6 * ref[..., 2]
+        ref[..., 0] = np.clip(ref[..., 0], -lim, lim)
+        ref[..., 1] = np.clip(ref[..., 1], -lim, lim)
+        compiled.clip_forces(U, c, 0.0, 250.0, 0.6)
+        np.testing.assert_array_equal(U.view(np.int64), ref.view(np.int64))  # signs of zeros too

@@ -94,6 +94,27 @@ def distribute(foot_pos, centre, legs, force, moment, mu, grf):
 
 
 @njit
+def clip(x, lo, hi):
+    """NumPy's ``np.clip`` of one number, to the bit: NaN stays NaN, ties keep x, else the bound."""
+    t = x if x != x or x > lo else lo
+    return t if t != t or t < hi else hi
+
+
+@njit
+def clip_forces(U, c, fz_min, fz_max, mu):
+    """Forces U (h, 4, 3) N clipped in place into the MPC's exact bounds, in the order and
+    arithmetic of the NumPy code (``np.clip``): f_z into [fz_min c, fz_max c] (c (h, 4) the
+    planned contact flags), then f_x and f_y into [-mu f_z, mu f_z]."""
+    for k in range(U.shape[0]):
+        for j in range(U.shape[1]):
+            fz = clip(U[k, j, 2], fz_min * c[k, j], fz_max * c[k, j])
+            U[k, j, 2] = fz
+            lim = mu * fz
+            U[k, j, 0] = clip(U[k, j, 0], -lim, lim)
+            U[k, j, 1] = clip(U[k, j, 1], -lim, lim)
+
+
+@njit
 def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_ref, k_land, d_land,
                         posture, qj, dqj, limit, tau):
     """Joint torques tau (12,) N m of the pronk controller on the ground
@@ -260,6 +281,7 @@ def warm_up(froggy: bool = True) -> None:
     J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
     pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
                         np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
+    clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
     if not froggy:
         return
     feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])

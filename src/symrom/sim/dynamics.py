@@ -43,10 +43,10 @@ def body_model(robot: str) -> BodyModel:
 
 @cache
 def _body_model(robot: str) -> BodyModel:
-    from symrom.sim.bullet import p
+    from symrom.sim.bullet import client, p, release
 
     desc = get_robot(robot)
-    cid = p.connect(p.DIRECT)
+    cid = client()
     try:
         rob = p.loadURDF(str(desc.urdf_path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
         names = {p.getJointInfo(rob, i, physicsClientId=cid)[1].decode(): i
@@ -73,7 +73,7 @@ def _body_model(robot: str) -> BodyModel:
             inertias.append((np.asarray(p.getMatrixFromQuaternion(ls[1])).reshape(3, 3),
                              np.asarray(d[2])))
     finally:
-        p.disconnect(cid)
+        release(cid)
     ms_a, coms_a = np.asarray(ms), np.asarray(coms)
     mass = float(ms_a.sum())
     com = (ms_a[:, None] * coms_a).sum(0) / mass
@@ -95,11 +95,11 @@ class _FixedBaseCopy:
     inverse dynamics that use it together when threads share the copy."""
 
     def __init__(self, robot: str):
-        from symrom.sim.bullet import p
+        from symrom.sim.bullet import client, p
 
         desc = get_robot(robot)
         self.p = p
-        self.cid = p.connect(p.DIRECT)
+        self.cid = client()
         self.rob = p.loadURDF(str(desc.urdf_path), useFixedBase=True,
                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.cid)
         names = {p.getJointInfo(self.rob, i, physicsClientId=self.cid)[1].decode(): i

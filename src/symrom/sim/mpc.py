@@ -34,6 +34,8 @@ import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
+from symrom.sim.compiled import clip_forces
+
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
 
@@ -320,11 +322,7 @@ class ConvexMPC:
         U = np.zeros(self._nu) if z is None or not np.all(np.isfinite(z)) else z[self._nx:]
         # OSQP stops at its tolerance: clip to the exact bounds so callers can rely on them.
         U = U.reshape(h, 4, 3).copy()
-        c = np.asarray(contact, dtype=float)
-        U[..., 2] = np.clip(U[..., 2], cfg.fz_min * c, cfg.fz_max * c)
-        lim = cfg.mu * U[..., 2]
-        U[..., 0] = np.clip(U[..., 0], -lim, lim)
-        U[..., 1] = np.clip(U[..., 1], -lim, lim)
+        clip_forces(U, np.asarray(contact, dtype=float), cfg.fz_min, cfg.fz_max, cfg.mu)
         dt = time.perf_counter() - t0
         self.solve_times.append(dt)
         return MPCResult(forces=U[0].copy(), plan=U, status=status, solve_time=dt)

@@ -2,9 +2,7 @@
 
 Each ``World`` owns its own PyBullet client in DIRECT mode (no GUI), so several
 worlds can live in one process and worker processes never share state. A closed
-world's client is emptied (``resetSimulation``) and kept for the next world of
-the process: connecting anew costs ~15 ms (the allocator hands Bullet's ~30 MB
-back to the system at each disconnect), a tenth of a jump's simulation. The
+world's client is emptied and kept for the next one (``symrom.sim.bullet.client``). The
 robot's base pose is reported for the URDF base link frame (the frame the leg
 kinematics use), not PyBullet's inertial frame. Joint order, signs, foot links
 and torque limits come from the robot's description (``symrom.robots``): joint
@@ -22,7 +20,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from symrom.sim.bullet import p
+from symrom.sim.bullet import client, p, release
 import pybullet_data
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
@@ -97,26 +95,6 @@ class RobotState:
     foot_vel: np.ndarray
 
 
-_SPARE_CLIENTS: list[int] = []  # emptied clients of closed worlds (at most one), for the next World
-
-
-def _client() -> int:
-    """A connected, empty DIRECT client: a closed world's, else a new one."""
-    try:
-        return _SPARE_CLIENTS.pop()
-    except IndexError:
-        return p.connect(p.DIRECT)
-
-
-def _release(client: int) -> None:
-    """Empty ``client`` and keep it for the next world, or disconnect it if one is kept already."""
-    if _SPARE_CLIENTS:
-        p.disconnect(physicsClientId=client)
-        return
-    p.resetSimulation(physicsClientId=client)
-    _SPARE_CLIENTS.append(client)
-
-
 def euler_rate_matrix(rpy: np.ndarray) -> np.ndarray:
     """(3, 3) E with omega_world = E @ d(roll, pitch, yaw)/dt for ZYX Euler angles rpy (3,) rad."""
     _, pt, y = rpy
@@ -148,7 +126,7 @@ class World:
         self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
         self._driven = np.arange(N_JOINTS)  # joints driven by torque: all but the held ones
         self._held_ids: list[int] = []
-        self.client = _client()
+        self.client = client()
         self.t = 0.0
         self._pending_force: np.ndarray | None = None
         try:
@@ -337,7 +315,7 @@ class World:
         """Give the client up (idempotent): emptied for the next world, or disconnected."""
         if getattr(self, "client", None) is not None and self.client >= 0:
             try:
-                _release(self.client)
+                release(self.client)
             except p.error:
                 pass
             self.client = -1
