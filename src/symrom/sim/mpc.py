@@ -267,10 +267,13 @@ class ConvexMPC:
                                eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0),
                                np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc)
         _, A, F, Iw_inv, Bc = self._yaw_model
-        Bc = Bc.copy()
         r = np.asarray(r_feet, dtype=float)
-        for k in range(4):
-            Bc[6:9, 3 * k:3 * k + 3] = Iw_inv @ skew(r[k])
+        S = np.zeros((4, 3, 3))  # skew(r_k) per foot
+        S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
+        S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = r[:, 2], -r[:, 1], r[:, 0]
+        Bc = Bc.copy()
+        # one stacked product, the same 3 x 3 products as foot by foot
+        Bc[6:9] = (Iw_inv @ S).transpose(1, 0, 2).reshape(3, 3 * 4)
         return A, F @ Bc
 
     def condensed_qp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray, yaw: float

@@ -241,38 +241,46 @@ class PronkController:
     # -------------------------------------------------------------- references
     def _references(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Reference base positions (h, 3) m, velocities (h, 3) m/s and planned contact (h,)
-        (0/1) at the MPC's steps after t: t + k dt, k = 1..h."""
-        cfg = self.gains.mpc
-        ts = [t + (k + 1) * cfg.dt for k in range(cfg.horizon)]
+        (0/1) at the MPC's steps after t: t + k dt, k = 1..h. Squares are taken of Python
+        floats, as ever (``x ** 2`` is libm's pow there, not NumPy's x * x)."""
+        cfg, pr, pl = self.gains.mpc, self.params, self.plan
+        ts = np.array([t + (k + 1) * cfg.dt for k in range(cfg.horizon)])
         if self.phase == "land" and self._t_td is not None:
-            pos, vel = self._ref_land(np.maximum(np.array(ts) - self._t_td, 0.0))
+            pos, vel = self._ref_land(np.maximum(ts - self._t_td, 0.0))
             return pos, vel, np.ones(cfg.horizon)
-        pos, vel, contact = zip(*(self._ref_base(tk) for tk in ts))
-        return np.array(pos), np.array(vel), np.array(contact)
-
-    def _ref_base(self, t: float) -> tuple:
-        """Reference base position (3,), velocity (3,) (arrays or sequences) and planned contact
-        (0/1) at time t, before the landing."""
-        pr, pl = self.params, self.plan
-        x0, e = self._x0, self._e
-        if t < pr.crouch_time:  # cosine from standing height down to the crouch
-            s = 0.5 * (1 - np.cos(np.pi * t / pr.crouch_time))
-            ds = 0.5 * np.pi / pr.crouch_time * np.sin(np.pi * t / pr.crouch_time)
-            h0, h1 = self.spec.start_height, pr.crouch_height
-            return (x0[0], x0[1], h0 + (h1 - h0) * s), (0.0, 0.0, (h1 - h0) * ds), 1.0
-        if t < pl.t_push:
-            return (x0[0], x0[1], pr.crouch_height), (0.0, 0.0, 0.0), 1.0
-        tau = t - pl.t_push
-        v_to = self._v_to  # take-off velocity
-        if self._p_crouch is None:
+        x0, e, v_to = self._x0, self._e, self._v_to
+        if self._p_crouch is None:  # bottom of the crouch and take-off point
             self._p_crouch = np.array([x0[0], x0[1], pr.crouch_height])
             self._p_to = self._p_crouch + 0.5 * pl.push_time * v_to
-        if tau < pl.push_time:  # constant acceleration from rest
-            return self._p_crouch + 0.5 * tau ** 2 / pl.push_time * v_to, tau / pl.push_time * v_to, 1.0
-        tf = tau - pl.push_time  # ballistic
-        pos = self._p_to + pl.vx * tf * e + np.array([0, 0, pl.vz * tf - 0.5 * GRAVITY * tf ** 2])
-        vel = pl.vx * e + np.array([0, 0, pl.vz - GRAVITY * tf])
-        return pos, vel, 0.0
+        pos, vel, contact = np.empty((cfg.horizon, 3)), np.zeros((cfg.horizon, 3)), np.ones(cfg.horizon)
+        crouch = ts < pr.crouch_time
+        hold = ~crouch & (ts < pl.t_push)
+        tau = ts - pl.t_push
+        later = ~crouch & ~hold
+        push = later & (tau < pl.push_time)
+        flight = later & ~push
+        if crouch.any():  # cosine from standing height down to the crouch
+            x = np.pi * ts[crouch] / pr.crouch_time
+            s = 0.5 * (1 - np.cos(x))
+            ds = 0.5 * np.pi / pr.crouch_time * np.sin(x)
+            h0, h1 = self.spec.start_height, pr.crouch_height
+            pos[crouch, 0], pos[crouch, 1], pos[crouch, 2] = x0[0], x0[1], h0 + (h1 - h0) * s
+            vel[crouch, 2] = (h1 - h0) * ds
+        pos[hold] = x0[0], x0[1], pr.crouch_height
+        if push.any():  # constant acceleration from rest
+            a = np.array([0.5 * x ** 2 / pl.push_time for x in tau[push].tolist()])
+            pos[push] = self._p_crouch + a[:, None] * v_to
+            vel[push] = (tau[push] / pl.push_time)[:, None] * v_to
+        if flight.any():  # ballistic
+            tf = tau[flight] - pl.push_time
+            rise = np.zeros((tf.size, 3))
+            rise[:, 2] = [pl.vz * x - 0.5 * GRAVITY * x ** 2 for x in tf.tolist()]
+            pos[flight] = self._p_to + (pl.vx * tf)[:, None] * e + rise
+            fall = np.zeros((tf.size, 3))
+            fall[:, 2] = pl.vz - GRAVITY * tf
+            vel[flight] = pl.vx * e + fall
+            contact[flight] = 0.0
+        return pos, vel, contact
 
     def _ref_land(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Critically damped return from the touchdown state to rest at the standing height:
