@@ -34,9 +34,10 @@ def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
     """The base link's pose and rates from its inertial frame's.
 
     com_pos (3,) m, com_orn (4,) quaternion (x, y, z, w), v_com (3,) m/s, omega (3,)
-    rad/s (world) of the inertial frame, arrays or tuples (as PyBullet gives them); off_pos (3,), off_orn (4,): the inertial ->
-    link frame transform. Writes q[12:18] = x, y, z, roll, pitch, yaw (ZYX),
-    dq[12:18] = base velocity (m/s) and Euler-angle rates (rad/s), R (3, 3) base -> world.
+    rad/s (world) of the inertial frame, arrays or tuples (as PyBullet gives them);
+    off_pos (3,), off_orn (4,): the inertial -> link frame transform. Writes q[12:18] =
+    x, y, z, roll, pitch, yaw (ZYX), dq[12:18] = base velocity (m/s) and Euler-angle rates
+    (rad/s), R (3, 3) base -> world.
     """
     x1, y1, z1, w1 = com_orn[0], com_orn[1], com_orn[2], com_orn[3]
     x2, y2, z2, w2 = off_orn[0], off_orn[1], off_orn[2], off_orn[3]
@@ -267,8 +268,8 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
 
 def warm_up(froggy: bool = True) -> None:
     """Compile (or load from the disk cache) the routines here now, as the first tick of a
-    simulation would: those every motion uses (and the pronk controller's, quick), and with ``froggy`` the froggy controller's
-    (the slowest to compile, about 10 s the first time)."""
+    simulation would: those every motion uses, the pronk controller's (quick), and with
+    ``froggy`` the froggy controller's (the slowest to compile, about 10 s the first time)."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
