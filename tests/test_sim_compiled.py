@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from symrom.robots import leg_kinematics
 from symrom.robots.stance import start_pose
-from symrom.sim import compiled
+from symrom.sim import bullet, compiled
 from symrom.sim.froggy import FroggyController, distribute, sample_params
 from symrom.sim.mpc import ConvexMPC, continuous_dynamics, discretize
 from symrom.sim.world import World, euler_rate_matrix, matrix_to_rpy
@@ -140,3 +140,71 @@ def test_mpc_model_kept_per_yaw_is_the_discretised_model():
         A_ref, B_ref = discretize(*continuous_dynamics(13.1, inertia, yaw, r), mpc.config.dt)
         np.testing.assert_allclose(A, A_ref, rtol=0, atol=1e-15)
         np.testing.assert_allclose(B, B_ref, rtol=1e-14, atol=1e-15)
+
+
+def _stance_torque_numpy(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_ref, k_land, d_land,
+                         posture, qj, dqj, limit):
+    """The NumPy expressions ``PronkController.torque`` had before the compiled call."""
+    tau = np.einsum("kji,kj->ki", J, f_base).reshape(12)
+    tau += tau_g
+    if land:
+        target = np.where(contact[:, None] != 0, p_b, p_land)
+        target[:, 2] = -h_ref
+        F = k_land * (target - p_b) - d_land * v_rel
+        tau += np.einsum("kji,kj->ki", J, F).reshape(12)
+    tau += posture[0] * (posture[2] - qj) - posture[1] * dqj
+    return np.minimum(np.maximum(tau, -limit), limit)
+
+
+@pytest.mark.parametrize("land", [False, True])
+def test_pronk_stance_torque_is_the_numpy_arithmetic_exactly(land):
+    rng = np.random.default_rng(3)
+    limit = np.full(12, 30.0)
+    for _ in range(200):
+        J, (f_base, p_b, p_land, v_rel) = rng.normal(size=(4, 3, 3)), rng.normal(size=(4, 4, 3)) * 20.0
+        tau_g, qj, dqj = rng.normal(size=(3, 12)) * 3.0
+        posture = np.abs(rng.normal(size=(3, 12)))
+        contact = rng.integers(0, 2, 4).astype(np.uint8)
+        args = (J, f_base, tau_g, land, p_b, p_land, contact, v_rel, 0.3, 400.0, 6.0, posture, qj, dqj, limit)
+        tau = np.empty(12)
+        compiled.pronk_stance_torque(*args, tau)
+        np.testing.assert_array_equal(tau, _stance_torque_numpy(*args))
+    tau_g[0] = np.nan
+    compiled.pronk_stance_torque(*args[:2], tau_g, *args[3:], tau)
+    assert np.isnan(tau[0])  # not clipped into the limits
+
+
+def test_a_reused_client_simulates_as_a_fresh_one():
+    def run():
+        world = World("go1")
+        try:
+            world.reset(start_pose("go1"))
+            for _ in range(200):
+                world.step(np.full(12, 2.0))
+            s = world.state()
+            return world.client, np.concatenate([s.q, s.dq, s.foot_pos.ravel(), s.contact])
+        finally:
+            world.close()
+
+    while bullet._SPARE:  # the first world on a new client
+        bullet.p.disconnect(physicsClientId=bullet._SPARE.pop())
+    c1, x1 = run()
+    c2, x2 = run()
+    assert c2 == c1  # the closed world's client, emptied
+    np.testing.assert_array_equal(x2, x1)
+
+
+def test_mpc_force_clipping_is_numpys_to_the_bit():
+    rng = np.random.default_rng(4)
+    for i in range(300):
+        U = rng.normal(size=(10, 4, 3)) * 200.0
+        special = rng.random(U.shape) < 0.2
+        U[special] = rng.choice([0.0, -0.0, 250.0, -250.0, np.inf, -np.inf, np.nan], special.sum())
+        c = rng.integers(0, 2, (10, 4)).astype(float)
+        ref = U.copy()
+        ref[..., 2] = np.clip(ref[..., 2], 0.0 * c, 250.0 * c)
+        lim = 0.6 * ref[..., 2]
+        ref[..., 0] = np.clip(ref[..., 0], -lim, lim)
+        ref[..., 1] = np.clip(ref[..., 1], -lim, lim)
+        compiled.clip_forces(U, c, 0.0, 250.0, 0.6)
+        np.testing.assert_array_equal(U.view(np.int64), ref.view(np.int64))  # signs of zeros too

@@ -6,6 +6,11 @@ it several times in the middle of its own output. It is silenced here by
 pointing the standard output and error descriptors (1, 2) at the null device
 while the module loads (C's buffers flushed before they are pointed back).
 Every module of symrom imports PyBullet as ``from symrom.sim.bullet import p``.
+
+``client()`` and ``release(cid)`` hand out and take back DIRECT clients: a
+released client is emptied (``resetSimulation``) and kept for the next request
+of the process. Connecting anew costs ~15 ms (the allocator gives Bullet's ~30 MB
+back to the system at each disconnect), a tenth of a jump's simulation.
 """
 
 from __future__ import annotations
@@ -40,4 +45,25 @@ def _import_quietly():
 
 p = _import_quietly()
 
-__all__ = ["p"]
+_SPARE: list[int] = []  # released clients, emptied (at most one)
+
+
+def client() -> int:
+    """A connected, empty DIRECT client: a released one, else a new one."""
+    try:
+        return _SPARE.pop()
+    except IndexError:
+        return p.connect(p.DIRECT)
+
+
+def release(cid: int) -> None:
+    """Take back the client ``cid``: emptied and kept for the next ``client()``, or
+    disconnected if one is kept already."""
+    if _SPARE:
+        p.disconnect(physicsClientId=cid)
+        return
+    p.resetSimulation(physicsClientId=cid)
+    _SPARE.append(cid)
+
+
+__all__ = ["client", "p", "release"]

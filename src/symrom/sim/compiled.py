@@ -34,9 +34,10 @@ def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
     """The base link's pose and rates from its inertial frame's.
 
     com_pos (3,) m, com_orn (4,) quaternion (x, y, z, w), v_com (3,) m/s, omega (3,)
-    rad/s (world) of the inertial frame; off_pos (3,), off_orn (4,): the inertial ->
-    link frame transform. Writes q[12:18] = x, y, z, roll, pitch, yaw (ZYX),
-    dq[12:18] = base velocity (m/s) and Euler-angle rates (rad/s), R (3, 3) base -> world.
+    rad/s (world) of the inertial frame, arrays or tuples (as PyBullet gives them);
+    off_pos (3,), off_orn (4,): the inertial -> link frame transform. Writes q[12:18] =
+    x, y, z, roll, pitch, yaw (ZYX), dq[12:18] = base velocity (m/s) and Euler-angle rates
+    (rad/s), R (3, 3) base -> world.
     """
     x1, y1, z1, w1 = com_orn[0], com_orn[1], com_orn[2], com_orn[3]
     x2, y2, z2, w2 = off_orn[0], off_orn[1], off_orn[2], off_orn[3]
@@ -91,6 +92,61 @@ def distribute(foot_pos, centre, legs, force, moment, mu, grf):
         scale = min(1.0, mu * fz / max(np.sqrt(fx * fx + fy * fy), 1e-9))
         k = legs[i]
         grf[k, 0], grf[k, 1], grf[k, 2] = fx * scale, fy * scale, fz
+
+
+@njit
+def clip(x, lo, hi):
+    """NumPy's ``np.clip`` of one number, to the bit: NaN stays NaN, ties keep x, else the bound."""
+    t = x if x != x or x > lo else lo
+    return t if t != t or t < hi else hi
+
+
+@njit
+def clip_forces(U, c, fz_min, fz_max, mu):
+    """Forces U (h, 4, 3) N clipped in place into the MPC's exact bounds, in the order and
+    arithmetic of the NumPy code (``np.clip``): f_z into [fz_min c, fz_max c] (c (h, 4) the
+    planned contact flags), then f_x and f_y into [-mu f_z, mu f_z]."""
+    for k in range(U.shape[0]):
+        for j in range(U.shape[1]):
+            fz = clip(U[k, j, 2], fz_min * c[k, j], fz_max * c[k, j])
+            U[k, j, 2] = fz
+            lim = mu * fz
+            U[k, j, 0] = clip(U[k, j, 0], -lim, lim)
+            U[k, j, 1] = clip(U[k, j, 1], -lim, lim)
+
+
+@njit
+def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_ref, k_land, d_land,
+                        posture, qj, dqj, limit, tau):
+    """Joint torques tau (12,) N m of the pronk controller on the ground
+    (``PronkController.torque``): J_k^T f_k for the feet's forces f_base (4, 3) N (base
+    frame) through the leg Jacobians J (4, 3, 3), plus the legs' weight tau_g (12,), plus
+    with ``land`` the landing impedance (spring k_land N/m towards p_land (4, 3) m for legs
+    in the air, p_b (4, 3) m the feet now, z towards -h_ref m; damping d_land N s/m of the
+    feet's velocities v_rel (4, 3) m/s; contact (4,)), plus the posture terms (posture
+    (3, 12): kp, kd, q_stand) for qj, dqj (12,); clipped to +-limit (12,).
+    Sums in the order of the NumPy expressions they replace, so the results are the same."""
+    for k in range(4):
+        for i in range(3):
+            tau[3 * k + i] = J[k, 0, i] * f_base[k, 0] + J[k, 1, i] * f_base[k, 1] + J[k, 2, i] * f_base[k, 2]
+    for j in range(12):
+        tau[j] += tau_g[j]
+    if land:
+        F = np.empty((4, 3))
+        for k in range(4):
+            for a in range(3):
+                target = -h_ref if a == 2 else p_b[k, a] if contact[k] != 0 else p_land[k, a]
+                F[k, a] = k_land * (target - p_b[k, a]) - d_land * v_rel[k, a]
+        for k in range(4):
+            for i in range(3):
+                tau[3 * k + i] += J[k, 0, i] * F[k, 0] + J[k, 1, i] * F[k, 1] + J[k, 2, i] * F[k, 2]
+    for j in range(12):
+        t = tau[j] + (posture[0, j] * (posture[2, j] - qj[j]) - posture[1, j] * dqj[j])
+        if t < -limit[j]:  # comparisons rather than min/max: a NaN stays NaN
+            t = -limit[j]
+        elif t > limit[j]:
+            t = limit[j]
+        tau[j] = t
 
 
 # Froggy stages (``symrom.sim.froggy``), by index.
@@ -212,8 +268,8 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
 
 def warm_up(froggy: bool = True) -> None:
     """Compile (or load from the disk cache) the routines here now, as the first tick of a
-    simulation would: those every motion uses, and with ``froggy`` the froggy controller's
-    (the slowest to compile, about 10 s the first time)."""
+    simulation would: those every motion uses, the pronk controller's (quick), and with
+    ``froggy`` the froggy controller's (the slowest to compile, about 10 s the first time)."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
@@ -221,6 +277,12 @@ def warm_up(froggy: bool = True) -> None:
     q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
     unit = np.array([0.0, 0.0, 0.0, 1.0])
     base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
+    zero = (0.0, 0.0, 0.0)  # as World.state passes PyBullet's tuples
+    base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
+    J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
+    pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
+                        np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
+    clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
     if not froggy:
         return
     feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])

@@ -6,6 +6,7 @@ client), in symrom's joint order and signs. Units: kg, m, kg m^2, N m.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import cache
 
@@ -42,10 +43,10 @@ def body_model(robot: str) -> BodyModel:
 
 @cache
 def _body_model(robot: str) -> BodyModel:
-    from symrom.sim.bullet import p
+    from symrom.sim.bullet import client, p, release
 
     desc = get_robot(robot)
-    cid = p.connect(p.DIRECT)
+    cid = client()
     try:
         rob = p.loadURDF(str(desc.urdf_path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
         names = {p.getJointInfo(rob, i, physicsClientId=cid)[1].decode(): i
@@ -72,7 +73,7 @@ def _body_model(robot: str) -> BodyModel:
             inertias.append((np.asarray(p.getMatrixFromQuaternion(ls[1])).reshape(3, 3),
                              np.asarray(d[2])))
     finally:
-        p.disconnect(cid)
+        release(cid)
     ms_a, coms_a = np.asarray(ms), np.asarray(coms)
     mass = float(ms_a.sum())
     com = (ms_a[:, None] * coms_a).sum(0) / mass
@@ -87,23 +88,18 @@ def _body_model(robot: str) -> BodyModel:
                      foot_radius=desc.foot_radius)
 
 
-class LegGravity:
-    """Joint torques (12,) N m that hold the legs' own weight, for a given base orientation.
-
-    A convex MPC treats the legs as massless, but a Go1's thighs and calves carry
-    about a third of its mass; without this term the feet push with less than the
-    planned force. Uses a private fixed-base PyBullet copy of the robot (its
-    inverse dynamics at zero velocity and acceleration, gravity turned into the
-    base frame).
-    """
+class _FixedBaseCopy:
+    """A private fixed-base PyBullet copy of a robot for inverse dynamics, shared by the
+    ``LegGravity`` of that robot in this process: a jump's controller would otherwise connect
+    a client and load the URDF anew (tens of ms). A lock keeps a gravity setting and the
+    inverse dynamics that use it together when threads share the copy."""
 
     def __init__(self, robot: str):
-        from symrom.sim.bullet import p
+        from symrom.sim.bullet import client, p
 
         desc = get_robot(robot)
-        self._p = p
-        self._signs = desc.signs
-        self.cid = p.connect(p.DIRECT)
+        self.p = p
+        self.cid = client()
         self.rob = p.loadURDF(str(desc.urdf_path), useFixedBase=True,
                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.cid)
         names = {p.getJointInfo(self.rob, i, physicsClientId=self.cid)[1].decode(): i
@@ -111,27 +107,48 @@ class LegGravity:
         movable = [i for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))
                    if p.getJointInfo(self.rob, i, physicsClientId=self.cid)[2] != p.JOINT_FIXED]
         # inverse dynamics orders the movable joints by index; map to symrom's order
-        self._order = [movable.index(names[n]) for n in desc.joint_names]
-        self._inv = np.argsort(self._order)
-        self._zeros = [0.0] * len(movable)
+        self.order = np.array([movable.index(names[n]) for n in desc.joint_names])
+        self.inv = np.argsort(self.order)
+        self.zeros = [0.0] * len(movable)
+        self.lock = threading.Lock()
+
+    def __del__(self) -> None:
+        try:
+            self.p.disconnect(self.cid)
+        except Exception:  # already gone at interpreter exit
+            pass
+
+
+@cache
+def _fixed_base_copy(robot: str) -> _FixedBaseCopy:
+    return _FixedBaseCopy(robot)
+
+
+class LegGravity:
+    """Joint torques (12,) N m that hold the legs' own weight, for a given base orientation.
+
+    A convex MPC treats the legs as massless, but a Go1's thighs and calves carry
+    about a third of its mass; without this term the feet push with less than the
+    planned force. Uses a private fixed-base PyBullet copy of the robot (its
+    inverse dynamics at zero velocity and acceleration, gravity turned into the
+    base frame), one per robot and process.
+    """
+
+    def __init__(self, robot: str):
+        self._copy = _fixed_base_copy(robot_key(robot))
+        signs = np.asarray(get_robot(robot).signs, dtype=float)
+        self._signs_in = signs[self._copy.inv]  # signs in inverse-dynamics order
+        self._signs_out = signs
 
     def torques(self, q_joints: np.ndarray, R: np.ndarray) -> np.ndarray:
         """(12,) N m for joint angles (12,) rad and base orientation R (3, 3) base -> world."""
-        p = self._p
-        g_base = -GRAVITY * R[2]  # R^T (0, 0, -g)
-        p.setGravity(*g_base.tolist(), physicsClientId=self.cid)
-        q = (np.asarray(q_joints, dtype=float) * self._signs)[self._inv]
-        tau = p.calculateInverseDynamics(self.rob, q.tolist(), self._zeros, self._zeros,
-                                         physicsClientId=self.cid)
-        return np.asarray(tau)[self._order] * self._signs
+        c = self._copy
+        gx, gy, gz = (-GRAVITY * R[2]).tolist()  # R^T (0, 0, -g)
+        q = np.asarray(q_joints, dtype=float)[c.inv] * self._signs_in
+        with c.lock:
+            c.p.setGravity(gx, gy, gz, physicsClientId=c.cid)
+            tau = c.p.calculateInverseDynamics(c.rob, q.tolist(), c.zeros, c.zeros, physicsClientId=c.cid)
+        return np.array(tau)[c.order] * self._signs_out
 
     def close(self) -> None:
-        if self.cid >= 0:
-            try:
-                self._p.disconnect(self.cid)
-            except self._p.error:
-                pass
-            self.cid = -1
-
-    def __del__(self) -> None:
-        self.close()
+        """Nothing to release: the PyBullet copy is shared and lives as long as the process."""

@@ -34,6 +34,8 @@ import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
+from symrom.sim.compiled import clip_forces
+
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
 
@@ -209,34 +211,43 @@ class ConvexMPC:
         self._col = np.where(self._tag == 1, (cols[order] - nx) % N_U, cols[order] % N_X)
         self._M_template = M
         self._is_one, self._is_a, self._is_b = (self._tag == -1), (self._tag == 0), (self._tag == 1)
-        self._a_rc = (self._row[self._is_a], self._col[self._is_a])
-        self._b_rc = (self._row[self._is_b], self._col[self._is_b])
-        self._n_eq = nx
+        # where A's and B's entries go in the data array, and where they come from in A.ravel(), B.ravel()
+        self._a_pos, self._b_pos = np.flatnonzero(self._is_a), np.flatnonzero(self._is_b)
+        self._a_src = self._row[self._is_a] * N_X + self._col[self._is_a]
+        self._b_src = self._row[self._is_b] * N_U + self._col[self._is_b]
+        self._data_a: tuple | None = None  # (A, data with A's entries) of the last A
+        # bounds with their constant parts in place; per solve the dynamics' first rows and the
+        # normal-force bounds (rows of f_z: every 5th friction row) are filled in
+        n_fric = fric.shape[0]
+        self._lo0 = np.concatenate([np.zeros(nx), np.tile([0.0, -np.inf, -np.inf, -np.inf, -np.inf], n_fric // 5)])
+        self._hi0 = np.zeros(nx + n_fric)
+        self._fz_rows = nx + 5 * np.arange(n_fric // 5)
+        self._q_scale = -2.0 * self._L  # linear cost of the states is q_scale * x_ref
         self._solver: osqp.OSQP | None = None
         self._yaw_model: tuple | None = None  # (yaw, A, F, I_w^-1, Bc) of the last yaw
         self.solve_times: list[float] = []
 
     def _matrix_data(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """Data array (CSC order) of the constraint matrix for the discrete model A, B."""
-        data = self._M_values.copy()
-        data[self._is_one] = 1.0
-        data[self._is_a] = -A[self._a_rc]
-        data[self._is_b] = -B[self._b_rc]
+        if self._data_a is None or self._data_a[0] is not A:  # A changes with the yaw only
+            data = self._M_values.copy()
+            data[self._is_one] = 1.0
+            data[self._a_pos] = -A.ravel()[self._a_src]
+            self._data_a = (A, data)
+        data = self._data_a[1].copy()
+        data[self._b_pos] = -B.ravel()[self._b_src]
         return data
 
     def _bounds(self, x0: np.ndarray, A: np.ndarray, contact: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of all constraint rows: dynamics, then friction."""
         cfg = self.config
-        eq = np.zeros(self._n_eq)
-        eq[:N_X] = A @ x0
         c = np.asarray(contact, dtype=float).reshape(-1)  # (4 h,)
-        lo = np.zeros((c.size, 5))
-        hi = np.zeros((c.size, 5))
-        lo[:, 0] = cfg.fz_min * c
-        hi[:, 0] = cfg.fz_max * c
-        lo[:, 1:] = -np.inf
-        return np.concatenate([eq, lo.ravel()]), np.concatenate([eq, hi.ravel()])
+        lo, hi = self._lo0.copy(), self._hi0.copy()
+        lo[:N_X] = hi[:N_X] = A @ x0
+        lo[self._fz_rows] = cfg.fz_min * c
+        hi[self._fz_rows] = cfg.fz_max * c
+        return lo, hi
 
     def model(self, r_feet: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
         """Discrete model A (13, 13), B (13, 12) for feet r_feet (4, 3) m and yaw rad.
@@ -256,10 +267,13 @@ class ConvexMPC:
                                eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0),
                                np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc)
         _, A, F, Iw_inv, Bc = self._yaw_model
-        Bc = Bc.copy()
         r = np.asarray(r_feet, dtype=float)
-        for k in range(4):
-            Bc[6:9, 3 * k:3 * k + 3] = Iw_inv @ skew(r[k])
+        S = np.zeros((4, 3, 3))  # skew(r_k) per foot
+        S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
+        S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = r[:, 2], -r[:, 1], r[:, 0]
+        Bc = Bc.copy()
+        # one stacked product, the same 3 x 3 products as foot by foot
+        Bc[6:9] = (Iw_inv @ S).transpose(1, 0, 2).reshape(3, 3 * 4)
         return A, F @ Bc
 
     def condensed_qp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray, yaw: float
@@ -294,7 +308,8 @@ class ConvexMPC:
                           float(x_ref[0, 2] if yaw is None else yaw))
         data = self._matrix_data(A, B)
         lo, hi = self._bounds(np.asarray(x0, dtype=float), A, contact)
-        q = np.concatenate([-2.0 * self._L * x_ref.reshape(-1), np.zeros(self._nu)])
+        q = np.zeros(self._nx + self._nu)
+        np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
         if self._solver is None:
             self._solver = osqp.OSQP()
             M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
@@ -310,11 +325,7 @@ class ConvexMPC:
         U = np.zeros(self._nu) if z is None or not np.all(np.isfinite(z)) else z[self._nx:]
         # OSQP stops at its tolerance: clip to the exact bounds so callers can rely on them.
         U = U.reshape(h, 4, 3).copy()
-        c = np.asarray(contact, dtype=float)
-        U[..., 2] = np.clip(U[..., 2], cfg.fz_min * c, cfg.fz_max * c)
-        lim = cfg.mu * U[..., 2]
-        U[..., 0] = np.clip(U[..., 0], -lim, lim)
-        U[..., 1] = np.clip(U[..., 1], -lim, lim)
+        clip_forces(U, np.asarray(contact, dtype=float), cfg.fz_min, cfg.fz_max, cfg.mu)
         dt = time.perf_counter() - t0
         self.solve_times.append(dt)
         return MPCResult(forces=U[0].copy(), plan=U, status=status, solve_time=dt)

@@ -56,7 +56,9 @@ import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
+from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
+from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
@@ -200,6 +202,8 @@ class PronkController:
         self.gains = gains or PronkGains.scaled(*scales(robot))
         self.body = body_model(robot)
         self.kin = leg_kinematics(robot)
+        self._chains = self.kin.chain_arrays()
+        self._p_b, self._J = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3, 3))  # filled every tick
         self.mpc = ConvexMPC(self.body.mass, self.body.inertia_upper, self.gains.mpc)
         self.leg_gravity = LegGravity(robot)
         self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
@@ -210,10 +214,17 @@ class PronkController:
         self._last_solve = -np.inf
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
-        self._q_stand = standing_joints(robot)
-        self._kp_posture = np.tile([self.gains.kp_hx, 0.0, 0.0], N_LEGS)  # (12,), per joint
-        self._kd_posture = np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS)
+        # posture terms per joint (3, 12): kp (hip abduction only), kd, standing angles
+        self._posture = np.stack([np.tile([self.gains.kp_hx, 0.0, 0.0], N_LEGS),
+                                  np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS),
+                                  standing_joints(robot)])
         self._q_land: np.ndarray | None = None
+        # fixed parts of the references: heading (3,), take-off velocity (3,) m/s, CoM offset
+        # from the base origin for a level body at the commanded heading (3,) m, world
+        self._e = np.array([np.cos(params.yaw), np.sin(params.yaw), 0.0])
+        self._v_to = self.plan.vx * self._e + np.array([0.0, 0.0, self.plan.vz])
+        self._off_ref = rot_z(params.yaw) @ self.body.com_base
+        self._p_crouch = self._p_to = None  # bottom of the crouch and take-off point (3,) m, with _x0
 
     @property
     def mpc_solve_times(self) -> list[float]:
@@ -228,56 +239,71 @@ class PronkController:
         return {"mpc_solve_times": [float(x) for x in self.mpc_solve_times]}
 
     # -------------------------------------------------------------- references
-    def _com_offset(self) -> np.ndarray:
-        """CoM offset from the base origin for a level body at the commanded heading, world (3,)."""
-        return rot_z(self.params.yaw) @ self.body.com_base
-
-    def _heading(self) -> np.ndarray:
-        return np.array([np.cos(self.params.yaw), np.sin(self.params.yaw), 0.0])
-
-    def _ref_base(self, t: float) -> tuple[np.ndarray, np.ndarray, float]:
-        """Reference base position (3,), velocity (3,) and planned contact (0/1) at time t."""
-        pr, pl = self.params, self.plan
-        x0, e = self._x0, self._heading()
+    def _references(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reference base positions (h, 3) m, velocities (h, 3) m/s and planned contact (h,)
+        (0/1) at the MPC's steps after t: t + k dt, k = 1..h. Squares are taken of Python
+        floats, as ever (``x ** 2`` is libm's pow there, not NumPy's x * x)."""
+        cfg, pr, pl = self.gains.mpc, self.params, self.plan
+        ts = np.array([t + (k + 1) * cfg.dt for k in range(cfg.horizon)])
         if self.phase == "land" and self._t_td is not None:
-            return self._ref_land(t) + (1.0,)
-        if t < pr.crouch_time:  # cosine from standing height down to the crouch
-            s = 0.5 * (1 - np.cos(np.pi * t / pr.crouch_time))
-            ds = 0.5 * np.pi / pr.crouch_time * np.sin(np.pi * t / pr.crouch_time)
+            pos, vel = self._ref_land(np.maximum(ts - self._t_td, 0.0))
+            return pos, vel, np.ones(cfg.horizon)
+        x0, e, v_to = self._x0, self._e, self._v_to
+        if self._p_crouch is None:  # bottom of the crouch and take-off point
+            self._p_crouch = np.array([x0[0], x0[1], pr.crouch_height])
+            self._p_to = self._p_crouch + 0.5 * pl.push_time * v_to
+        pos, vel, contact = np.empty((cfg.horizon, 3)), np.zeros((cfg.horizon, 3)), np.ones(cfg.horizon)
+        crouch = ts < pr.crouch_time
+        hold = ~crouch & (ts < pl.t_push)
+        tau = ts - pl.t_push
+        later = ~crouch & ~hold
+        push = later & (tau < pl.push_time)
+        flight = later & ~push
+        if crouch.any():  # cosine from standing height down to the crouch
+            x = np.pi * ts[crouch] / pr.crouch_time
+            s = 0.5 * (1 - np.cos(x))
+            ds = 0.5 * np.pi / pr.crouch_time * np.sin(x)
             h0, h1 = self.spec.start_height, pr.crouch_height
-            return (np.array([x0[0], x0[1], h0 + (h1 - h0) * s]),
-                    np.array([0, 0, (h1 - h0) * ds]), 1.0)
-        if t < pl.t_push:
-            return np.array([x0[0], x0[1], pr.crouch_height]), np.zeros(3), 1.0
-        tau = t - pl.t_push
-        v_to = pl.vx * e + np.array([0.0, 0.0, pl.vz])  # take-off velocity
-        p_crouch = np.array([x0[0], x0[1], pr.crouch_height])
-        if tau < pl.push_time:  # constant acceleration from rest
-            return p_crouch + 0.5 * tau ** 2 / pl.push_time * v_to, tau / pl.push_time * v_to, 1.0
-        tf = tau - pl.push_time  # ballistic
-        p_to = p_crouch + 0.5 * pl.push_time * v_to
-        pos = p_to + pl.vx * tf * e + np.array([0, 0, pl.vz * tf - 0.5 * GRAVITY * tf ** 2])
-        vel = pl.vx * e + np.array([0, 0, pl.vz - GRAVITY * tf])
-        return pos, vel, 0.0
+            pos[crouch, 0], pos[crouch, 1], pos[crouch, 2] = x0[0], x0[1], h0 + (h1 - h0) * s
+            vel[crouch, 2] = (h1 - h0) * ds
+        pos[hold] = x0[0], x0[1], pr.crouch_height
+        if push.any():  # constant acceleration from rest
+            a = np.array([0.5 * x ** 2 / pl.push_time for x in tau[push].tolist()])
+            pos[push] = self._p_crouch + a[:, None] * v_to
+            vel[push] = (tau[push] / pl.push_time)[:, None] * v_to
+        if flight.any():  # ballistic
+            tf = tau[flight] - pl.push_time
+            rise = np.zeros((tf.size, 3))
+            rise[:, 2] = [pl.vz * x - 0.5 * GRAVITY * x ** 2 for x in tf.tolist()]
+            pos[flight] = self._p_to + (pl.vx * tf)[:, None] * e + rise
+            fall = np.zeros((tf.size, 3))
+            fall[:, 2] = pl.vz - GRAVITY * tf
+            vel[flight] = pl.vx * e + fall
+            contact[flight] = 0.0
+        return pos, vel, contact
 
-    def _ref_land(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """Critically damped return from the touchdown state to rest at the standing height."""
+    def _ref_land(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Critically damped return from the touchdown state to rest at the standing height:
+        positions and velocities (n, 3) at the times tau (n,) s after touchdown."""
         g = self.gains
         p_td, v_td = self._td_state
-        tau = max(t - self._t_td, 0.0)
         # horizontal: exponential braking, v = v_td exp(-tau / brake_time)
-        decay = np.exp(-tau / g.brake_time)
+        decay = np.exp(-tau / g.brake_time)[:, None]
         pos = p_td + v_td * g.brake_time * (1 - decay)
         vel = v_td * decay
-        # vertical: critically damped from (z_td, vz_td) to the standing height
-        w = g.land_omega
+        pos[:, 2], vel[:, 2] = self._ref_land_z(tau)
+        return pos, vel
+
+    def _ref_land_z(self, tau):
+        """Vertical part of ``_ref_land`` tau s (float or array) after touchdown: height m and
+        speed m/s, critically damped from (z_td, vz_td) to the standing height."""
+        w = self.gains.land_omega
+        p_td, v_td = self._td_state
         z_f = self.spec.start_height - 0.01
         a0 = p_td[2] - z_f
         b0 = v_td[2] + w * a0
         ew = np.exp(-w * tau)
-        pos[2] = z_f + (a0 + b0 * tau) * ew
-        vel[2] = (b0 - w * (a0 + b0 * tau)) * ew
-        return pos, vel
+        return z_f + (a0 + b0 * tau) * ew, (b0 - w * (a0 + b0 * tau)) * ew
 
     # ------------------------------------------------------------------ control
     def _mpc_forces(self, state, contact_now: np.ndarray) -> np.ndarray:
@@ -285,19 +311,17 @@ class PronkController:
         cfg = self.gains.mpc
         off = state.R @ self.body.com_base
         p_com = state.q[BASE_POS] + off
-        v_com = state.dq[BASE_POS] + np.cross(state.omega, off)
+        (w0, w1, w2), (o0, o1, o2) = state.omega.tolist(), off.tolist()  # omega x off, as np.cross
+        v_com = state.dq[BASE_POS] + np.array([w1 * o2 - w2 * o1, w2 * o0 - w0 * o2, w0 * o1 - w1 * o0])
         x0 = srb_state(state.q[BASE_RPY], p_com, state.omega, v_com, GRAVITY)
         # keep the yaw reference continuous with the measured yaw
         yaw_ref = self.params.yaw
         x_ref = np.zeros((cfg.horizon, 13))  # srb_state of the references: level, not turning
         x_ref[:, 2], x_ref[:, 12] = yaw_ref, GRAVITY
+        pos, vel, c = self._references(state.t)
+        x_ref[:, 3:6], x_ref[:, 9:12] = pos + self._off_ref, vel
         contact = np.empty((cfg.horizon, N_LEGS))
-        off_ref = self._com_offset()
-        for k in range(cfg.horizon):
-            tk = state.t + (k + 1) * cfg.dt
-            pos, vel, c = self._ref_base(tk)
-            x_ref[k, 3:6], x_ref[k, 9:12] = pos + off_ref, vel
-            contact[k] = c
+        contact[:] = c[:, None]
         contact[0] = np.minimum(contact[0], contact_now)
         if self.phase == "land":
             contact[:] = np.maximum(contact, contact_now)  # feet already down stay down
@@ -326,30 +350,40 @@ class PronkController:
             self._x0 = state.q[BASE_POS].copy()
         self._update_phase(state)
         g = self.gains
-        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
-        tau = np.zeros(N_JOINTS)
         if self.phase == "flight":
             tau = self._flight_pd(state)
+            return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        p_b, J = self._p_b, self._J  # feet (4, 3) m and leg Jacobians (4, 3, 3), base frame
+        legs_one(qj, *self._chains, p_b, J)
+        if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
+            contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
+            self._forces = self._mpc_forces(state, contact)
+            self._last_solve = state.t
+        f_base = -(self._forces @ state.R)  # force the foot exerts, base frame (rows R^T f)
+        tau_g = self.leg_gravity.torques(qj, state.R)
+        land = self.phase == "land"
+        if land:
+            # Cartesian impedance per leg in the base frame: spring along the base z axis
+            # towards the reference leg length, damping of the foot velocity relative to the
+            # base; legs still in the air also get a spring holding their landing x and y.
+            h_ref = self._ref_land_z(max(state.t - self._t_td, 0.0))[0] - self.body.foot_radius
+            p_land = self._p_land if self._q_land is not None else p_b
+            v_rel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))  # feet relative to the base
         else:
-            p_b, J = self.kin.one(qj)
-            if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
-                contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
-                self._forces = self._mpc_forces(state, contact)
-                self._last_solve = state.t
-            f_base = -(self._forces @ state.R)  # force the foot exerts, base frame (rows R^T f)
-            tau = np.einsum("kji,kj->ki", J, f_base).reshape(N_JOINTS)  # J_k^T f_k per leg
-            tau += self.leg_gravity.torques(qj, state.R)
-            if self.phase == "land":
-                tau += self._landing_impedance(state, p_b, J)
-            # small posture terms: hold hip abduction (kp_hx, kd_hx), damp the legs (kd_stance)
-            tau += self._kp_posture * (self._q_stand - qj) - self._kd_posture * dqj
-        return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
+            h_ref, p_land, v_rel = 0.0, p_b, p_b  # unused
+        # J^T f + legs' weight (+ landing impedance) + posture terms (hold hip abduction with
+        # kp_hx, kd_hx; damp the legs with kd_stance), clipped: one compiled call
+        tau = np.empty(N_JOINTS)
+        stance_torque(J, f_base, tau_g, land, p_b, p_land, state.contact, v_rel, h_ref, g.k_land, g.d_land,
+                      self._posture, qj, dqj, self.torque_limit, tau)
+        return tau
 
     def _flight_pd(self, state) -> np.ndarray:
         """Joint PD to the landing posture, feet ahead of the hips by foot_forward * vx."""
         g = self.gains
         if self._q_land is None:
-            e = self._heading()
+            e = self._e
             v_fwd = float(state.dq[BASE_POS] @ e)
             # landing leg length: the planned take-off height (legs fairly extended)
             self._q_land = standing_joints(self.robot, self.params.takeoff_height,
@@ -357,23 +391,6 @@ class PronkController:
             self._p_land = self.kin.foot_positions(self._q_land[None])[0]
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         return g.kp_flight * (self._q_land - qj) - g.kd_flight * dqj
-
-    def _landing_impedance(self, state, p_b: np.ndarray, J: np.ndarray) -> np.ndarray:
-        """Cartesian impedance per leg in the base frame -> joint torques (12,).
-
-        Spring along the base z axis towards the reference leg length, damping of
-        the foot velocity relative to the base; legs still in the air also get a
-        spring holding their landing position in x and y.
-        """
-        g = self.gains
-        pos, _ = self._ref_land(state.t)
-        h_ref = pos[2] - self.body.foot_radius
-        p_land = self._p_land if self._q_land is not None else p_b
-        v_rel = np.einsum("kij,kj->ki", J, state.dq[JOINTS].reshape(N_LEGS, 3))
-        target = np.where(state.contact[:, None] != 0, p_b, p_land)  # a new array
-        target[:, 2] = -h_ref
-        F = g.k_land * (target - p_b) - g.d_land * v_rel
-        return np.einsum("kji,kj->ki", J, F).reshape(N_JOINTS)
 
     def done(self, state) -> bool:
         """True once settled after landing (or when the jump has run ``max_time``)."""

@@ -1,7 +1,8 @@
 """A PyBullet world holding one quadruped on a flat plane, in symrom's coordinates.
 
 Each ``World`` owns its own PyBullet client in DIRECT mode (no GUI), so several
-worlds can live in one process and worker processes never share state. The
+worlds can live in one process and worker processes never share state. A closed
+world's client is emptied and kept for the next one (``symrom.sim.bullet.client``). The
 robot's base pose is reported for the URDF base link frame (the frame the leg
 kinematics use), not PyBullet's inertial frame. Joint order, signs, foot links
 and torque limits come from the robot's description (``symrom.robots``): joint
@@ -19,7 +20,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from symrom.sim.bullet import p
+from symrom.sim.bullet import client, p, release
 import pybullet_data
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
@@ -119,11 +120,13 @@ class World:
         self.spec: RobotDescription = get_robot(robot)
         self.config = config
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        self._neg_limit = -self.torque_limit
+        self._dt = config.dt  # s, physics tick
         self.signs = self.spec.signs  # (12,) symrom angle = sign x URDF angle
         self.held: np.ndarray = np.zeros(0, dtype=int)  # joints held at their reset angle
         self._driven = np.arange(N_JOINTS)  # joints driven by torque: all but the held ones
         self._held_ids: list[int] = []
-        self.client = p.connect(p.DIRECT)
+        self.client = client()
         self.t = 0.0
         self._pending_force: np.ndarray | None = None
         try:
@@ -235,32 +238,27 @@ class World:
         c, rob = self.client, self.robot
         com_pos, com_orn = p.getBasePositionAndOrientation(rob, physicsClientId=c)
         v_com, omega = p.getBaseVelocity(rob, physicsClientId=c)
-        js = p.getJointStates(rob, self.joint_ids, physicsClientId=c)
+        angles, rates, _, _ = zip(*p.getJointStates(rob, self.joint_ids, physicsClientId=c))
         q = np.empty(N_Q)
         dq = np.empty(N_Q)
         R = np.empty((3, 3))
-        omega = np.array(omega)
-        base_state(np.array(com_pos), np.array(com_orn), np.array(v_com), omega, self._off_pos, self._off_orn,
-                   q, dq, R)  # the link frame's pose and rates from the inertial frame's
-        q[JOINTS] = [s[0] for s in js]
-        dq[JOINTS] = [s[1] for s in js]
-        q[JOINTS] *= self.signs
-        dq[JOINTS] *= self.signs
-        ls = p.getLinkStates(rob, self.foot_ids, computeLinkVelocity=1, computeForwardKinematics=1,
-                             physicsClientId=c)
-        foot_pos = np.array([s[4] for s in ls])
-        # Toe links carry their inertial frame at the link origin, so this is the foot velocity.
-        foot_vel = np.array([s[6] for s in ls])
-        return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=self.contact_flags(),
-                          foot_pos=foot_pos, foot_vel=foot_vel)
+        # the link frame's pose and rates from the inertial frame's (PyBullet's tuples as they come)
+        base_state(com_pos, com_orn, v_com, omega, self._off_pos, self._off_orn, q, dq, R)
+        np.multiply(angles, self.signs, out=q[JOINTS])
+        np.multiply(rates, self.signs, out=dq[JOINTS])
+        links = tuple(zip(*p.getLinkStates(rob, self.foot_ids, computeLinkVelocity=1,
+                                           computeForwardKinematics=1, physicsClientId=c)))
+        # Toe links carry their inertial frame at the link origin, so links[6] is the foot velocity.
+        return RobotState(t=self.t, q=q, dq=dq, omega=np.array(omega), R=R, contact=self.contact_flags(),
+                          foot_pos=np.array(links[4]), foot_vel=np.array(links[6]))
 
     def contact_flags(self) -> np.ndarray:
         """(4,) uint8: 1 where the foot link touches the ground plane (either side of the pair)."""
         flags = np.zeros(N_LEGS, dtype=np.uint8)
-        for cp in p.getContactPoints(self.robot, self.plane, physicsClientId=self.client):
+        rob, leg = self.robot, self._foot_leg
+        for cp in p.getContactPoints(rob, self.plane, physicsClientId=self.client):
             # cp[1], cp[2]: bodies A, B; cp[3], cp[4]: their links.
-            link = cp[3] if cp[1] == self.robot else cp[4] if cp[2] == self.robot else None
-            k = self._foot_leg.get(link)
+            k = leg.get(cp[3] if cp[1] == rob else cp[4] if cp[2] == rob else None)
             if k is not None:
                 flags[k] = 1
         return flags
@@ -273,19 +271,22 @@ class World:
         None instead: what held joints' motors applied then need not be read back (a
         caller logging every other tick asks only on those).
         """
-        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), -self.torque_limit), self.torque_limit)
+        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), self._neg_limit), self.torque_limit)
         if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
             raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
         c = self.client
+        forces = tau * self.signs
+        if self.held.size:
+            forces = forces[self._driven]
         p.setJointMotorControlArray(self.robot, self._driven_ids, p.TORQUE_CONTROL,
-                                    forces=(tau * self.signs)[self._driven].tolist(), physicsClientId=c)
+                                    forces=forces.tolist(), physicsClientId=c)
         if self._pending_force is not None:
             com_pos, _ = p.getBasePositionAndOrientation(self.robot, physicsClientId=c)
             p.applyExternalForce(self.robot, -1, self._pending_force.tolist(), com_pos,
                                  p.WORLD_FRAME, physicsClientId=c)
             self._pending_force = None
         p.stepSimulation(physicsClientId=c)
-        self.t += self.config.dt
+        self.t += self._dt
         if not report:
             return None
         if self.held.size:  # what the solver's motors applied to hold them
@@ -311,10 +312,10 @@ class World:
         self._pending_force = f
 
     def close(self) -> None:
-        """Disconnect the client (idempotent)."""
+        """Give the client up (idempotent): emptied for the next world, or disconnected."""
         if getattr(self, "client", None) is not None and self.client >= 0:
             try:
-                p.disconnect(physicsClientId=self.client)
+                release(self.client)
             except p.error:
                 pass
             self.client = -1
