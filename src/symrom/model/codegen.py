@@ -22,7 +22,8 @@ checks stand.
 ``generated_integrator(model)`` has the interface of
 ``symrom.model.kernel.compiled_rollout`` (``RolloutSystem.compiled``), with
 the semantics of ``symrom.rollout.integrate.integrate_rk4``;
-``generated_rhs(model)`` is the right-hand side for SciPy's LSODA.
+``generated_rhs(model)`` is the right-hand side for SciPy's LSODA and
+``generated_c_rhs(model)`` the same as a C function, for the compiled LSODA.
 """
 
 from __future__ import annotations
@@ -72,25 +73,24 @@ def _rk4_source(l: int, trig: list[int]) -> str:
     SC = [f"{f}{i}" for i in trig for f in ("S", "C")]  # at the step's start
     PQ = [f"{f}{i}" for i in trig for f in ("P", "Q")]  # at a later stage
 
-    def call(args: list[str], out: str) -> str:
+    def call(out: str) -> str:
+        """accel_s at a later stage (the state in t0..), its trig shifted from the step's start."""
         lhs = ", ".join(f"{out}{d}" for d in range(l)) + ("," if l == 1 else "")
-        if args is S:
-            return f"{lhs} = accel_s(ph, {', '.join(args + U + SC)})"
         moved = [f"P{i}, Q{i} = shift(t{i}, s{i}, S{i}, C{i})" for i in trig]
-        return "\n".join(moved + [f"{lhs} = accel_s(ph, {', '.join(args + U + PQ)})"])
+        return "\n".join(moved + [f"{lhs} = accel_s(ph, {', '.join(T + U + PQ)})"])
 
     # classical RK4 on (x, v): k1 = (v, a), k2 = (w, b), k3 = (y, c), k4 = (v + h c, e)
     step = [f"S{i} = math.sin(s{i})\nC{i} = math.cos(s{i})" for i in trig]
-    step += [call(S, "a")]
+    step += [f"{', '.join(f'a{d}' for d in range(l))}{',' if l == 1 else ''} = accel_s(ph, {', '.join(S + U + SC)})"]
     step += [f"t{d} = s{d} + 0.5 * h * s{l + d}" for d in range(l)]
     step += [f"t{l + d} = s{l + d} + 0.5 * h * a{d}" for d in range(l)]
-    step += [call(T, "b")] + [f"w{d} = t{l + d}" for d in range(l)]
+    step += [call("b")] + [f"w{d} = t{l + d}" for d in range(l)]
     step += [f"t{d} = s{d} + 0.5 * h * w{d}" for d in range(l)]
     step += [f"t{l + d} = s{l + d} + 0.5 * h * b{d}" for d in range(l)]
-    step += [call(T, "c")] + [f"y{d} = t{l + d}" for d in range(l)]
+    step += [call("c")] + [f"y{d} = t{l + d}" for d in range(l)]
     step += [f"t{d} = s{d} + h * y{d}" for d in range(l)]
     step += [f"t{l + d} = s{l + d} + h * c{d}" for d in range(l)]
-    step += [call(T, "e")]
+    step += [call("e")]
     step += [f"s{d} = s{d} + h / 6.0 * (s{l + d} + 2.0 * w{d} + 2.0 * y{d} + t{l + d})" for d in range(l)]
     step += [f"s{l + d} = s{l + d} + h / 6.0 * (a{d} + 2.0 * b{d} + 2.0 * c{d} + e{d})" for d in range(l)]
     ind = " " * 16
@@ -119,15 +119,11 @@ def rollout(x_true, v_true, nu, phase, lens, resets, dt, substeps, limit, X, V, 
 {nl.join(ind + line for text in step for line in text.split(nl))}
 
 
-def accel(ph, s, nu, out):
-    r = accel_ref(ph, {", ".join([f"s[{i}]" for i in range(n)] + [f"nu[{d}]" for d in range(l)])})
-{nl.join(f"    out[{d}] = r[{d}]" for d in range(l))}
-
-
 def rhs(y, t, ph, u):
     out = np.empty({n})
 {nl.join(f"    out[{d}] = y[{l + d}]" for d in range(l))}
-    accel(ph, y, u, out[{l}:])
+    r = accel_ref(ph, {", ".join([f"y[{i}]" for i in range(n)] + [f"u[{d}]" for d in range(l)])})
+{nl.join(f"    out[{l + d}] = r[{d}]" for d in range(l))}
     return out
 
 
@@ -143,8 +139,8 @@ def model_source(model: HybridModel) -> str:
     """Python source of ``accel_s(ph, s0, ..., s_{2l-1}, u0, ..., u_{l-1}, S_i, C_i, ...)``:
     the tuple ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu
     (NaN for an unknown phase), given S_i = sin(s_i) and C_i = cos(s_i) for each state
-    variable whose sine or cosine the model uses; ``accel(ph, s, nu, out)`` writing it
-    into ``out``, then ``shift``, the RK4 rollout and the LSODA right-hand side.
+    variable whose sine or cosine the model uses; then ``shift``, the RK4 rollout and
+    the LSODA right-hand sides.
 
     LSODA's right-hand sides (``rhs``, ``c_rhs``) call ``accel_ref`` instead: the same
     terms in the library's order, summed one by one as NumPy's reference does, and
@@ -201,8 +197,7 @@ def _compiled(model: HybridModel) -> dict:
     exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
     for name in ("shift", "accel_s"):  # compiled before the functions that call them
         ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
-    for name in ("accel_ref", "accel"):  # LSODA's: rounded as NumPy's reference
-        ns[name] = numba.njit(ns[name])
+    ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
     rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
     l = model.latent_dim
     z = np.zeros((1, 2, l))

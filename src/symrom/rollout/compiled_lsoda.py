@@ -6,9 +6,8 @@ each interval, so LSODA restarts there). Here the loop over the intervals is
 compiled by numba and calls numbalsoda's LSODA (a C++ port of the same
 Hindmarsh-Petzold solver) with the model's right-hand side as a C callback
 (``symrom.model.codegen.generated_c_rhs``). Same tolerances, step budget,
-restarts, resets and divergence rule as ``integrate_lsoda``; the two LSODA
-implementations agree to about 1e-8 at odeint's default tolerances (their
-step-size heuristics differ in rounding), to ~1e-10 at rtol = atol = 1e-10.
+restarts, resets and divergence rule as ``integrate_lsoda``; given the same
+right-hand side the two LSODA implementations give the same paths bit for bit.
 
 numbalsoda is an optional extra (``pip install 'symrom[lsoda]'``); it builds
 from source and needs a Fortran compiler (Debian: ``apt-get install gfortran``).
@@ -16,13 +15,12 @@ from source and needs a Fortran compiler (Debian: ``apt-get install gfortran``).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 INSTALL_HINT = ("the compiled LSODA needs numbalsoda: pip install 'symrom[lsoda]' "
                 "(it builds from source with a Fortran compiler, e.g. apt-get install gfortran)")
-
-_DRIVER = None
-
 
 def available() -> bool:
     """Whether numbalsoda can be imported."""
@@ -33,11 +31,9 @@ def available() -> bool:
     return True
 
 
+@functools.cache
 def _driver():
     """The compiled loop over one jump's sample intervals (built once per process)."""
-    global _DRIVER
-    if _DRIVER is not None:
-        return _DRIVER
     try:
         import numba
         from numbalsoda import lsoda
@@ -69,7 +65,6 @@ def _driver():
             y[:] = sol[1]
         return -1
 
-    _DRIVER = run
     return run
 
 
