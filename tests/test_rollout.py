@@ -280,3 +280,12 @@ def test_compiled_lsoda_matches_scipys(model_and_data, reset):
 def test_compiled_lsoda_needs_generated_code():
     with pytest.raises(ValueError, match="numbalsoda.*generated code.*'table'"):
         RolloutOptions("lsoda", backend="table", lsoda_solver="numbalsoda")
+
+
+def test_compiled_lsoda_without_numbalsoda_says_how_to_install_it(monkeypatch):
+    from symrom.rollout import compiled_lsoda
+
+    monkeypatch.setattr(compiled_lsoda, "available", lambda: False)
+    with pytest.raises(ValueError, match=r"needs numbalsoda: pip install 'symrom\[lsoda\]'"):
+        RolloutOptions("lsoda", lsoda_solver="numbalsoda")
+    RolloutOptions("lsoda")  # SciPy's LSODA needs nothing more

@@ -68,9 +68,9 @@ def _driver():
     return run
 
 
-def integrate_lsoda_compiled(c_rhs: int, x_true: np.ndarray, v_true: np.ndarray, nu: np.ndarray,
-                             phase: np.ndarray, resets: np.ndarray, limit: np.ndarray, dt: float,
-                             max_steps: int, rtol: float, atol: float) -> tuple[np.ndarray, np.ndarray, int]:
+def integrate(c_rhs: int, x_true: np.ndarray, v_true: np.ndarray, nu: np.ndarray, phase: np.ndarray,
+              resets: np.ndarray, limit: np.ndarray, dt: float, max_steps: int, rtol: float,
+              atol: float) -> tuple[np.ndarray, np.ndarray, int]:
     """One jump, as ``integrate_lsoda``: c_rhs the address of the C right-hand side
     ``f(t, y, dy, p)`` with p = [phase index, nu...]; x_true, v_true (n, d) start and
     reset states; nu (n, d) held inputs; phase (n,) phase indices; resets (n,) bool;

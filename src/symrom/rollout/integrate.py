@@ -33,7 +33,7 @@ import numpy as np
 from scipy.integrate import odeint
 
 from symrom.data.dataset import Dataset
-from symrom.rollout.compiled_lsoda import integrate_lsoda_compiled
+from symrom.rollout import compiled_lsoda
 from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
@@ -78,6 +78,8 @@ class RolloutOptions:
         if self.lsoda_solver == "numbalsoda" and self.backend not in ("auto", "generated"):
             raise ValueError(f"lsoda_solver 'numbalsoda' runs the model's generated code; "
                              f"backend {self.backend!r} cannot go with it (use 'auto' or 'generated')")
+        if self.lsoda_solver == "numbalsoda" and not compiled_lsoda.available():
+            raise ValueError(compiled_lsoda.INSTALL_HINT)
         if self.reset is not None and not self.reset > 0:
             raise ValueError(f"reset must be a positive duration in s, got {self.reset}")
 
@@ -217,7 +219,7 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
             drive = {name: d[i] for name, d in sysm.drive.items()}  # (n, ...)
             resets = reset_mask(x.shape[0], options.reset, dt)
             if c_rhs is not None:
-                X, V, d = integrate_lsoda_compiled(c_rhs, x, v, drive["nu"], drive["phase"], resets, limit[i],
+                X, V, d = compiled_lsoda.integrate(c_rhs, x, v, drive["nu"], drive["phase"], resets, limit[i],
                                                    dt, options.max_steps, options.rtol, options.atol)
             else:
                 if generated is not None:
