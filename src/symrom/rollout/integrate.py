@@ -206,15 +206,15 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
     """
     limit = options.bound * sysm.scale  # (J, 2d)
     n_jumps = len(sysm.x)
-    compiled_lsoda = options.method == "lsoda" and options.lsoda_solver == "numbalsoda"
-    want = options.backend == "generated" or compiled_lsoda
+    numbalsoda = options.method == "lsoda" and options.lsoda_solver == "numbalsoda"
+    want = options.backend == "generated" or numbalsoda
     generated = sysm.generated() if want and sysm.generated else None
     if want and generated is None:
         raise ValueError("this model has no generated code; use backend 'auto' or 'numpy' "
                          "(and LSODA solver 'scipy')")
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
-        c_rhs = generated[2]() if compiled_lsoda else None
+        c_rhs = generated[2]() if numbalsoda else None
         for i, (x, v) in enumerate(zip(sysm.x, sysm.v)):
             drive = {name: d[i] for name, d in sysm.drive.items()}  # (n, ...)
             resets = reset_mask(x.shape[0], options.reset, dt)
