@@ -100,7 +100,7 @@ def test_part_files_are_plain_npz(tmp_path):
     write_part(p, log, {"jump": 0, "params": {"a": 1.0}}, "abc")
     with np.load(p, allow_pickle=False) as z:  # loads without pickle
         assert set(z.files) == set(log) | {"meta"}
-    back, rec, fp = read_part(p)
+    back, rec, fp, _ = read_part(p)
     assert fp == "abc" and rec["params"] == {"a": 1.0}
     np.testing.assert_array_equal(back["contact"], log["contact"])
 

@@ -64,8 +64,3 @@ def legs_one(qj, n_el, xyz, rot, axis, col, pos, J):
             J[k, 0, j] = ax[j, 1] * d2 - ax[j, 2] * d1
             J[k, 1, j] = ax[j, 2] * d0 - ax[j, 0] * d2
             J[k, 2, j] = ax[j, 0] * d1 - ax[j, 1] * d0
-
-
-def legs_one_kernel():
-    """The compiled routine ``legs_one``."""
-    return legs_one

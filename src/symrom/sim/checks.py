@@ -37,6 +37,9 @@ class JumpChecks:
     min_rear_only: float = 0.04
 
 
+BRIEF_FLIGHT = "a brief flight before the main one"  # a check_jump reason FlightWatch foresees
+
+
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """[start, stop) of the runs of True in a boolean (n,) array."""
     d = np.diff(np.r_[0, mask.astype(np.int8), 0])
@@ -84,9 +87,6 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
     if travel < checks.min_travel:
         bad.append(f"travel {travel:.3f} m")
     return bad
-
-
-BRIEF_FLIGHT = "a brief flight before the main one"
 
 
 class FlightWatch:

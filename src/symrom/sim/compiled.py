@@ -1,4 +1,5 @@
-"""Compiled (numba) pieces of the per-tick work of a simulation: the base state, the froggy controller.
+"""Compiled (numba) pieces of the per-tick work of a simulation: the base state, the MPC's
+force clipping, the pronk and froggy controllers' torques.
 
 A physics tick at 1 kHz leaves a few hundred microseconds for everything
 Python does around it; NumPy's per-call overhead on 3-vectors would take most
@@ -16,6 +17,7 @@ from symrom.robots.compiled import legs_one
 
 njit = numba.njit(cache=True)
 
+
 @njit
 def quat_matrix(x, y, z, w, R):
     """R (3, 3) of the unit quaternion (x, y, z, w) (PyBullet's order)."""
@@ -28,6 +30,7 @@ def quat_matrix(x, y, z, w, R):
     R[2, 0] = 2.0 * (x * z - y * w)
     R[2, 1] = 2.0 * (y * z + x * w)
     R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+
 
 @njit
 def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
@@ -68,9 +71,10 @@ def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
     dpitch = -sy * omega[0] + cy * omega[1]
     dq[15], dq[16], dq[17] = droll, dpitch, omega[2] + sp * droll
 
+
 @njit
 def distribute(foot_pos, centre, legs, force, moment, mu, grf):
-    """``symrom.sim.froggy.distribute`` compiled: ground reactions grf (4, 3) N of the feet
+    """Ground reactions grf (4, 3) N (``symrom.sim.froggy.distribute``) of the feet
     ``legs`` (int array) giving the body wrench (force, moment), least norm, pulls
     dropped, horizontal parts clipped to the friction cone mu."""
     m = legs.shape[0]

@@ -149,6 +149,3 @@ class LegGravity:
             c.p.setGravity(gx, gy, gz, physicsClientId=c.cid)
             tau = c.p.calculateInverseDynamics(c.rob, q.tolist(), c.zeros, c.zeros, physicsClientId=c.cid)
         return np.array(tau)[c.order] * self._signs_out
-
-    def close(self) -> None:
-        """Nothing to release: the PyBullet copy is shared and lives as long as the process."""

@@ -152,8 +152,9 @@ class FroggyController:
         self.t_flight = None  # time the flight stage began
         self.t_land = None
         self._p0 = None  # (feet (4, 3), base (3,)) in the world when the push starts, m
-        self._prm: np.ndarray | None = None  # the parameters as ``compiled.froggy_torque`` takes them
-        self._chains: tuple = ()
+        # the parameters and leg chains as ``compiled.froggy_torque`` takes them
+        self._prm = np.array([float(getattr(params, n)) for n in compiled.FROGGY_PARAMS])
+        self._chains = self.kin.chain_arrays()
         p = params
         self._t_push = p.t_settle + p.t_crouch + p.t_hold
         self._t_rear = self._t_push + p.t_push_all
@@ -202,9 +203,6 @@ class FroggyController:
         if self.phase in ("push_all", "push_rear") and self._p0 is None:
             self._p0 = (s.foot_pos.copy(), s.q[12:15].copy())
         feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
-        if self._prm is None:
-            self._prm = np.array([float(getattr(self.params, n)) for n in compiled.FROGGY_PARAMS])
-            self._chains = self.kin.chain_arrays()
         return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
                                       float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
                                       s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,

@@ -35,7 +35,7 @@ from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
-from symrom.sim.parts import jsonable, part_execution, part_path, parts_dir, read_part, write_part
+from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
 from symrom.sim.runner import GenerationError, jump_seed, run_checked_jump
 
 __all__ = ["GenerateConfig", "GenerationError", "NoiseConfig", "build_dataset", "generate", "jump_seed",
@@ -110,11 +110,6 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
                     dt=dt, generator=generator)
 
 
-def _jump_task(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarray], dict]:
-    """One jump, run where the back end puts it: its log arrays and record (no file written)."""
-    return run_checked_jump(cfg, jump)
-
-
 def _preload(cfg: GenerateConfig) -> list[str]:
     """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet and
     the compiled simulation routines (``symrom.sim.warm``)."""
@@ -165,7 +160,7 @@ def _resumable_parts(cfg: GenerateConfig, parts: Path) -> list[int]:
         pp = part_path(parts, j)
         if pp.exists():
             try:
-                _, _, fp = read_part(pp)
+                fp = read_part(pp)[2]
             except (OSError, ValueError, KeyError):
                 pp.unlink()  # a truncated part: run that jump again
                 continue
@@ -210,7 +205,7 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     say(done, total, {"resumed": len(have)})
     fingerprint = cfg.fingerprint()
     tasks = [(j, (j,)) for j in todo]
-    for task in backend.map(_jump_task, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
+    for task in backend.map(run_checked_jump, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
         log, record = task.value
         execution = {"seconds": round(task.seconds, 4), "worker": task.worker, "retries": task.retries}
         write_part(part_path(parts, task.key), log, record, fingerprint, execution)
@@ -222,10 +217,10 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
         return None
     logs, records, runs = [], [], []
     for j in range(total):
-        lg, rec, _ = read_part(part_path(parts, j))
+        lg, rec, _, execution = read_part(part_path(parts, j))
         logs.append(lg)
         records.append(rec)
-        runs.append({"jump": j, **(part_execution(part_path(parts, j)) or {}), "resumed": j in have})
+        runs.append({"jump": j, **(execution or {}), "resumed": j in have})
     ds = build_dataset(cfg, logs, records)
     write_dataset(ds, out)
     write_text_atomic(run_record_path(out), json.dumps(

@@ -104,20 +104,31 @@ def continuous_dynamics(mass: float, inertia_body: np.ndarray, yaw: float,
 def discretize(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold discretisation: (13, 13), (13, 12) -> A (13, 13), B (13, 12).
 
-    The SRB ``Ac`` is nilpotent (omega -> rpy, v -> p and g -> v -> p are chains
-    of length <= 2, so Ac^3 = 0): the matrix exponential's series ends after
-    three terms and is exact in closed form, with no ``expm`` call.
+    The SRB ``Ac`` is nilpotent (``nilpotent_hold``): the matrix exponential is exact in
+    closed form, with no ``expm`` call; any other ``Ac`` goes through ``expm``.
     """
-    Ac2 = Ac @ Ac
-    if np.any(Ac2 @ Ac):
+    series = nilpotent_hold(Ac, dt)
+    if series is None:
         M = np.zeros((Ac.shape[0] + Bc.shape[1],) * 2)
         M[:Ac.shape[0], :Ac.shape[0]], M[:Ac.shape[0], Ac.shape[0]:] = Ac, Bc
         E = scipy.linalg.expm(M * dt)
         return E[:Ac.shape[0], :Ac.shape[0]], E[:Ac.shape[0], Ac.shape[0]:]
+    A, F = series
+    return A, F @ Bc
+
+
+def nilpotent_hold(Ac: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """A = exp(Ac dt) and F (n, n) with B = F Bc, if Ac (n, n) has Ac^3 = 0; else None.
+
+    The SRB ``Ac`` has Ac^3 = 0 (omega -> rpy, v -> p and g -> v -> p are chains of
+    length <= 2), so the series end after three terms: A = I + Ac dt + Ac^2 dt^2/2,
+    F = I dt + Ac dt^2/2 + Ac^2 dt^3/6.
+    """
+    Ac2 = Ac @ Ac
+    if np.any(Ac2 @ Ac):
+        return None
     eye = np.eye(Ac.shape[0])
-    A = eye + Ac * dt + Ac2 * (dt * dt / 2.0)
-    B = (eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0)) @ Bc
-    return A, B
+    return eye + Ac * dt + Ac2 * (dt * dt / 2.0), eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0)
 
 
 def condense(A: np.ndarray, B: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
@@ -252,20 +263,14 @@ class ConvexMPC:
     def model(self, r_feet: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
         """Discrete model A (13, 13), B (13, 12) for feet r_feet (4, 3) m and yaw rad.
 
-        Only the inputs' moment arms change from solve to solve: A and the map
-        B = (I dt + Ac dt^2/2 + Ac^2 dt^3/6) Bc of ``discretize`` depend on the yaw
-        alone and are kept for the last yaw.
+        Only the inputs' moment arms change from solve to solve: A and the map F of
+        B = F Bc (``nilpotent_hold``) depend on the yaw alone and are kept for the last yaw.
         """
         if self._yaw_model is None or self._yaw_model[0] != yaw:
             Ac, Bc = continuous_dynamics(self.mass, self.inertia_body, yaw, r_feet)
-            dt, Ac2 = self.config.dt, Ac @ Ac
-            if np.any(Ac2 @ Ac):  # not the SRB model's nilpotent Ac: no shortcut
-                return discretize(Ac, Bc, dt)
-            eye = np.eye(N_X)
+            A, F = nilpotent_hold(Ac, self.config.dt)  # nilpotent by its structure, whatever the yaw
             Rz = rot_z(yaw)
-            self._yaw_model = (yaw, eye + Ac * dt + Ac2 * (dt * dt / 2.0),
-                               eye * dt + Ac * (dt * dt / 2.0) + Ac2 * (dt ** 3 / 6.0),
-                               np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc)
+            self._yaw_model = (yaw, A, F, np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc)
         _, A, F, Iw_inv, Bc = self._yaw_model
         r = np.asarray(r_feet, dtype=float)
         S = np.zeros((4, 3, 3))  # skew(r_k) per foot

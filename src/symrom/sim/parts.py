@@ -50,15 +50,10 @@ def write_part(path: Path, log: dict[str, np.ndarray], record: dict, fingerprint
     os.replace(tmp, path)
 
 
-def read_part(path: Path) -> tuple[dict[str, np.ndarray], dict, str]:
-    """(log, record, fingerprint) of a part file."""
+def read_part(path: Path) -> tuple[dict[str, np.ndarray], dict, str, dict | None]:
+    """One jump's log arrays, record, options' fingerprint and how its task ran (seconds, worker,
+    retries; None if not recorded)."""
     with np.load(path, allow_pickle=False) as z:
         meta = json.loads(str(z["meta"]))
         log = {k: z[k] for k in LOG_KEYS}
-    return log, meta["record"], meta["fingerprint"]
-
-
-def part_execution(path: Path) -> dict | None:
-    """How the task of a part file ran (seconds, worker, retries), if recorded."""
-    with np.load(path, allow_pickle=False) as z:
-        return json.loads(str(z["meta"])).get("execution")
+    return log, meta["record"], meta["fingerprint"], meta.get("execution")

@@ -224,7 +224,7 @@ class PronkController:
         self._e = np.array([np.cos(params.yaw), np.sin(params.yaw), 0.0])
         self._v_to = self.plan.vx * self._e + np.array([0.0, 0.0, self.plan.vz])
         self._off_ref = rot_z(params.yaw) @ self.body.com_base
-        self._p_crouch = self._p_to = None  # bottom of the crouch and take-off point (3,) m, with _x0
+        self._p_crouch = self._p_to = None  # bottom of the crouch and take-off point (3,) m, set with _x0
 
     @property
     def mpc_solve_times(self) -> list[float]:
@@ -249,9 +249,6 @@ class PronkController:
             pos, vel = self._ref_land(np.maximum(ts - self._t_td, 0.0))
             return pos, vel, np.ones(cfg.horizon)
         x0, e, v_to = self._x0, self._e, self._v_to
-        if self._p_crouch is None:  # bottom of the crouch and take-off point
-            self._p_crouch = np.array([x0[0], x0[1], pr.crouch_height])
-            self._p_to = self._p_crouch + 0.5 * pl.push_time * v_to
         pos, vel, contact = np.empty((cfg.horizon, 3)), np.zeros((cfg.horizon, 3)), np.ones(cfg.horizon)
         crouch = ts < pr.crouch_time
         hold = ~crouch & (ts < pl.t_push)
@@ -347,7 +344,9 @@ class PronkController:
     def torque(self, state) -> np.ndarray:
         """Joint torques (12,) N m for ``state`` (a ``RobotState``), within the torque limits."""
         if self._x0 is None:
-            self._x0 = state.q[BASE_POS].copy()
+            x0 = self._x0 = state.q[BASE_POS].copy()
+            self._p_crouch = np.array([x0[0], x0[1], self.params.crouch_height])
+            self._p_to = self._p_crouch + 0.5 * self.plan.push_time * self._v_to
         self._update_phase(state)
         g = self.gains
         if self.phase == "flight":

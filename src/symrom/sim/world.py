@@ -178,8 +178,8 @@ class World:
         # PyBullet reports the base's inertial frame; keep the offset to get the link frame.
         dyn = p.getDynamicsInfo(self.robot, -1, physicsClientId=c)
         self._inertial = (tuple(dyn[3]), tuple(dyn[4]))  # link frame -> inertial frame
-        self._inertial_inv = p.invertTransform(*self._inertial)
-        self._off_pos, self._off_orn = (np.array(v, dtype=float) for v in self._inertial_inv)
+        # inertial frame -> link frame, as ``state`` applies it
+        self._off_pos, self._off_orn = (np.array(v, dtype=float) for v in p.invertTransform(*self._inertial))
         self.mass = sum(p.getDynamicsInfo(self.robot, i, physicsClientId=c)[0]
                         for i in range(-1, p.getNumJoints(self.robot, physicsClientId=c)))  # kg
         shapes = p.getCollisionShapeData(self.robot, self.foot_ids[0], physicsClientId=c)
