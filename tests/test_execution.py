@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -21,7 +23,7 @@ def test_local_map_gives_every_result_once(workers):
     assert {d.key: d.value for d in done} == {f"k{x}": 100 + x * x for x in range(5)}
     assert all(d.seconds >= 0 and ":" in d.worker and d.retries == [] for d in done)
     if workers == 2:  # in worker processes, not in this one
-        assert all(not d.worker.endswith(f":{__import__('os').getpid()}") for d in done)
+        assert all(not d.worker.endswith(f":{os.getpid()}") for d in done)
 
 
 def test_local_worker_that_dies_is_retried_and_recorded(tmp_path):
@@ -77,5 +79,5 @@ def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
             "assert [d.value for d in LocalBackend(1).map(_tasks.square, [(0, (3,))], (1,))] == [10]\n"
             "assert 'ray' not in sys.modules, 'ray was imported'\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                       cwd=str(__import__("pathlib").Path(__file__).parent))
+                       cwd=str(Path(__file__).parent))
     assert r.returncode == 0, r.stderr

@@ -680,15 +680,14 @@ def newton_cmd(
     resets = _parse_resets(reset)
     ds = _read_with_split(data, split)
     if fit:
-        model = AffineForce.fit(ds, m=mass)
+        model, title = AffineForce.fit(ds, m=mass), "Newton (fitted)"
         files = {"params.json": json.dumps({**model.to_dict(), "source": "fitted on the train split "
                                             "(least squares on the base accelerations)"}, indent=1) + "\n"}
-        _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton (fitted)", files)
     else:
-        model = Newton.of(ds, mass)
-        _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, "Newton", {})
-    out_console.print(f"Newton{' (fitted)' if fit else ''} (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}",
-                      highlight=False, soft_wrap=True)
+        model, title, files = Newton.of(ds, mass), "Newton", {}
+    _evaluate_baseline(model, ds, data, split, resets, integrator, out, force, title, files)
+    out_console.print(f"{title} (m {model.m:.4g} kg): metrics: {out / 'metrics.json'}", highlight=False,
+                      soft_wrap=True)
 
 
 def _check_split_and_integrator(split: str, integrator: str) -> None:

@@ -13,8 +13,9 @@ worker's disk.
   ``preload`` modules imported once), at most ``workers`` at a time.
 - ``RayBackend(address, workers)``: ``ray.remote`` tasks on the cluster at
   ``address`` (or ``$RAY_ADDRESS``, or a cluster started on this machine with
-  ``ray start``; else a new Ray instance here). Ray is an optional extra (``pip install 'symrom[ray]'``) and is
-  imported only here, only when this back end is used.
+  ``ray start``; else a new Ray instance here). Ray is an optional extra
+  (``pip install 'symrom[ray]'``) and is imported only here, only when this
+  back end is used.
 
 A worker that dies (a crashed or killed process, a lost node, a task killed
 for memory) costs its task one attempt: the task is submitted again, up to
@@ -225,9 +226,9 @@ class RayBackend(Backend):
     address (``host:port``, ``ray://host:10001``, ``auto`` or ``local``); None: ``$RAY_ADDRESS``,
     else the cluster last started on this machine with ``ray start``, else a new Ray instance
     on this machine (Ray's own rule; ``local`` always starts a new one). If this process is
-    already connected to Ray, that connection is used. ``workers``: at most this many tasks at once (None: as many as the
-    cluster has CPUs when the back end starts). Ray's own retries are off, so that every
-    lost attempt is counted and recorded here."""
+    already connected to Ray, that connection is used. ``workers``: at most this many tasks
+    at once (None: as many as the cluster has CPUs when the back end starts). Ray's own
+    retries are off, so that every lost attempt is counted and recorded here."""
 
     name = "ray"
 

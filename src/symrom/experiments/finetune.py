@@ -21,7 +21,8 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    steps 2-4 repeat, up to ``max_raises`` times; if none is accepted the
    fine-tuning is refused (the source model stays the better one). With
    ``method="rollout"`` (the rollout-aware refinement started from the source
-   coefficients) the prior weight plays no part: one attempt.
+   coefficients) the prior weight pulls only the decoder, not the coefficients:
+   one attempt.
 
 Only ``train`` and ``val`` are read, so ``symrom evaluate`` on the ``test``
 split stays an honest measure of the result.
@@ -152,7 +153,7 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
             tuned.info["finetune"]["check"] = {"val_score_before": score0, "val_score_after": score,
                                                "tolerance": check.tolerance, "prior_weight": weight}
             return FineTuneResult(tuned, before, after, attempts, check)
-        if check.config.method == "rollout":  # the prior weight does not enter the rollout fit
+        if check.config.method == "rollout":  # the prior weight does not enter the coefficients' rollout fit
             break
         weight = 10.0 * weight if weight > 0 else 0.01
     tried = ", ".join(f"{a['prior_weight']:g}" for a in attempts)

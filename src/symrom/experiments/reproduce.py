@@ -8,18 +8,19 @@ interrupted run resumes where it stopped and datasets are never regenerated):
                paper_defaults/ (model.json, eval/),
                aslip/, aslip_rollout/, newton/, newton_fitted/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
-    go1_proxy/ base/model.json (trained on the noisy Go1 variant with the settings
-               selected on SIM Go1), model.json (fine-tuned on the proxy training
-               jumps), eval/, base_eval/
+    go1_proxy/ base/model.json, base_exact/model.json (trained on the noisy Go1 variant
+               with the settings selected on SIM Go1, refined and not), model.json
+               (the candidate chosen on the proxy's val jumps), finetune_choice.json,
+               eval/, base_eval/
     sweep/     sweep.json, cells/, encoders/W_e_l<k>.json
     summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
                    role and files, which the report renders
 
 Experiments: SIM Go1 pronking, SIM A1 froggy (phases contact / partial /
 flight), sim-to-real (train on noisy Go1, fine-tune on the proxy's training
-jumps, evaluate on its test jump), the baselines (aSLIP fitted to acceleration
-residuals and to rollouts, Newton on the measured force) beside each SIM
-model, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
+jumps, choose on its val jumps, evaluate on its test jump), the baselines (aSLIP
+fitted to acceleration residuals and to rollouts, Newton on the measured force
+as it is and with fitted gains) beside each SIM model, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
 
 Every SIM model's settings are chosen by the validation selection
 (``symrom.experiments.select``: encoder, latent dimension, library, sparsity,

@@ -60,6 +60,7 @@ from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.execution import Backend, LocalBackend
+from symrom.experiments.sweep import load_cell
 from symrom.model.encoders import unit_floored
 from symrom.model.hybrid import HybridModel
 from symrom.model.training import TrainConfig, data_hash, train
@@ -262,15 +263,6 @@ def cell_path(folder: str | Path, cell: tuple[str, int, str]) -> Path:
     return Path(folder) / f"{encoder}_l{l:02d}_{library}.json"
 
 
-def _stored_rows(path: Path, key: str) -> list[dict[str, Any]] | None:
-    """The rows of a stored cell if it exists, parses and carries ``key``; else None."""
-    try:
-        stored = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return stored["rows"] if isinstance(stored, dict) and stored.get("key") == key else None
-
-
 def run_refined(ds: Dataset, cfg: SelectionConfig, row: dict) -> tuple[dict[str, Any], HybridModel]:
     """The refined version of a candidate row, scored."""
     t0 = time.perf_counter()
@@ -368,23 +360,25 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top
     rows: list[dict] = []
+    keys = {c: cell_key(cfg, sha, c) for c in cells} if cells_dir is not None else {}
     todo = []
+    done = 0
     for c in cells:
-        stored = None if cells_dir is None else _stored_rows(cell_path(cells_dir, c), cell_key(cfg, sha, c))
+        stored = load_cell(cell_path(cells_dir, c), keys[c]) if keys else None
         if stored is None:
             todo.append(c)
         else:
-            rows += stored
-            say(cells.index(c) + 1 - len(todo), total, f"{c[0]} l={c[1]} {c[2]} (reused)")
+            rows += stored["rows"]
+            done += 1
+            say(done, total, f"{c[0]} l={c[1]} {c[2]} (reused)")
     retries: list[dict] = []
-    done = len(cells) - len(todo)
     for task in backend.map(run_cell, [(c, c) for c in todo], (ds, cfg), label="selection cell"):
         c, what = task.key, f"{task.key[0]} l={task.key[1]} {task.key[2]}"
         rows += task.value
         retries += [{"task": what, **r} for r in task.retries]
-        if cells_dir is not None:
+        if keys:
             write_text_atomic(cell_path(cells_dir, c), json.dumps(
-                {"key": cell_key(cfg, sha, c), "cell": list(c), "rows": task.value,
+                {"key": keys[c], "cell": list(c), "rows": task.value,
                  "execution": {"backend": backend.name, "worker": task.worker, "retries": task.retries}},
                 indent=1, allow_nan=False) + "\n")
         done += 1

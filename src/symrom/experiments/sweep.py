@@ -189,8 +189,9 @@ def _cell_path(out: Path, latent_dim: int, seed: int) -> Path:
     return out / "cells" / f"l{latent_dim:02d}_s{seed}.json"
 
 
-def _load_cell(path: Path, key: str) -> dict[str, Any] | None:
-    """The stored cell if it exists, parses and carries ``key``; else None (recompute)."""
+def load_cell(path: Path, key: str) -> dict[str, Any] | None:
+    """The stored cell (a JSON object) if it exists, parses and carries ``key``; else None
+    (recompute)."""
     try:
         cell = json.loads(path.read_text())
     except (OSError, ValueError):
@@ -238,7 +239,7 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
     todo, cells = [], {}
     for d in config.latent_dims:
         for s in config.seeds:
-            cell = _load_cell(_cell_path(out, d, s), cell_key(config, sha, d, s))
+            cell = load_cell(_cell_path(out, d, s), cell_key(config, sha, d, s))
             if cell is None:
                 todo.append((d, s))
             else:

@@ -137,7 +137,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     if not rows.any():
         raise ValueError("no fine-tuning rows (the dataset has no 'train' jumps)")
     model.check_data(ds)
-    model.phase_index(ds, rows)  # every phase of the new rows must be one the model knows
+    row_phase = model.phase_index(ds, rows)  # every phase of the new rows must be one the model knows
     ae0 = model.autoencoder
     xi = ae0.encode(ds.q[rows])
     spread = source_spread(model)
@@ -156,19 +156,16 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     if all(p is None for p in phases):
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
-    trajs = []
-    if config.method == "rollout":
+    if config.method == "rollout":  # Refine rolls the new jumps out, in the model's phase numbering
         index = np.zeros(ds.n_samples, dtype=int)
-        index[rows] = model.phase_index(ds, rows)
-        trajs = trajectories(ds, rows, ae, index)
-    problem = RegressionProblem(model.library, list(model.phase_names), phases,
-                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
-    if config.method == "rollout":
-        regressor = Refine()
+        index[rows] = row_phase
+        trajs, regressor = trajectories(ds, rows, ae, index), Refine()
     else:
         threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
-        regressor = FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
-                             float(trained.get("alpha", 0.0)))
+        trajs, regressor = [], FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
+                                        float(trained.get("alpha", 0.0)))
+    problem = RegressionProblem(model.library, list(model.phase_names), phases,
+                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
     Xi, mask = fit.Xi.copy(), fit.mask.copy()
     for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor

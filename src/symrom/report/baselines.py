@@ -75,8 +75,8 @@ def baseline_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> lis
             [f"learned: {diverged_text(learned)}"] + [f"{e.title or e.name}: {diverged_text(m)}" for e, m in have])
             + "."))
         params = {e.name: run.json(e, "params") for e, _ in have if "params" in e.files}
-        rows = [[e.title or e.name, f"{k} [{UNITS[k]}]" if k in UNITS else k, _number_text(v)]
-                for e, _ in have for k, v in (params.get(e.name) or {}).items() if _number_text(v)]
+        rows = [[e.title or e.name, f"{k} [{UNITS[k]}]" if k in UNITS else k, text]
+                for e, _ in have for k, v in (params.get(e.name) or {}).items() if (text := _number_text(v))]
         if rows:
             blocks.append(Table(["baseline", "parameter", "value"], rows,
                                 caption="Baseline parameters; "
@@ -92,9 +92,8 @@ def _number_text(v) -> str:
         return ""
     if isinstance(v, (int, float)):
         return f"{v:.4g}"
-    if isinstance(v, list) and v and all(_number_text(x) for x in v):
-        return "[" + ", ".join(_number_text(x) for x in v) + "]"
-    return ""
+    items = [_number_text(x) for x in v] if isinstance(v, list) else []
+    return "[" + ", ".join(items) + "]" if items and all(items) else ""
 
 
 def _figure(learned_entry: ManifestEntry, baselines: list[tuple[ManifestEntry, dict | None]],

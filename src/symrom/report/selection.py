@@ -3,7 +3,9 @@
 The selection table (``selection.json``, ``symrom.experiments.select``) holds one
 row per candidate. The report draws all of them (validation score against
 active terms), states the rule and the chosen row, and lists, per encoder and
-latent dimension, the best candidate next to the chosen one.
+latent dimension, the best candidate next to the chosen one. A fine-tuned
+experiment's choice (``finetune_choice.json``: source model x fine-tuning
+method, scored the same way) is listed whole.
 """
 
 from __future__ import annotations
