@@ -97,6 +97,14 @@ def test_unknown_finetune_method_is_refused_before_work(files, tmp_path):
     assert not (tmp_path / "o").exists()
 
 
+def test_a_threshold_with_the_rollout_method_is_refused_before_work(files, tmp_path):
+    model_path, data = files
+    out = tmp_path / "o"
+    one_line_error(runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(out),
+                                       "--method", "rollout", "--threshold", "0.1"]), "threshold", "rollout")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("config", [BASE, TrainConfig(latent_dim=2)], ids=["base_position", "paper"])
 def test_val_is_never_worse_than_the_tolerance(files, config):
     """Whatever the source, the accepted model's val score is at most 5 % above the

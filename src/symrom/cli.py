@@ -419,7 +419,7 @@ def finetune_cmd(
     method: Annotated[str, typer.Option("--method", help="acceleration (towards the source, --prior-weight) or rollout "
                                                          "(the rollout-aware refinement from the source coefficients).")] = "acceleration",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
-    threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold (default: the source's).")] = None,
+    threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
     force: Force = False,
 ) -> None:

@@ -77,6 +77,9 @@ class FineTuneConfig:
             raise ValueError(f"decoder_min_spread must lie in [0, 1), got {self.decoder_min_spread}")
         if self.method not in FINETUNE_METHODS:
             raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
+        if self.method == "rollout" and self.threshold is not None:
+            raise ValueError("threshold applies to method 'acceleration'; method 'rollout' refines the "
+                             "source's active terms and thresholds nothing")
 
 
 def source_spread(model: HybridModel) -> np.ndarray:
