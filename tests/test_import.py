@@ -255,7 +255,7 @@ def test_cli_import(tmp_path, motion):
     out = tmp_path / "real.h5"
     runner = CliRunner()
     r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out),
-                            "--split", "1,1,0", "--motion", "pronk"])
+                            "--split", "1,1,0", "--motion", "pronk", "--no-physics"])
     assert r.exit_code == 0, r.output
     ds = read_dataset(out)
     assert ds.robot == "go1" and ds.source == "hardware" and list(ds.split) == ["train", "val"]
@@ -264,7 +264,7 @@ def test_cli_import(tmp_path, motion):
     before = out.read_bytes()
     r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out)])
     assert r.exit_code != 0 and "--force" in r.output and out.read_bytes() == before
-    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out), "--force"])
+    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out), "--force", "--no-physics"])
     assert r.exit_code == 0, r.output
     assert list(read_dataset(out).split) == ["train", "train"]
 

@@ -54,7 +54,7 @@ def test_a_torque_column_scaled_by_1000_is_refused(tmp_path):
     m = jump(sim_go1(), 1)
     m["tau"][:, TAU_RL_KN] *= 1000
     log = write_plain(tmp_path / "torque.csv", [m])
-    first = int(np.flatnonzero(np.abs(m["tau"][:, TAU_RL_KN]) > 2 * 35.55)[0])
+    first = int(np.flatnonzero(np.abs(m["tau"][:, TAU_RL_KN]) > 1.25 * 35.55)[0])
     one_line_error(_import(log, "--robot", "go1", "--out", tmp_path / "d.h5"),
                    "torque.csv", "jump 0", f"row {first}", f"line {first + 2}", "column 'tau_rl_kn'",
                    "joint torque", "[-44.44, 44.44] N m", "1.25 x motor limit 35.55", "1000 times too large")

@@ -119,12 +119,12 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
         elif r < 0:
             hint = "the velocities have the opposite sign of the positions' change"
         else:
-            hint = (f"the time column is likely scaled: rows {1e3 * step * r:.4g} ms apart logged as "
-                    f"{1e3 * step:.4g} ms (give the true times, or --dt is not the fix), or the velocities "
+            hint = (f"the time column is likely scaled: rows {1e3 * step * r:.3g} ms apart logged as "
+                    f"{1e3 * step:.4g} ms (log the true times; --dt does not fix it), or the velocities "
                     f"are in other units")
         out.append({"check": "time scale", "group": name, "value": r, "low": 1 - limits.scale,
                     "high": 1 + limits.scale, "windows": len(ratios),
-                    "message": (f"{where}, {_rows(0, n)}: the {name} change {r:.4g} times as fast as the "
+                    "message": (f"{where}, {_rows(0, n)}: the {name} change {r:.3g} times as fast as the "
                                 f"logged velocities integrate to (median over {len(ratios)} windows of "
                                 f"{1e3 * limits.window:g} ms); the limit is {1 - limits.scale:g}..{1 + limits.scale:g}: "
                                 f"{hint}")})
@@ -215,9 +215,13 @@ def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: n
     if lo <= r <= hi:
         return []
     stance = np.asarray(contact).any(axis=1)
-    hint = ("a torque column with its sign flipped, or the joints' sign convention is not the robot "
-            "description's" if r < 0 else "the wrong robot (another weight or leg geometry) or torques "
-            "in other units")
+    if r < 0:
+        hint = "the torques have the opposite sign (the joints' convention is not the robot description's)"
+    elif r < lo:
+        hint = ("a torque column with its sign flipped (the knees carry the weight), the wrong robot (a "
+                "heavier one) or torques in other units")
+    else:
+        hint = "the wrong robot (a lighter one) or torques in other units"
     return [{"check": "vertical impulse", "value": r, "low": lo, "high": hi,
              "message": (f"{where}, {_rows(0, t.size)}: the feet push up with {got / span:.4g} N on average "
                          f"(mean over the jump; {float(fz[stance].mean()):.4g} N over its {int(stance.sum())} rows "

@@ -43,8 +43,8 @@ def segment_log(lg, motion: str, min_flight: float = MIN_FLIGHT) -> list[dict]:
     next_id = 0
     for j, (a, b) in enumerate(lg.bounds()):
         t = lg.t[a:b]
-        fl = flights(lg.contact[a:b], t, motion, min_flight)
-        cuts = [0] + [int((fl[i, 1] + fl[i + 1, 0]) // 2) for i in range(len(fl) - 1)] + [b - a]
+        fl = flights(lg.contact[a:b], t, motion, min_flight).astype(int)
+        cuts = [0] + [int((fl[i, 1] + fl[i + 1, 0]) // 2) for i in range(len(fl) - 1)] + [int(b - a)]
         for k, (c0, c1) in enumerate(zip(cuts[:-1], cuts[1:])):
             new_jump[a + c0:a + c1] = next_id + k
             new_t[a + c0:a + c1] = t[c0:c1] - t[c0]
