@@ -119,8 +119,11 @@ def _euler_to_body_rates(rpy: np.ndarray, rates: np.ndarray) -> np.ndarray:
                      -np.sin(r) * dp + np.cos(r) * np.cos(p) * dy], axis=1)
 
 
+ROS_TOPICS = {"joints": "/joint_states", "base": "/odom", "contacts": "/foot_contacts"}
+
+
 def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000_000,
-                 contacts: bool = True, store=None):
+                 contacts: bool = True, store=None, topics: dict | None = None):
     """The jump ``m`` as ROS 2 messages: [(topic, msgtype, stamp_ns, msg)], joints in the URDF's
     names and signs, odometry with its twist in the base frame, contact flags as UInt8MultiArray."""
     from rosbags.typesys import Stores, get_typestore
@@ -139,6 +142,7 @@ def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000
     w_body = _euler_to_body_rates(rpy, m["dq"][:, 15:18])
     Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
     Vec, Pt, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
+    tp = {**ROS_TOPICS, **(topics or {})}
     out = []
     for i, t in enumerate(m["t"]):
         ns = t0_ns + int(round(t * 1e9))
@@ -156,12 +160,12 @@ def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000
                                                angular=Vec(x=w_body[i, 0], y=w_body[i, 1], z=w_body[i, 2])),
             covariance=np.zeros(36))
         odom = T["nav_msgs/msg/Odometry"](header=hdr, child_frame_id="base", pose=pose, twist=twist)
-        out.append(("/joint_states", "sensor_msgs/msg/JointState", ns, js))
-        out.append(("/odom", "nav_msgs/msg/Odometry", ns, odom))
+        out.append((tp["joints"], "sensor_msgs/msg/JointState", ns, js))
+        out.append((tp["base"], "nav_msgs/msg/Odometry", ns, odom))
         if contacts:
             layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
             c = T["std_msgs/msg/UInt8MultiArray"](layout=layout, data=m["contact"][i].astype(np.uint8))
-            out.append(("/foot_contacts", "std_msgs/msg/UInt8MultiArray", ns, c))
+            out.append((tp["contacts"], "std_msgs/msg/UInt8MultiArray", ns, c))
     return out
 
 

@@ -105,6 +105,8 @@ class _Messages:
             conns = [c for c in reader.connections if c.topic in self.by_topic]
             for c in conns:
                 self.types[c.topic] = c.msgtype
+            if not conns:  # an empty list would mean every connection
+                return
             for conn, ns, raw in reader.messages(connections=conns):
                 self._keep(conn.topic, ns, reader.deserialize(raw, conn.msgtype))
 

@@ -44,6 +44,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from scipy.integrate import trapezoid
 from scipy.interpolate import Akima1DInterpolator
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
@@ -102,7 +103,7 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
             if b - a < 3:
                 continue
             change = x[b - 1] - x[a]
-            integral = np.trapezoid(v[a:b], t[a:b], axis=0)
+            integral = trapezoid(v[a:b], t[a:b], axis=0)
             if np.sqrt(np.mean(integral ** 2)) < limits.min_motion:
                 continue
             ratios.append(float(change @ integral / (integral @ integral)))
@@ -207,7 +208,7 @@ def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: n
     fz = ground_reaction_forces(robot, q, tau, contact)[:, :, 2].sum(axis=1)  # (n,) N
     span = float(t[-1] - t[0])
     need = m * G * span + m * float(dq[-1, 14] - dq[0, 14])
-    got = float(np.trapezoid(fz, t))
+    got = float(trapezoid(fz, t))
     if need <= 0:
         return []
     r = got / need

@@ -1,4 +1,4 @@
-"""CSV robot logs -> dataset: the two accepted layouts and the import itself.
+"""Robot logs -> dataset: the two CSV layouts, the kinds of log file, and the import itself.
 
 A log is a delimited text file with one header line and one sample per line.
 The layout is recognised from the header (the delimiter from the header line:
@@ -32,19 +32,33 @@ In both layouts the acceleration columns are optional as a group: present,
 they are used; absent, ``dq`` is differentiated (``savgol`` or ``central``).
 Several files are concatenated as consecutive jumps.
 
+A log may also be a ROS 1 bag, a ROS 2 bag folder or an MCAP file (``log_kind``
+tells them apart by their content): ``bags.read_bag`` reads it into the same
+per-file table (``RawLog``) as a CSV log, so what follows is shared.
+
 The import then, in this order:
 
-1. gives rebased jumps their height back (``restore_height``: a logger that
+1. cuts jumps holding several flights (a continuous recording) into one jump
+   per flight by the motion's phase rule (``segment``; ``segment="off"``
+   keeps them);
+2. reports stale rows (a group of columns repeating the previous row) and,
+   with ``retime``, interpolates them between the fresh rows (``consistency``);
+3. gives rebased jumps their height back (``restore_height``: a logger that
    starts every segment's position at 0);
-2. checks every value against the robot's description (``checks``): the
-   first implausible one is refused in one line naming the file, jump, row,
-   line, column, value and limit, with the likely unit mistake; ``lenient``
-   records them per file instead;
-3. brings every jump to one time base (``timebase``): the period is checked
+4. checks every value against the robot's description (``checks``; the
+   torques as commanded or measured): the first implausible one is refused in
+   one line naming the file, jump, row, line, column, value and limit, with
+   the likely unit mistake; ``lenient`` records them per file instead;
+5. checks each jump against physics (``consistency``: velocities against
+   positions, vertical momentum against the weight, stance feet on the
+   ground), refused or recorded likewise;
+6. brings every jump to one time base (``timebase``): the period is checked
    per jump (median, jitter, gaps), the dataset's ``dt`` is the coarsest
-   jump's median period (or the one given), and jumps off its grid are
-   resampled (or refused);
-4. computes the CoM wrench and the phase labels (``preprocess.assemble``).
+   jump's period (or the one given), and jumps off its grid (to a tolerance in
+   time) are resampled (or refused);
+7. differentiates velocities that came without accelerations over a window
+   set in seconds (``diff_samples``), and computes the CoM wrench and the
+   phase labels (``preprocess.assemble``).
 """
 
 from __future__ import annotations
