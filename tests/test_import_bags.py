@@ -93,3 +93,26 @@ def test_other_topic_names_by_option_and_by_mapping_file(planted, tmp_path):
     np.testing.assert_allclose(read_dataset(tmp_path / "m.h5").q, want.q, rtol=0, atol=1e-12)
     with pytest.raises(ValueError, match="'feet=/x' is not ROLE=/topic"):
         parse_topics("feet=/x")
+
+
+def test_joint_states_in_the_urdf_sign_convention(planted, tmp_path):
+    """The Laikago's FR and RR hip abduction joints turn the other way in its URDF (its
+    description's joint_signs): a bag holds the URDF's angle, symrom the opposite."""
+    from _logs import ros_messages
+
+    _, m, _ = planted
+    msgs = [x for x in ros_messages(m, robot="laikago", contacts=False) if x[0] == "/joint_states"]
+    first = msgs[0][3]
+    fr_hip = list(first.name).index("FR_hip_motor_2_chassis_joint")
+    assert first.position[fr_hip] == -m["q"][0, 0] and first.effort[fr_hip] == -m["tau"][0, 0]
+    lg = read_bag(write_ros1(tmp_path / "laikago.bag", m, robot="laikago"), "laikago")
+    np.testing.assert_array_equal(lg.q[:, :12], m["q"][:, :12])
+    np.testing.assert_array_equal(lg.tau, m["tau"])
+
+
+def test_a_ros2_database_given_alone_names_its_folder(planted, tmp_path):
+    _, m, _ = planted
+    folder = _bag("ros2-sqlite3", tmp_path, m)
+    (db,) = folder.glob("*.db3")
+    one_line_error(_import(db, "--robot", "go1", "--out", tmp_path / "x.h5"),
+                   "the database of a ROS 2 bag; give its folder", str(folder))

@@ -373,8 +373,11 @@ def log_kind(path: str | os.PathLike) -> str:
     if head.startswith(_ROS1_MAGIC):
         return "ros1"
     suffix = path.suffix.lower()
+    if head.startswith(b"SQLite format 3"):
+        raise LogError(f"{path}: the database of a ROS 2 bag; give its folder (the one holding "
+                       f"metadata.yaml), {path.parent}")
     if suffix in (".h5", ".hdf5", ".hdf", ".bag", ".mcap", ".db3"):
-        what = {".bag": "a ROS 1 bag", ".mcap": "an MCAP file", ".db3": "a ROS 2 bag (its folder is read)"}.get(
+        what = {".bag": "a ROS 1 bag", ".mcap": "an MCAP file", ".db3": "a ROS 2 bag database"}.get(
             suffix, "an HDF5 file")
         raise LogError(f"{path}: named like {what} ({suffix}) but its content is not one (it starts "
                        f"{head[:12]!r}); symrom import reads {READS}; if it is a CSV log, name it .csv")
@@ -386,8 +389,9 @@ def read_log(path: str | os.PathLike) -> RawLog:
     path = Path(path)
     if path.is_dir():
         raise LogError(f"{path}: is a directory, expected a CSV file")
-    if log_kind(path) != "csv":
-        raise LogError(f"{path}: not a CSV log ({log_kind(path)}); read it with symrom.data.bags.read_bag")
+    kind = log_kind(path)
+    if kind != "csv":
+        raise LogError(f"{path}: not a CSV log ({kind}); read it with symrom.data.bags.read_bag")
     header, rows, delim = _read_rows(path)
     if not rows:
         raise LogError(f"{path}: no samples after the header")
