@@ -106,3 +106,112 @@ def flight_segment(ds, j: int) -> dict[str, np.ndarray]:
     m["z_true"] = m["q"][:, 14].copy()
     m["q"][:, 12:15] -= m["q"][0, 12:15]
     return m
+
+
+# ----------------------------------------------------------------- bags
+
+def _euler_to_body_rates(rpy: np.ndarray, rates: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw rates (n, 3) -> angular velocity in the base frame (ZYX angles)."""
+    r, p = rpy[:, 0], rpy[:, 1]
+    dr, dp, dy = rates.T
+    return np.stack([dr - np.sin(p) * dy,
+                     np.cos(r) * dp + np.sin(r) * np.cos(p) * dy,
+                     -np.sin(r) * dp + np.cos(r) * np.cos(p) * dy], axis=1)
+
+
+ROS_TOPICS = {"joints": "/joint_states", "base": "/odom", "contacts": "/foot_contacts"}
+
+
+def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000_000,
+                 contacts: bool = True, store=None, topics: dict | None = None):
+    """The jump ``m`` as ROS 2 messages: [(topic, msgtype, stamp_ns, msg)], joints in the URDF's
+    names and signs, odometry with its twist in the base frame, contact flags as UInt8MultiArray."""
+    from rosbags.typesys import Stores, get_typestore
+    from scipy.spatial.transform import Rotation
+
+    from symrom.robots import get_robot
+
+    ts = store or get_typestore(Stores.ROS2_HUMBLE)
+    T = ts.types
+    desc = get_robot(robot)
+    signs = np.asarray(desc.joint_signs, float)
+    rpy = m["q"][:, 15:18]
+    R = Rotation.from_euler("xyz", rpy)  # extrinsic x, y, z = R_z R_y R_x
+    quat = R.as_quat()  # x y z w
+    v_body = R.inv().apply(m["dq"][:, 12:15])
+    w_body = _euler_to_body_rates(rpy, m["dq"][:, 15:18])
+    Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
+    Vec, Pt, Q = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
+    tp = {**ROS_TOPICS, **(topics or {})}
+    out = []
+    for i, t in enumerate(m["t"]):
+        ns = t0_ns + int(round(t * 1e9))
+        hdr = Header(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id="")
+        js = T["sensor_msgs/msg/JointState"](
+            header=hdr, name=list(desc.joint_names)[::-1],  # any order: matched by name
+            position=(m["q"][i, :12] / signs)[::-1].copy(), velocity=(m["dq"][i, :12] / signs)[::-1].copy(),
+            effort=(m["tau"][i] / signs)[::-1].copy())
+        pose = T["geometry_msgs/msg/PoseWithCovariance"](
+            pose=T["geometry_msgs/msg/Pose"](position=Pt(x=m["q"][i, 12], y=m["q"][i, 13], z=m["q"][i, 14]),
+                                             orientation=Q(x=quat[i, 0], y=quat[i, 1], z=quat[i, 2], w=quat[i, 3])),
+            covariance=np.zeros(36))
+        twist = T["geometry_msgs/msg/TwistWithCovariance"](
+            twist=T["geometry_msgs/msg/Twist"](linear=Vec(x=v_body[i, 0], y=v_body[i, 1], z=v_body[i, 2]),
+                                               angular=Vec(x=w_body[i, 0], y=w_body[i, 1], z=w_body[i, 2])),
+            covariance=np.zeros(36))
+        odom = T["nav_msgs/msg/Odometry"](header=hdr, child_frame_id="base", pose=pose, twist=twist)
+        out.append((tp["joints"], "sensor_msgs/msg/JointState", ns, js))
+        out.append((tp["base"], "nav_msgs/msg/Odometry", ns, odom))
+        if contacts:
+            layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+            c = T["std_msgs/msg/UInt8MultiArray"](layout=layout, data=m["contact"][i].astype(np.uint8))
+            out.append((tp["contacts"], "std_msgs/msg/UInt8MultiArray", ns, c))
+    return out
+
+
+def write_ros1(path: Path, m: dict, **kw) -> Path:
+    """The jump as a ROS 1 bag."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS1_NOETIC)
+    msgs = ros_messages(m, store=get_typestore(Stores.ROS2_HUMBLE), **kw)
+    with Writer(path) as w:
+        conns = {}
+        for topic, typ, ns, msg in msgs:
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, typ, typestore=ts)
+            w.write(conns[topic], ns, ts.serialize_ros1(_to_store(msg, ts), typ))
+    return path
+
+
+def _to_store(msg, ts):
+    """A ROS 2 message rebuilt with another typestore's classes (ROS 1 headers hold a seq)."""
+    import dataclasses
+
+    cls = ts.types[msg.__msgtype__]
+    kw = {}
+    for f in dataclasses.fields(cls):
+        if f.name == "seq":
+            kw[f.name] = 0
+            continue
+        v = getattr(msg, f.name)
+        kw[f.name] = _to_store(v, ts) if hasattr(v, "__msgtype__") else (
+            [_to_store(x, ts) for x in v] if isinstance(v, list) and v and hasattr(v[0], "__msgtype__") else v)
+    return cls(**kw)
+
+
+def write_ros2(path: Path, m: dict, storage: str = "sqlite3", **kw) -> Path:
+    """The jump as a ROS 2 bag folder (sqlite3 or mcap storage)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    ts = get_typestore(Stores.ROS2_HUMBLE)
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as w:
+        conns = {}
+        for topic, typ, ns, msg in ros_messages(m, store=ts, **kw):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, typ, typestore=ts)
+            w.write(conns[topic], ns, ts.serialize_cdr(msg, typ))
+    return path

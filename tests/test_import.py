@@ -10,10 +10,17 @@ import pytest
 from typer.testing import CliRunner
 
 from symrom.cli import app
-from symrom.data.importers import LogError, import_logs, parse_split, read_log, write_plain_csv
+from functools import partial
+
+from symrom.data.importers import LogError, parse_split, read_log, write_plain_csv
+from symrom.data.importers import import_logs as _import_logs
 from symrom.data.io import read_dataset
 from symrom.data.preprocess import com_wrench, differentiate
 from symrom.testing import make_planted_dataset
+
+# The planted motions here test the layouts, not physics: their torques are arbitrary, so
+# the physical-consistency checks (tests/test_import_physics.py) are left out.
+import_logs = partial(_import_logs, physics=None)
 
 N_PER_JUMP = 60
 DT = 0.002
@@ -248,7 +255,7 @@ def test_cli_import(tmp_path, motion):
     out = tmp_path / "real.h5"
     runner = CliRunner()
     r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out),
-                            "--split", "1,1,0", "--motion", "pronk"])
+                            "--split", "1,1,0", "--motion", "pronk", "--no-physics"])
     assert r.exit_code == 0, r.output
     ds = read_dataset(out)
     assert ds.robot == "go1" and ds.source == "hardware" and list(ds.split) == ["train", "val"]
@@ -257,7 +264,7 @@ def test_cli_import(tmp_path, motion):
     before = out.read_bytes()
     r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out)])
     assert r.exit_code != 0 and "--force" in r.output and out.read_bytes() == before
-    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out), "--force"])
+    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out), "--force", "--no-physics"])
     assert r.exit_code == 0, r.output
     assert list(read_dataset(out).split) == ["train", "train"]
 
@@ -304,3 +311,43 @@ def test_plain_jump_column_must_be_contiguous(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(LogError, match="line 7, column 'jump': jump 0 continues after another jump"):
         read_log(path)
+
+
+# ----------------------------------------------------------------- front door
+
+@pytest.mark.parametrize("text", ["symrom dataset\n", "t,fr_hx\n0,0.1\n"])
+def test_a_text_file_named_h5_is_named_as_such(tmp_path, text):
+    path = tmp_path / "jumps.h5"
+    path.write_text(text)
+    out = tmp_path / "out.h5"
+    r = CliRunner().invoke(app, ["import", str(path), "--robot", "go1", "--out", str(out)])
+    assert r.exit_code != 0 and "Traceback" not in r.output
+    line = " ".join(r.output.split())
+    assert "jumps.h5: named like an HDF5 file (.h5) but its content is not one" in line
+    assert "CSV logs" in line and "name it .csv" in line and "no samples" not in line
+    assert not out.exists()
+
+
+def test_an_hdf5_dataset_given_as_a_log_is_named(tmp_path):
+    ds = plausible(make_planted_dataset(n_jumps=2, n_samples=30, seed=2)[0])
+    from symrom.data.io import write_dataset
+
+    write_dataset(import_logs([_export(ds, tmp_path / "p.csv")], robot="go1"), tmp_path / "d.h5")
+    with pytest.raises(LogError, match=r"d\.h5: an HDF5 file \(a symrom dataset\?\), not a log"):
+        import_logs([tmp_path / "d.h5"], robot="go1")
+
+
+def test_fractions_that_leave_a_split_empty_are_refused(tmp_path):
+    ds = plausible(make_planted_dataset(n_jumps=5, n_samples=30, seed=2)[0])
+    log = _export(ds, tmp_path / "five.csv")
+    out = tmp_path / "out.h5"
+    r = CliRunner().invoke(app, ["import", str(log), "--robot", "go1", "--out", str(out), "--no-physics",
+                                 "--split", "0.8,0.1,0.1"])
+    assert r.exit_code != 0 and len(r.output.strip().splitlines()) >= 1 and "Traceback" not in r.output
+    line = " ".join(r.output.split())
+    for needle in ("--split '0.8,0.1,0.1'", "5 jumps divide as 4 train, 1 val, 0 test", "test split is empty",
+                   "e.g. 3,1,1"):
+        assert needle in line, (needle, line)
+    assert not out.exists()
+    assert list(parse_split("0.6,0.2,0.2", 5)) == ["train"] * 3 + ["val", "test"]  # every split used: fine
+    assert list(parse_split("1,0,0", 5)) == ["train"] * 5  # a split asked for as 0 stays empty

@@ -120,35 +120,75 @@ def _parse_resets(reset: list[float] | None) -> tuple[float | None, ...]:
     return (None, *sorted(set(reset or [0.1])))
 
 
-@app.command("import", cls=_Command)
+_IMPORT_HELP = """Import robot logs into a checked dataset file.
+
+LOGS: CSV files (Go1 hardware or plain layout), ROS 1 bags, ROS 2 bag
+folders (sqlite3 or mcap storage) or MCAP files; the kind is read from
+the content. Several files are consecutive jumps.
+
+\b
+CSV plain layout, SI units: jump (optional), t (s), fr_hx ... rl_kn,
+  x y z (m), roll pitch yaw (rad, ZYX), d_<name>, dd_<name> (optional),
+  tau_<joint> (N m), c_fr c_fl c_rr c_rl (0/1).
+CSV hardware layout: Time; <leg>.<joint> Position|Velocity|
+  Acceleration|Torque; Body linear|angular Position|Velocity|
+  Acceleration x|y|z; <leg> Foot.
+Bags (--topics or --mapping change the topics):
+  joints=/joint_states: sensor_msgs/msg/JointState, matched by the
+    URDF joint names, URDF sign convention;
+  base=/odom: nav_msgs/msg/Odometry, pose in the world frame,
+    twist in the base frame (ROS convention);
+  contacts=/foot_contacts (optional): 4 values FR FL RR RL in data;
+    without it, from the legs' vertical forces and foot heights.
+
+Every log is checked against the robot (ranges; torque limits by
+--torques) and against physics (velocities vs positions, stale rows,
+vertical momentum vs weight, stance feet on the ground). A recording
+holding several flights is cut into one jump per flight.
+Details: docs/import.md."""
+
+
+@app.command("import", cls=_Command, help=_IMPORT_HELP)
 @guarded
 def import_cmd(
-    logs: Annotated[list[Path], typer.Argument(help="CSV log file(s); several are concatenated as consecutive jumps.")],
+    logs: Annotated[list[Path], typer.Argument(help="Log files: CSV, ROS 1 bag, ROS 2 bag folder or MCAP; several are concatenated as consecutive jumps.")],
     robot: Annotated[str, typer.Option("--robot", help="Robot of the logs: go1, a1 or a robot description file (.toml); its URDF gives the wrench.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy): its registry entry sets the phase rule.")] = "pronk",
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
-    split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1); default all train.")] = None,
+    split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of the jumps after segmentation; default all train.")] = None,
     diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
-    lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values per file instead of refusing the import.")] = False,
-    dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's median period); other jumps are resampled.")] = None,
+    diff_window: Annotated[float, typer.Option("--diff-window", help="Differentiation (savgol) window, s: 0.018 is 9 samples at 500 Hz, 19 at 1 kHz.")] = 0.018,
+    lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values and failed physical checks per file instead of refusing the import.")] = False,
+    torques: Annotated[str, typer.Option("--torques", help="measured or commanded: what the torque columns hold (commanded ones must stay within the motor limit; measured ones within 1.25 x it); stored in the dataset.")] = "measured",
+    physics: Annotated[bool, typer.Option("--physics/--no-physics", help="Check the logs against physics (time scale, vertical momentum, stance foot height).")] = True,
+    segment: Annotated[str, typer.Option("--segment", help="auto: cut a jump holding several flights into one jump per flight; off: keep jumps as logged.")] = "auto",
+    retime_stale: Annotated[bool, typer.Option("--retime-stale", help="Replace stale (repeated) rows by interpolation between the fresh rows, each kept at its own time.")] = False,
+    topics: Annotated[Optional[str], typer.Option("--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
+    mapping: Annotated[Optional[Path], typer.Option("--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
+    dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's period); other jumps are resampled.")] = None,
     max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
     no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
     positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     force: Force = False,
 ) -> None:
-    """Import CSV robot logs (Go1 hardware layout or plain layout) into a checked dataset file."""
     from symrom.atomic import check_output_file
+    from symrom.data.bags import load_mapping, parse_topics
+    from symrom.data.checks import PlausibilityLimits
+    from symrom.data.consistency import ConsistencyLimits
     from symrom.data.importers import import_logs
     from symrom.data.io import write_dataset
     from symrom.data.timebase import TimeBase
 
     check_output_file(out, force, inputs=tuple(logs))
     time_base = TimeBase(dt=dt, max_gap=max_gap, resample=not no_resample)
+    by_role = {**(load_mapping(mapping) if mapping else {}), **parse_topics(topics)}
     with console.status(f"importing {len(logs)} log file(s)"):
         ds = import_logs([str(p) for p in logs], robot=robot, motion=motion, source=source,
                          split=split, diff_method=diff, lenient=lenient, time_base=time_base,
-                         positions=positions)
+                         positions=positions, limits=PlausibilityLimits(torques=torques),
+                         physics=ConsistencyLimits() if physics else None, segment=segment,
+                         retime=retime_stale, diff_window=diff_window, topics=by_role or None)
         write_dataset(ds, out)
     _import_report(ds)
     counts = ", ".join(f"{s} {int((ds.split == s).sum())}" for s in ("train", "val", "test"))
@@ -181,6 +221,24 @@ def _import_report(ds) -> None:
                               f"({pr['limit']}), worst {pr['worst']:.6g}"
                               + (f"; it looks like {pr['hint']}" if pr["hint"] else ""),
                               highlight=False, soft_wrap=True)
+    for f in g.get("files", []):
+        if f.get("topics"):
+            tp = f["topics"]
+            console.print(f"{f['name']}: {f['layout']}, joints {tp['joints']}, base {tp['base']}, contacts "
+                          f"{tp['contacts']}", highlight=False, soft_wrap=True)
+        for pr in f.get("consistency") or []:
+            console.print(f"{warn} kept as logged (--lenient): {pr['message']}", highlight=False, soft_wrap=True)
+        for st in f.get("stale") or []:
+            done = (f"; {st['retimed']} re-timed by interpolation between the fresh rows" if "retimed" in st
+                    else "; --retime-stale interpolates them between the fresh rows")
+            console.print(f"{warn} stale rows: {st['message']}{done}", highlight=False, soft_wrap=True)
+    for sg in g.get("segments") or []:
+        console.print(f"segments: {sg['file']} jump {sg['jump']} holds {len(sg['segments'])} flights, cut into "
+                      f"{len(sg['segments'])} jumps: " + ", ".join(
+                          f"t {x['t'][0]:.3f}-{x['t'][1]:.3f} s (flight {x['flight'][0]:.3f}-{x['flight'][1]:.3f} s)"
+                          for x in sg["segments"]), highlight=False, soft_wrap=True)
+    if g.get("torques"):
+        console.print(f"torques: {g['torques']}", highlight=False, soft_wrap=True)
     rebased = g.get("rebased") or []
     if rebased:
         offsets = [r["z_offset"] for r in rebased]

@@ -1,4 +1,4 @@
-"""CSV robot logs -> dataset: the two accepted layouts and the import itself.
+"""Robot logs -> dataset: the two CSV layouts, the kinds of log file, and the import itself.
 
 A log is a delimited text file with one header line and one sample per line.
 The layout is recognised from the header (the delimiter from the header line:
@@ -32,19 +32,33 @@ In both layouts the acceleration columns are optional as a group: present,
 they are used; absent, ``dq`` is differentiated (``savgol`` or ``central``).
 Several files are concatenated as consecutive jumps.
 
+A log may also be a ROS 1 bag, a ROS 2 bag folder or an MCAP file (``log_kind``
+tells them apart by their content): ``bags.read_bag`` reads it into the same
+per-file table (``RawLog``) as a CSV log, so what follows is shared.
+
 The import then, in this order:
 
-1. gives rebased jumps their height back (``restore_height``: a logger that
+1. cuts jumps holding several flights (a continuous recording) into one jump
+   per flight by the motion's phase rule (``segment``; ``segment="off"``
+   keeps them);
+2. reports stale rows (a group of columns repeating the previous row) and,
+   with ``retime``, interpolates them between the fresh rows (``consistency``);
+3. gives rebased jumps their height back (``restore_height``: a logger that
    starts every segment's position at 0);
-2. checks every value against the robot's description (``checks``): the
-   first implausible one is refused in one line naming the file, jump, row,
-   line, column, value and limit, with the likely unit mistake; ``lenient``
-   records them per file instead;
-3. brings every jump to one time base (``timebase``): the period is checked
+4. checks every value against the robot's description (``checks``; the
+   torques as commanded or measured): the first implausible one is refused in
+   one line naming the file, jump, row, line, column, value and limit, with
+   the likely unit mistake; ``lenient`` records them per file instead;
+5. checks each jump against physics (``consistency``: velocities against
+   positions, vertical momentum against the weight, stance feet on the
+   ground), refused or recorded likewise;
+6. brings every jump to one time base (``timebase``): the period is checked
    per jump (median, jitter, gaps), the dataset's ``dt`` is the coarsest
-   jump's median period (or the one given), and jumps off its grid are
-   resampled (or refused);
-4. computes the CoM wrench and the phase labels (``preprocess.assemble``).
+   jump's period (or the one given), and jumps off its grid (to a tolerance in
+   time) are resampled (or refused);
+7. differentiates velocities that came without accelerations over a window
+   set in seconds (``diff_samples``), and computes the CoM wrench and the
+   phase labels (``preprocess.assemble``).
 """
 
 from __future__ import annotations
@@ -59,8 +73,11 @@ from pathlib import Path
 import numpy as np
 
 from symrom.data.checks import PlausibilityLimits, check_samples
+from symrom.data.consistency import (ConsistencyLimits, foot_height, retime_stale, stale_rows, time_scale,
+                                     vertical_impulse)
 from symrom.data.dataset import Dataset, jump_bounds
-from symrom.data.preprocess import DIFF_METHODS, assemble, differentiate
+from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
+from symrom.data.segment import SEGMENT, segment_log
 from symrom.data.timebase import METHOD as TIMEBASE_METHOD
 from symrom.data.timebase import TimeBase, TimeBaseError, check_gaps, choose_dt, jump_timing, on_grid, resample_jump
 from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
@@ -197,8 +214,9 @@ class RawLog:
     ``jump`` (n,) local jump ids 0..k-1; ``t`` (n,) s since the jump's first
     sample; ``q``, ``dq`` (n, 18); ``ddq`` (n, 18) or None if not logged;
     ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8; ``lines`` (n,) the file's
-    line of each sample; ``columns``: the header's name of each field's
-    columns (``q``, ``dq``, ``tau``), for messages.
+    line of each sample (None for a bag: rows are counted); ``columns``: the
+    header's name of each field's columns (``q``, ``dq``, ``tau``), for messages;
+    ``topics``: a bag's topic of each role.
     """
 
     path: Path
@@ -213,6 +231,7 @@ class RawLog:
     contact: np.ndarray
     lines: np.ndarray | None = None
     columns: dict[str, tuple[str, ...]] | None = None
+    topics: dict[str, str] | None = None
 
     @property
     def n_jumps(self) -> int:
@@ -324,11 +343,55 @@ def _jumps_from_column(path: Path, ids: np.ndarray, t: np.ndarray, lines: list[i
     return local
 
 
+_HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+_MCAP_MAGIC = b"\x89MCAP0\r\n"
+_ROS1_MAGIC = b"#ROSBAG V2.0"
+READS = "CSV logs (text), ROS 1 bags (.bag), ROS 2 bag folders (metadata.yaml) and MCAP files (.mcap)"
+
+
+def log_kind(path: str | os.PathLike) -> str:
+    """What a log file is, from its content (not its name): ``csv``, ``ros1``, ``ros2`` (a bag
+    folder) or ``mcap``. LogError naming the file for anything else (an HDF5 file, a text file
+    named like one, a folder without a ROS 2 bag)."""
+    path = Path(path)
+    if path.is_dir():
+        if (path / "metadata.yaml").is_file():
+            return "ros2"
+        raise LogError(f"{path}: is a directory without a metadata.yaml, so not a ROS 2 bag; "
+                       f"symrom import reads {READS}")
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+    except FileNotFoundError:
+        raise LogError(f"{path}: no such file") from None
+    except OSError as e:
+        raise LogError(f"{path}: cannot read ({e.strerror or e})") from None
+    if head.startswith(_HDF5_MAGIC):
+        raise LogError(f"{path}: an HDF5 file (a symrom dataset?), not a log; symrom import reads {READS}")
+    if head.startswith(_MCAP_MAGIC):
+        return "mcap"
+    if head.startswith(_ROS1_MAGIC):
+        return "ros1"
+    suffix = path.suffix.lower()
+    if head.startswith(b"SQLite format 3"):
+        raise LogError(f"{path}: the database of a ROS 2 bag; give its folder (the one holding "
+                       f"metadata.yaml), {path.parent}")
+    if suffix in (".h5", ".hdf5", ".hdf", ".bag", ".mcap", ".db3"):
+        what = {".bag": "a ROS 1 bag", ".mcap": "an MCAP file", ".db3": "a ROS 2 bag database"}.get(
+            suffix, "an HDF5 file")
+        raise LogError(f"{path}: named like {what} ({suffix}) but its content is not one (it starts "
+                       f"{head[:12]!r}); symrom import reads {READS}; if it is a CSV log, name it .csv")
+    return "csv"
+
+
 def read_log(path: str | os.PathLike) -> RawLog:
     """Read one CSV log (either layout, see the module docstring) into a ``RawLog``."""
     path = Path(path)
     if path.is_dir():
         raise LogError(f"{path}: is a directory, expected a CSV file")
+    kind = log_kind(path)
+    if kind != "csv":
+        raise LogError(f"{path}: not a CSV log ({kind}); read it with symrom.data.bags.read_bag")
     header, rows, delim = _read_rows(path)
     if not rows:
         raise LogError(f"{path}: no samples after the header")
@@ -391,12 +454,26 @@ def parse_split(spec: str | None, n_jumps: int) -> np.ndarray:
             if sum(counts) >= n_jumps:
                 break
             counts[k] += 1
+        empty = [s for s, v, c in zip(SPLITS, vals, counts) if v > 0 and c == 0]
+        if empty:  # a split asked for but left without a jump: the evaluation would silently skip it
+            got = ", ".join(f"{c} {s}" for s, c in zip(SPLITS, counts))
+            raise ValueError(f"--split {spec!r}: {n_jumps} jumps divide as {got}: the {' and '.join(empty)} "
+                             f"split{'s are' if len(empty) > 1 else ' is'} empty though asked for; give counts "
+                             f"that add up to {n_jumps} (e.g. {_example_counts(n_jumps)}) or import more jumps")
     elif whole:
         raise ValueError(f"--split {spec!r}: the counts add up to {int(sum(vals))} jumps, "
                          f"the logs hold {n_jumps}")
     else:
         raise ValueError(f"--split {spec!r}: fractions must add up to 1 (they add up to {sum(vals):g})")
     return np.array([s for s, c in zip(SPLITS, counts) for _ in range(c)], dtype=object)
+
+
+def _example_counts(n: int) -> str:
+    """A train,val,test count example for n jumps with every split used (if n >= 3)."""
+    if n < 3:
+        return f"{n},0,0"
+    v = t = max(1, round(0.1 * n))
+    return f"{n - v - t},{v},{t}"
 
 
 def sample_period(t: np.ndarray, jump: np.ndarray) -> float:
@@ -472,11 +549,45 @@ def plausibility(lg: RawLog, robot: str, limits: PlausibilityLimits) -> list[dic
     return out
 
 
-def _refuse(problems: list[dict]) -> None:
+def _refuse(problems: list[dict], what: str = "column") -> None:
     first = problems[0]
     more = len(problems) - 1
-    tail = f" ({more} more column{'s' if more > 1 else ''} fail; --lenient lists them all)" if more else ""
+    tail = (f" ({more} more {what}{'s' if more > 1 else ''} fail; --lenient lists them all)" if more else "")
     raise LogError(first["message"] + tail)
+
+
+def consistency(lg: RawLog, robot: str, limits: ConsistencyLimits, rebased: set[int]) -> list[dict]:
+    """The physical-consistency problems of one log, per jump (``consistency``): time scale,
+    vertical momentum, and (jumps not rebased) the height of the feet in contact."""
+    out = []
+    for j, (a, b) in enumerate(lg.bounds()):
+        where = f"{lg.path}, jump {j}"
+        t, q, dq, tau, c = lg.t[a:b], lg.q[a:b], lg.dq[a:b], lg.tau[a:b], lg.contact[a:b]
+        probs = time_scale(where, t, q, dq, limits)
+        probs += vertical_impulse(where, robot, t, q, dq, tau, c, limits)
+        if j not in rebased:
+            probs += foot_height(where, robot, q, c, limits)
+        out += [{**p, "jump": j} for p in probs]
+    return out
+
+
+def diff_samples(window: float, dt: float) -> int:
+    """The odd number of samples nearest to ``window`` / ``dt`` (halves up), at least 3:
+    the differentiation window of ``window`` s at the period ``dt`` s (18 ms: 9 at 500 Hz,
+    19 at 1 kHz)."""
+    if not (math.isfinite(window) and window > 0):
+        raise ValueError(f"--diff-window {window}: must be a positive number of seconds")
+    return max(3, 2 * math.floor((window / dt - 1) / 2 + 0.5) + 1)
+
+
+def read_source(path: str | os.PathLike, robot: str, topics: dict[str, str] | None = None) -> RawLog:
+    """Any log symrom reads (``log_kind``): a CSV log, a ROS 1 or ROS 2 bag, an MCAP file."""
+    kind = log_kind(path)
+    if kind == "csv":
+        return read_log(path)
+    from symrom.data.bags import read_bag
+
+    return read_bag(path, robot, topics)
 
 
 # ----------------------------------------------------------------- import
@@ -485,21 +596,33 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 source: str = "hardware", split: str | None = None,
                 diff_method: str = "savgol", lenient: bool = False,
                 limits: PlausibilityLimits = PlausibilityLimits(),
-                time_base: TimeBase = TimeBase(), positions: str = "auto") -> Dataset:
-    """Read CSV logs (concatenated as consecutive jumps) into a checked, validated dataset.
+                time_base: TimeBase = TimeBase(), positions: str = "auto",
+                physics: ConsistencyLimits | None = ConsistencyLimits(), segment: str = "auto",
+                retime: bool = False, diff_window: float = DIFF_WINDOW,
+                topics: dict[str, str] | None = None) -> Dataset:
+    """Read logs (CSV, ROS 1/2 bags, MCAP; concatenated as consecutive jumps) into a checked,
+    validated dataset.
 
     robot: a built-in name or a robot description file (the wrench uses its URDF,
     the checks its limits); motion: a registered motion, whose phase rule labels
-    the samples (``pronk``, ``froggy``); split: see ``parse_split``; diff_method:
-    ``savgol`` or ``central``, used where a log has no acceleration columns.
+    the samples (``pronk``, ``froggy``) and cuts continuous recordings; split: see
+    ``parse_split`` (applied to the jumps after segmentation); diff_method:
+    ``savgol`` or ``central``, used where a log has no acceleration columns, over
+    ``diff_window`` s (``diff_samples``).
 
-    Every log is checked against the robot (``checks.check_samples``): the first
-    implausible value raises ``LogError`` naming the file, jump, row, line, column,
-    value and limit (and a likely unit mistake); ``lenient`` keeps the values as
-    logged and records every problem in ``generator["files"][i]["checks"]``.
+    Every log is checked against the robot (``checks.check_samples``; ``limits.torques``
+    says whether its torques are commanded or measured) and against physics
+    (``consistency``, with ``physics``; None skips it): the first problem raises
+    ``LogError`` naming the file, jump, rows, the figure and the limit; ``lenient``
+    keeps the values as logged and records every problem in
+    ``generator["files"][i]["checks"]`` and ``["consistency"]``.
+    segment: ``auto`` cuts a jump holding several flights (``segment.segment_log``),
+    ``off`` keeps jumps as logged. Stale rows are reported per file; ``retime``
+    replaces them by interpolation between the fresh rows (``consistency.retime_stale``).
     positions: ``auto``, ``absolute`` or ``rebased`` (``restore_height``).
     time_base: the dataset's sample period and how jumps at other rates are brought
     to it (``timebase``); what was done per jump is in ``generator["time_base"]``.
+    topics: bag topics by role (``bags.DEFAULT_TOPICS``).
     """
     robot = get_robot(robot).key
     get_motion(motion)
@@ -507,21 +630,43 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
         raise ValueError(f"unknown differentiation method {diff_method!r}; choose from {DIFF_METHODS}")
     if positions not in POSITIONS:
         raise ValueError(f"--positions {positions!r}: choose from {', '.join(POSITIONS)}")
+    if segment not in SEGMENT:
+        raise ValueError(f"--segment {segment!r}: choose from {', '.join(SEGMENT)}")
+    diff_samples(diff_window, DEFAULT_DT)  # refuse a bad window before any work
     if not paths:
         raise ValueError("no log files given")
-    logs = [read_log(p) for p in paths]
+    logs = [read_source(p, robot, topics) for p in paths]
+    segments = []
+    if segment == "auto":
+        for lg in logs:
+            segments += segment_log(lg, motion)
     n_jumps = sum(lg.n_jumps for lg in logs)
     splits = parse_split(split, n_jumps)
 
-    restored, checks = [], []
+    restored, checks, physical, stale = [], [], [], []
     for lg in logs:
-        restored += restore_height(lg, robot, positions)
+        per_file = []
+        for j, (a, b) in enumerate(lg.bounds()):
+            found = stale_rows(f"{lg.path}, jump {j}", j, lg.q[a:b], lg.dq[a:b], lg.tau[a:b])
+            if found and retime:
+                done = retime_stale(lg.t[a:b], lg.q[a:b], lg.dq[a:b], lg.tau[a:b])
+                for x in found:
+                    x["retimed"] = done.get(x["group"], 0)
+            per_file += found
+        stale.append(per_file)
+        back = restore_height(lg, robot, positions)
+        restored += back
         problems = plausibility(lg, robot, limits)
         if problems and not lenient:
             _refuse(problems)
         checks.append(problems)
+        found = [] if physics is None else consistency(lg, robot, physics, {r["jump"] for r in back})
+        if found and not lenient:
+            _refuse(found, "check")
+        physical.append(found)
 
-    timings = [[jump_timing(str(lg.path), j, lg.t[a:b], list(lg.lines[a:b]), time_base)
+    timings = [[jump_timing(str(lg.path), j, lg.t[a:b], list(lg.lines[a:b]) if lg.lines is not None
+                            else list(range(a, b)), time_base)
                 for j, (a, b) in enumerate(lg.bounds())] for lg in logs]
     flat = [x for per_file in timings for x in per_file]
     for x in flat:
@@ -535,7 +680,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
             t = lg.t[a:b]
             signals = {"q": lg.q[a:b], "dq": lg.dq[a:b], "tau": lg.tau[a:b],
                        "ddq": None if lg.ddq is None else lg.ddq[a:b]}
-            if on_grid(t, dt):
+            if on_grid(t, dt, time_base.grid_tol):
                 timing.stored = "as logged"
                 t_new, sig, contact = np.arange(t.size) * dt, signals, lg.contact[a:b]
             elif not time_base.resample:
@@ -559,29 +704,34 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     t = np.concatenate(parts["t"])
     q, dq, tau = (np.concatenate(parts[k]) for k in ("q", "dq", "tau"))
     contact = np.concatenate(parts["contact"]).astype(np.uint8)
-    ddq = None
-    if any(x is not None for x in parts["ddq"]):
-        ddq = differentiate(dq, dt, jump, diff_method)  # where a log has none
-        row = 0
-        for x, n in zip(parts["ddq"], (p.size for p in parts["t"])):
-            if x is not None:
-                ddq[row:row + n] = x
-            row += n
+    window = diff_samples(diff_window, dt)
+    ddq = differentiate(dq, dt, jump, diff_method, window=window)  # where a log has none
+    row = 0
+    for x, n in zip(parts["ddq"], (p.size for p in parts["t"])):
+        if x is not None:
+            ddq[row:row + n] = x
+        row += n
+    how = f"differentiated dq ({diff_method}, {diff_window:g} s: {window} samples)"
     generator = {
         "kind": "import",
         "files": [{"name": lg.path.name, "path": str(lg.path), "sha256": lg.sha256,
                    "layout": lg.layout, "rows": int(len(lg.t)), "jumps": lg.n_jumps,
-                   "ddq": "logged" if lg.ddq is not None else f"differentiated dq ({diff_method})",
-                   "checks": probs}
-                  for lg, probs in zip(logs, checks)],
+                   "ddq": "logged" if lg.ddq is not None else how,
+                   "checks": probs, "consistency": phys, "stale": st,
+                   **({"topics": lg.topics} if lg.topics else {})}
+                  for lg, probs, phys, st in zip(logs, checks, physical, stale)],
         "options": {"robot": robot, "motion": motion, "source": source, "split": split,
-                    "diff": diff_method, "lenient": lenient, "positions": positions,
-                    "limits": limits.to_dict(), "time_base": asdict(time_base)},
+                    "diff": diff_method, "diff_window": diff_window, "lenient": lenient,
+                    "positions": positions, "limits": limits.to_dict(), "time_base": asdict(time_base),
+                    "physics": None if physics is None else physics.to_dict(), "segment": segment,
+                    "retime": retime, **({"topics": topics} if topics else {})},
+        "torques": limits.torques,
         "dt": dt,
         "time_base": {"dt": dt, "rule": "given (--dt)" if time_base.dt is not None
-                      else "the coarsest jump's median period", "method": TIMEBASE_METHOD,
+                      else "the coarsest jump's period", "method": TIMEBASE_METHOD,
                       "jumps": [x.to_dict() for x in flat]},
         "rebased": restored,
+        "segments": segments,
     }
     return assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
                     tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,

@@ -21,6 +21,7 @@ from symrom.robots import leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 
 DIFF_METHODS = ("savgol", "central")
+DIFF_WINDOW = 0.018  # s: the Savitzky-Golay window, 9 samples at 500 Hz (importers.diff_samples)
 
 
 def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "savgol",

@@ -12,10 +12,15 @@ steps longer than 1.5 median steps (samples missing). Gaps longer than
 time.
 
 The dataset's ``dt`` is ``TimeBase.dt`` if given, else the coarsest jump's
-median period (so no jump is upsampled by default). A jump whose every
-sample already lies on its grid (to ``ON_GRID`` of a step) is stored as
-logged, with ``t`` set to ``k dt``: importing it alone or beside files at
-other rates gives the same arrays. Any other jump is resampled at
+period (so no jump is upsampled by default). A jump's period is its median
+step; for a jump logged evenly (every step within ``EVEN`` of the median) it is
+its mean step (an uneven one: its median step at 6 significant digits), the
+mean taken at 6 significant digits (0.002, not 0.0019999999) only
+where every sample stays within ``TimeBase.grid_tol`` seconds of that grid:
+a file on its grid is never pushed off it by rounding. A jump whose every
+sample lies on the dataset's grid (to ``grid_tol`` s) is stored as logged,
+with ``t`` set to ``k dt``: importing it alone or beside files at other rates
+gives the same arrays. Any other jump is resampled at
 ``t = 0, dt, 2 dt ...`` up to its last logged time (``resample_jump``):
 
 - positions, velocities, logged accelerations and torques by modified Akima
@@ -46,6 +51,7 @@ from symrom.data.dataset import ON_GRID  # a sample within this fraction of a st
 from symrom.names import BASE_RPY
 
 GAP = 1.5  # a step longer than this many median steps is a gap (samples missing)
+EVEN = 1e-3  # a jump whose steps all lie within this fraction of its median is logged evenly
 METHOD = ("modified Akima interpolation (scipy.interpolate.Akima1DInterpolator, method='makima') of "
           "q, dq, logged ddq and tau, base angles unwrapped; contact flags by the nearest sample; "
           "phases labelled from the resampled flags; ddq not logged: differentiated after resampling")
@@ -61,25 +67,31 @@ class TimeBase:
     jitter: a step off the jump's median by more than this fraction is reported as
     jitter; max_gap: s, the longest gap (missing samples) bridged by interpolation,
     longer ones are refused; resample: False refuses any jump off the grid instead of
-    resampling it."""
+    resampling it; grid_tol: s, a sample this close to k dt is on the grid (1 us: the
+    resolution of a time column written to 6 decimals; stored datasets hold t = k dt to
+    ``dataset.ON_GRID`` dt, which this must not exceed at any rate the import accepts)."""
 
     dt: float | None = None
     jitter: float = 0.1
     max_gap: float = 0.01
     resample: bool = True
+    grid_tol: float = 1e-6
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (np.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"--dt {self.dt}: the sample period must be a positive number of seconds")
         if not self.max_gap > 0:
             raise ValueError(f"--max-gap {self.max_gap}: must be a positive number of seconds")
+        if not self.grid_tol > 0:
+            raise ValueError(f"grid tolerance must be a positive number of seconds, got {self.grid_tol}")
         if not self.jitter > 0:
             raise ValueError(f"jitter tolerance must be positive, got {self.jitter}")
 
 
 @dataclass
 class JumpTiming:
-    """The timing of one logged jump: rows, median step (s), the largest relative deviation
+    """The timing of one logged jump: rows, median step (s), ``period`` (s, the period it is
+    on: see the module docstring), the largest relative deviation
     of a step from it, how many steps are jitter, the gaps (``{"t": s, "length": s,
     "line": int}``), and what the import did (``stored``: ``as logged`` or ``resampled``,
     ``rows_out``)."""
@@ -91,6 +103,7 @@ class JumpTiming:
     max_deviation: float
     jitter_steps: int
     gaps: list[dict] = field(default_factory=list)
+    period: float = float("nan")
     stored: str = ""
     rows_out: int = 0
 
@@ -107,22 +120,30 @@ def jump_timing(file: str, jump: int, t: np.ndarray, lines: list[int], cfg: Time
     dev = np.abs(steps / med - 1.0)
     gap = steps > GAP * med
     gaps = [{"t": float(t[i]), "length": float(steps[i]), "line": int(lines[i + 1])} for i in np.flatnonzero(gap)]
+    period = float(f"{med:.6g}")  # an uneven jump is resampled: a round period serves
+    if dev.max() <= EVEN:
+        period = float((t[-1] - t[0]) / (t.size - 1))
+        nice = float(f"{period:.6g}")
+        if on_grid(t - t[0], nice, cfg.grid_tol):
+            period = nice
     return JumpTiming(file, jump, int(t.size), float(f"{med:.6g}"), float(dev.max()),
-                      int(((dev > cfg.jitter) & ~gap).sum()), gaps)
+                      int(((dev > cfg.jitter) & ~gap).sum()), gaps, period=period)
 
 
 def choose_dt(timings: list[JumpTiming], cfg: TimeBase) -> float:
-    """The dataset's period: ``cfg.dt``, else the coarsest jump's median period."""
+    """The dataset's period: ``cfg.dt``, else the coarsest jump's period."""
     if cfg.dt is not None:
         return float(cfg.dt)
-    periods = [x.median_dt for x in timings if np.isfinite(x.median_dt)]
+    periods = [x.period for x in timings if np.isfinite(x.period)]
     return max(periods) if periods else 0.002
 
 
-def on_grid(t: np.ndarray, dt: float) -> bool:
-    """Whether every sample of t (n,) lies at k dt, k = 0, 1, 2 ... (to ``ON_GRID`` of dt)."""
+def on_grid(t: np.ndarray, dt: float, tol: float | None = None) -> bool:
+    """Whether every sample of t (n,) s lies at k dt, k = 0, 1, 2 ... to ``tol`` s (default
+    ``ON_GRID`` dt), and never farther than ``ON_GRID`` dt (what a stored dataset allows)."""
     k = np.arange(t.size)
-    return bool(np.all(np.abs(t - k * dt) <= ON_GRID * dt))
+    tol = ON_GRID * dt if tol is None else min(tol, ON_GRID * dt)
+    return bool(np.all(np.abs(t - k * dt) <= tol))
 
 
 def check_gaps(timing: JumpTiming, cfg: TimeBase) -> None:
