@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from symrom.evaluate.metrics import evaluate
-from symrom.model.finetune import FineTuneConfig, finetune
-from symrom.model.training import TrainConfig, train
+from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import PLANTED_2D, make_planted_dataset
 

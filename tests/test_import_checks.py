@@ -19,7 +19,7 @@ from symrom.data.importers import import_logs
 from symrom.data.io import read_dataset
 from symrom.data.timebase import TimeBase, TimeBaseError
 from symrom.evaluate.metrics import evaluate
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
 pytestmark = pytest.mark.skipif(not needs_go1, reason="Go1 pronk controller not installed")

@@ -3,8 +3,8 @@ import json
 import numpy as np
 import pytest
 
+from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
-from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import rollout
 
 
@@ -50,7 +50,7 @@ def test_format_1_files_still_load(planted_block, tmp_path):
 
 
 def test_custom_blocks_round_trip(planted_block, tmp_path):
-    from symrom.model.estimator import SymbolicROM
+    from symrom.learn.estimator import SymbolicROM
     from symrom.model.library import Custom, Inputs, Polynomial
 
     ds, _ = planted_block

@@ -10,7 +10,7 @@ import pytest
 
 from _simdata import have, reference_file
 from symrom.experiments.reproduce import ReproduceConfig, reproduce
-from symrom.model.training import AdamConfig
+from symrom.learn.training import AdamConfig
 
 pytestmark = pytest.mark.skipif(not (have("pronk") and have("froggy")), reason="controllers missing")
 

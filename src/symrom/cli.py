@@ -254,7 +254,7 @@ def train_cmd(
     from symrom.atomic import atomic_dir, check_output_file
     from symrom.data.io import read_dataset
     from symrom.model.persistence import save_model
-    from symrom.model.training import AdamConfig, TrainConfig, train
+    from symrom.learn.training import AdamConfig, TrainConfig, train
 
     check_output_file(out, force, inputs=(data,))
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
@@ -428,7 +428,7 @@ def finetune_cmd(
     from symrom.data.io import read_dataset
     from symrom.evaluate.tables import table2
     from symrom.experiments.finetune import FineTuneCheck, check_data, run_finetune
-    from symrom.model.finetune import FineTuneConfig
+    from symrom.learn.finetune import FineTuneConfig
     from symrom.model.persistence import load_model, save_model
 
     check_output_file(out, force, inputs=(model_path, data))
@@ -509,8 +509,8 @@ def export_cmd(
 ) -> None:
     """Write the model as standalone code: encoder, decoder, each phase's dynamics, an RK4 step."""
     from symrom.atomic import atomic_dir, check_output_file
-    from symrom.model.export import TARGETS, export, model_hash
-    from symrom.model.persistence import load_model
+    from symrom.model.export import TARGETS, export
+    from symrom.model.persistence import load_model, model_hash
 
     if to not in TARGETS:
         raise ValueError(f"--to must be one of {', '.join(TARGETS)}, got {to!r}")

@@ -37,8 +37,8 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
-from symrom.model.encoders import unit_floored
-from symrom.model.finetune import FineTuneConfig, check_decoder, finetune
+from symrom.learn.encoders import unit_floored
+from symrom.learn.finetune import FineTuneConfig, check_decoder, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.names import Q_NAMES
 from symrom.rollout.integrate import RolloutOptions

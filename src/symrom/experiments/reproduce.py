@@ -50,11 +50,11 @@ from symrom.evaluate.outputs import write_evaluation
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
 from symrom.execution import Backend, make_backend
-from symrom.model.finetune import FineTuneConfig, finetune
+from symrom.experiments.select import Selection, SelectionConfig, select, selection_rule, write_selection
+from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, save_model
-from symrom.experiments.select import Selection, SelectionConfig, select, selection_rule, write_selection
-from symrom.model.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
 Say = Callable[..., None]  # say(message, transient=False); transient = a progress count

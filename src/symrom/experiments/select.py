@@ -61,9 +61,9 @@ from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.execution import Backend, LocalBackend
 from symrom.experiments.sweep import load_cell
-from symrom.model.encoders import unit_floored
+from symrom.learn.encoders import unit_floored
+from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
-from symrom.model.training import TrainConfig, data_hash, train
 from symrom.names import BASE_NAMES, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 

@@ -7,7 +7,7 @@ are kept (one "cell"):
   (squared 2-norm over the 18 components, rad^2 and m^2 mixed as in the paper)
   averaged over the training rows, with the
   bootstrap the resampled rows, repeats counted
-  (``symrom.model.training.reconstruction_error``);
+  (``symrom.learn.training.reconstruction_error``);
 - ``active_terms``: |Xi|, nonzero coefficients summed over all phases;
 - ``rmse_test`` (optional): accuracy of the model, the mean over the 12 Table-2
   components of the test-split full-horizon RMSE (RK4 rollouts), ``None`` if
@@ -49,7 +49,7 @@ import numpy as np
 from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.execution import Backend, LocalBackend
-from symrom.model.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
+from symrom.learn.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
 from symrom.names import N_Q, TABLE2_COMPONENTS
 
 CELL_VERSION = 1

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
 

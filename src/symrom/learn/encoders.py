@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from symrom.model.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
+from symrom.learn.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.names import BASE_NAMES, JOINT_NAMES, N_Q, Q_NAMES, Q_UNITS
 
@@ -186,7 +186,7 @@ class PCAEncoder:
 
 @dataclass
 class AdamAutoencoder:
-    """Steps (a) and (b) by Adam (``symrom.model.adam``). ``generator_`` holds the
+    """Steps (a) and (b) by Adam (``symrom.learn.adam``). ``generator_`` holds the
     run's torch generator after ``fit``, for the Adam regressor to continue."""
 
     config: AdamConfig = field(default_factory=AdamConfig)

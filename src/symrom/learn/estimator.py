@@ -5,9 +5,9 @@ settings until ``fit``; its parts are plug-ins:
 
 - ``library``: term blocks (``symrom.model.library``), bound to the latent
   dimension at fit;
-- ``encoder``: steps (a) and (b) (``symrom.model.encoders``): the exact
+- ``encoder``: steps (a) and (b) (``symrom.learn.encoders``): the exact
   ``PCAEncoder`` or the paper's ``AdamAutoencoder``;
-- ``regressor``: step (c) (``symrom.model.regressors``): ``STLSQ``, ``Adam``,
+- ``regressor``: step (c) (``symrom.learn.regressors``): ``STLSQ``, ``Adam``,
   ``FineTune`` (towards a prior model) or ``Refine`` (rollout-aware).
 
 ``fit(ds)`` trains on the ``train`` split and leaves the fitted model in
@@ -37,13 +37,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset, jump_bounds
-from symrom.model.adam import Adam
+from symrom.learn.adam import Adam
+from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
+from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
+from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.encoders import AdamAutoencoder, PCAEncoder
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
-from symrom.model.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
-from symrom.model.regressors.stlsq import STLSQ
 from symrom.names import Q_NAMES
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)

@@ -40,12 +40,12 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.learn.estimator import data_hash, phase_data, trajectories
+from symrom.learn.regressors.base import Coefficients, RegressionProblem
+from symrom.learn.regressors.prior import FineTune
+from symrom.learn.regressors.refine import Refine
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.estimator import data_hash, phase_data, trajectories
 from symrom.model.hybrid import HybridModel, ModelDataError
-from symrom.model.regressors.base import Coefficients, RegressionProblem
-from symrom.model.regressors.prior import FineTune
-from symrom.model.regressors.refine import Refine
 
 
 FINETUNE_METHODS = ("acceleration", "rollout")

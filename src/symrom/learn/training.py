@@ -29,14 +29,14 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.model.adam import Adam, AdamConfig, Progress
-from symrom.model.encoders import (SCALINGS, AdamAutoencoder, PCAEncoder, check_components,
+from symrom.learn.adam import Adam, AdamConfig, Progress
+from symrom.learn.encoders import (SCALINGS, AdamAutoencoder, PCAEncoder, check_components,
                                    component_mask, fit_decoder, principal_encoder, varimax)
-from symrom.model.estimator import SymbolicROM, contact_rows, data_hash
+from symrom.learn.estimator import SymbolicROM, contact_rows, data_hash
+from symrom.learn.regressors.base import Regressor
+from symrom.learn.regressors.stlsq import MEASURES, STLSQ
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import LibrarySpec
-from symrom.model.regressors.base import Regressor
-from symrom.model.regressors.stlsq import MEASURES, STLSQ
 
 __all__ = ["AdamConfig", "SOLVERS", "TrainConfig", "contact_rows", "data_hash", "fit_decoder",
            "principal_encoder", "reconstruction_error", "train", "varimax"]
@@ -59,7 +59,7 @@ class TrainConfig:
     ``coefficient`` (the paper) or ``contribution``; ``collinearity``: leave out
     terms whose |correlation| with a simpler one exceeds it on a phase's rows
     (None = keep all, the paper); ``refine``: refine the coefficients on rollout
-    error (``symrom.model.regressors.refine``); ``path``: thresholds of a sparsity
+    error (``symrom.learn.regressors.refine``); ``path``: thresholds of a sparsity
     path to record with validation errors (None = none).
     """
 
@@ -116,7 +116,7 @@ class TrainConfig:
             return Adam(self.adam, self.threshold, self.seed)
         base = STLSQ(self.threshold, self.measure, self.alpha, self.ridge, self.collinearity)
         if self.refine:
-            from symrom.model.regressors.refine import Refine
+            from symrom.learn.regressors.refine import Refine
 
             return Refine(base)
         return base

@@ -21,6 +21,9 @@ import sympy
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
+from symrom.model.expressions import latent_expressions
+from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
 from symrom.rollout.system import RolloutSystem
@@ -220,11 +223,7 @@ class HybridModel:
         def acceleration(drive: dict[str, np.ndarray], xs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
 
-        from symrom.model.kernel import compiled_rollout
-
         def generated():
-            from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
-
             return generated_integrator(self), generated_rhs(self), lambda: generated_c_rhs(self)
 
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
@@ -235,16 +234,7 @@ class HybridModel:
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:
         """Per phase, the l right-hand sides of ddxi_j, coefficients rounded to ``digits``
         significant digits."""
-        feats = self.library.sympy_features()
-        out = {}
-        for k, name in enumerate(self.phase_names):
-            rhs = []
-            for j in range(self.latent_dim):
-                terms = [sympy.Float(float(f"{c:.{digits}g}"), digits) * f
-                         for c, f in zip(self.Xi[k][:, j], feats) if c != 0]
-                rhs.append(sympy.Add(*terms) if terms else sympy.Integer(0))
-            out[name] = rhs
-        return out
+        return dict(zip(self.phase_names, latent_expressions(self.library, self.Xi, digits)))
 
     def equations_text(self, latex: bool = False, digits: int = 3) -> str:
         """All phases' equations as plain text (or LaTeX)."""

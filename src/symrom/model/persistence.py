@@ -8,6 +8,7 @@ and the library as a list of term blocks. Files of format 1 are still read.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -45,6 +46,12 @@ def model_to_dict(model: HybridModel) -> dict:
         "phase_names": list(model.phase_names),
         "info": model.info,
     }
+
+
+def model_hash(model: HybridModel) -> str:
+    """SHA-256 of the model's file content (the canonical JSON of ``model_to_dict``)."""
+    text = json.dumps(model_to_dict(model), sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _check_finite(model: HybridModel) -> None:

@@ -10,7 +10,7 @@ the shared work, then calls the subclass's ``_reduce``:
 - per phase, it leaves out terms that are zero up to rounding on that phase's
   rows (the latent ground force in flight) and, with ``collinearity`` set,
   every term that is near-collinear with a simpler one there
-  (``symrom.model.audit``), recording what it left out and why;
+  (``symrom.learn.audit``), recording what it left out and why;
 - ``_reduce(problem, allowed)`` then returns Xi and the active mask, never
   using a term outside ``allowed``.
 """
@@ -23,8 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from symrom.model.audit import audit_collinearity, null_terms
+from symrom.learn.audit import audit_collinearity, null_terms
 from symrom.model.library import Library
+from symrom.model.shooting import Trajectory
 
 
 @dataclass
@@ -41,16 +42,6 @@ class PhaseData:
     @property
     def n_rows(self) -> int:
         return int(self.theta.shape[0])
-
-
-@dataclass
-class Trajectory:
-    """One training jump, encoded: xi, dxi, nu (n, l) and model phase indices (n,)."""
-
-    xi: np.ndarray
-    dxi: np.ndarray
-    nu: np.ndarray
-    phase: np.ndarray
 
 
 @dataclass

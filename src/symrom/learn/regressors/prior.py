@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
-from symrom.model.regressors.stlsq import MEASURES, STLSQConfig, stlsq
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
+from symrom.learn.regressors.stlsq import MEASURES, STLSQConfig, stlsq
 
 
 @dataclass(frozen=True)

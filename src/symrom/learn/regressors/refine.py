@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 import scipy.linalg
 
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
-from symrom.model.regressors.stlsq import STLSQ
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
+from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.shooting import Parameters, Windows, cut_windows, simulate
 
 # A sample after its window left the bound counts this many times the bound (in

@@ -35,8 +35,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.linalg
 
-from symrom.model.audit import negligible
-from symrom.model.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor
+from symrom.learn.audit import negligible
+from symrom.learn.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor
 
 _JITTER = 1e-10  # smallest ridge on the equilibrated normal equations
 MEASURES = ("coefficient", "contribution", "explained")
