@@ -187,3 +187,15 @@ def test_the_library_never_prints_or_exits():
                 if name in ("print", "exit", "quit", "echo") or (name == "_exit"):
                     found.append(f"{rel}:{node.lineno} calls {name}")
     assert not found, "\n".join(found)
+
+
+def test_the_rollout_layer_knows_no_model():
+    """rollout/ integrates any ``RolloutSystem``: it never names the learned model's drive
+    entries (its latent inputs ``nu`` and ``phase``); the model's ``GeneratedCode`` reads them."""
+    found = []
+    for path in sorted((SRC / "rollout").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) \
+                    and node.slice.value in ("nu", "phase"):
+                found.append(f"{path.relative_to(SRC)}:{node.lineno} reads [{node.slice.value!r}]")
+    assert not found, "\n".join(found)

@@ -26,7 +26,7 @@ from symrom.model.expressions import latent_expressions
 from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
-from symrom.rollout.system import RolloutSystem
+from symrom.rollout.system import GeneratedCode, RolloutSystem
 
 # A phase's linearised dynamics grow by more than this factor over a typical
 # stay in the phase: a "fast" unstable mode, worth a warning.
@@ -220,11 +220,17 @@ class HybridModel:
             ph.append(phase[a:b])
         lib, Xi = self.library, self.Xi
 
+        def c_params(drive: dict[str, np.ndarray]) -> np.ndarray:
+            """(n, 1 + l): the C right-hand side's data per sample, [phase index, nu]."""
+            return np.column_stack([drive["phase"], drive["nu"]]).astype(float)
+
         def acceleration(drive: dict[str, np.ndarray], xs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
 
-        def generated():
-            return generated_integrator(self), generated_rhs(self), lambda: generated_c_rhs(self)
+        def generated() -> GeneratedCode:
+            return GeneratedCode(integrator=generated_integrator(self), rhs=generated_rhs(self),
+                                 rhs_args=lambda drive, k: (int(drive["phase"][k]), drive["nu"][k]),
+                                 c_rhs=lambda: generated_c_rhs(self), c_params=c_params)
 
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
