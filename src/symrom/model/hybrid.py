@@ -103,7 +103,10 @@ class HybridModel:
     """autoencoder; library; phase_names (P,); Xi (P, p, l); mask (P, p, l) bool;
     latent_scale (2l,): largest |xi|, |dxi| seen in training, the yardstick for
     divergence; info: robot, motion, dt, training configuration, solver, seeds,
-    data hash; phase_info: per phase name, what training saw of it."""
+    data hash; phase_info: per phase name, what training saw of it; estimator: the
+    configuration of the learner that fitted it (its plug-ins, ``{"encoder": {"kind":
+    ...}, "regressor": {"kind": ...}, "decoded_weight", "contact_phase",
+    "path_thresholds"}``), JSON-ready: kept here, read by ``symrom.learn``."""
 
     autoencoder: LinearAutoencoder
     library: Library
@@ -113,6 +116,7 @@ class HybridModel:
     latent_scale: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
     phase_info: dict[str, PhaseInfo] = field(default_factory=dict)
+    estimator: dict[str, Any] = field(default_factory=dict)
 
     components: ClassVar[tuple[str, ...]] = Q_NAMES
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -87,6 +87,7 @@ class Regressor(ABC):
     """
 
     collinearity: float | None = None
+    kind: ClassVar[str] = ""  # the registry's name of a concrete regressor
 
     def fit(self, problem: RegressionProblem, init: Coefficients | None = None) -> Coefficients:
         """Coefficients for ``problem``; ``init`` is a starting or prior solution
@@ -132,8 +133,9 @@ class Regressor(ABC):
         """Xi and mask for ``problem`` using only the terms ``allowed`` (P, p) per phase."""
 
     def to_dict(self) -> dict[str, Any]:
-        """The regressor and its settings, JSON-ready (recorded in the model file)."""
+        """The regressor's configuration, ``{"kind": ..., settings...}``, JSON-ready (recorded
+        in the model file; ``symrom.learn.plugins.regressor_from_dict`` reads it back)."""
         from dataclasses import asdict, is_dataclass
 
         body = asdict(self) if is_dataclass(self) else {}
-        return {"name": type(self).__name__, **body}
+        return {"kind": self.kind, **body}
