@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from symrom.evaluate.metrics import evaluate
-from symrom.model.training import AdamConfig, TrainConfig, train
+from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.testing import make_planted_dataset
 

@@ -57,7 +57,7 @@ import numpy as np
 
 from symrom.model.codegen import generated_integrator
 from symrom.model.export import export
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout import compiled_lsoda
 from symrom.rollout.integrate import (
     RolloutOptions,

@@ -25,7 +25,7 @@ from pathlib import Path
 from symrom.data.io import read_dataset
 from symrom.experiments.reproduce import ExperimentSpec, ReproduceConfig
 from symrom.experiments.select import select
-from symrom.model.training import train
+from symrom.learn.training import train
 
 
 def main() -> None:

@@ -9,12 +9,10 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from _simdata import have, reference_file, tmp_path
+from _simdata import reference_file, tmp_path
 from symrom.data.io import read_dataset
 from symrom.names import JOINT_NAMES, LEGS, Q_NAMES
 from symrom.sim.generate import GenerateConfig, generate
-
-needs_go1 = have("pronk")
 
 # The published Go1 hardware layout, spelled out by hand.
 HW_JOINTS = [n.replace("_", ".") for n in JOINT_NAMES]

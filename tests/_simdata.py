@@ -8,7 +8,7 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from symrom.sim.generate import GenerateConfig, NoiseConfig, generate, motion_available
+from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
 
 _ROOT = Path(tempfile.mkdtemp(prefix="symrom-simtests-"))
 atexit.register(shutil.rmtree, _ROOT, True)
@@ -38,6 +38,3 @@ def config(motion: str, n_jumps: int | None = None, seed: int = SEED, noise: boo
     return GenerateConfig(robot or ROBOT[motion], motion, N_JUMPS[motion] if n_jumps is None else n_jumps,
                           seed=seed, noise=NoiseConfig() if noise else None)
 
-
-def have(motion: str) -> bool:
-    return motion_available(motion)

@@ -18,27 +18,69 @@ LAYERS: dict[str, int] = {
     "data": 2,
     "sim": 3, "rollout": 3,
     "model": 4, "baselines": 4,
-    "testing": 5, "evaluate": 5,
+    "learn": 5, "testing": 5, "evaluate": 5,
     "experiments": 6,
     "report": 7,
     "cli": 8,
+}
+# Inside a package, the same rule between its modules (or subpackages).
+PACKAGE_LAYERS: dict[str, dict[str, int]] = {
+    # the fitted model: its parts, then the compiled execution, the model, its file, its export
+    "model": {"autoencoder": 0, "library": 0, "expressions": 0,
+              "kernel": 1, "codegen": 1, "shooting": 1,
+              "hybrid": 2, "persistence": 3, "export": 4},
+    # learning: the problem and its regressors, the encoders, the estimator, then what drives it
+    "learn": {"audit": 0, "regressors": 1, "adam": 2, "encoders": 2, "plugins": 3, "estimator": 4,
+              "finetune": 5, "training": 5},
 }
 # Known upward imports, each with the change that removes it (none today).
 KNOWN: set[tuple[str, str]] = set()
 
 
+def _resolve(name: str) -> str:
+    """The module a dotted name imports: the deepest prefix that is a module or package of SRC."""
+    parts = name.split(".")[1:]
+    while parts:
+        base = SRC.joinpath(*parts)
+        if base.with_suffix(".py").is_file() or (base / "__init__.py").is_file():
+            return ".".join(["symrom", *parts])
+        parts.pop()
+    return "symrom"
+
+
+def _type_only(tree: ast.AST) -> set[int]:
+    """ids of the import nodes under ``if TYPE_CHECKING:`` (never executed)."""
+    out: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
+            out |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
+    return out
+
+
+def _imports(path: Path, runtime_only: bool = False) -> list[tuple[str, int]]:
+    """The symrom modules ``path`` imports, anywhere in it (also inside functions), with
+    their lines; ``runtime_only``: leaving out imports for type checkers only."""
+    tree = ast.parse(path.read_text())
+    skip = _type_only(tree) if runtime_only else set()
+    out = []
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "symrom":
+            # ``from symrom.a import b`` imports the module symrom.a.b when there is one
+            out += [(_resolve(f"{node.module}.{a.name}"), node.lineno) for a in node.names]
+        elif isinstance(node, ast.Import):
+            out += [(_resolve(a.name), node.lineno) for a in node.names if a.name.split(".")[0] == "symrom"]
+    return out
+
+
+def _module_name(rel: Path) -> str:
+    parts = list(rel.with_suffix("").parts)
+    return ".".join(["symrom", *(parts[:-1] if parts[-1] == "__init__" else parts)])
+
+
 def _layer(module: str) -> str:
     return module.split(".")[1] if module.count(".") else ""
-
-
-def _imports(path: Path) -> list[tuple[str, int]]:
-    out = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("symrom."):
-            out.append((node.module, node.lineno))
-        elif isinstance(node, ast.Import):
-            out += [(a.name, node.lineno) for a in node.names if a.name.startswith("symrom.")]
-    return out
 
 
 def _modules():
@@ -49,6 +91,10 @@ def _modules():
 
 def test_every_module_has_a_layer():
     assert {layer for _, _, layer in _modules()} - {"__init__"} == set(LAYERS)
+    for package, table in PACKAGE_LAYERS.items():
+        found = {p.stem if p.is_file() else p.name for p in (SRC / package).iterdir()
+                 if (p.suffix == ".py" or (p / "__init__.py").is_file()) and p.name != "__init__.py"}
+        assert found == set(table), f"{package}/: modules {sorted(found)}, table {sorted(table)}"
 
 
 def test_imports_only_point_down():
@@ -57,10 +103,76 @@ def test_imports_only_point_down():
         if layer == "__init__":
             continue
         for module, line in _imports(path):
-            target = _layer(module)
-            if LAYERS[target] > LAYERS[layer] and (layer, target) not in KNOWN:
+            target = _layer(module)  # "" is the package itself (its __version__): the circle test covers it
+            if target and LAYERS[target] > LAYERS[layer] and (layer, target) not in KNOWN:
                 upward.append(f"{rel}:{line} imports {module}")
     assert not upward, "\n".join(upward)
+
+
+def test_imports_inside_packages_only_point_down():
+    upward = []
+    for package, table in PACKAGE_LAYERS.items():
+        for path in sorted((SRC / package).rglob("*.py")):
+            rel = path.relative_to(SRC)
+            if len(rel.parts) < 3 and rel.name == "__init__.py":
+                continue
+            own = rel.parts[1].removesuffix(".py")
+            for module, line in _imports(path, runtime_only=True):  # a type may name what uses it
+                parts = module.split(".")
+                if len(parts) > 2 and parts[1] == package and table[parts[2]] > table[own]:
+                    upward.append(f"{rel}:{line} imports {module}")
+    assert not upward, "\n".join(upward)
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import circles of ``graph`` (module -> modules it imports): its strongly connected
+    components of more than one module, or of one that imports itself (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1 or v in graph.get(v, ()):
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_cycle_finder_finds_a_circle():
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert _cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_circle_anywhere():
+    """No module imports, directly or through others, itself: at module level, inside
+    functions (lazy imports) or through a package's __init__."""
+    graph = {}
+    for path, rel, _ in _modules():
+        graph[_module_name(rel)] = {m for m, _ in _imports(path, runtime_only=True)}
+    circles = _cycles(graph)
+    assert not circles, "import circles: " + "; ".join(" -> ".join(c) for c in circles)
 
 
 def test_the_library_never_prints_or_exits():
@@ -74,4 +186,16 @@ def test_the_library_never_prints_or_exits():
                 name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
                 if name in ("print", "exit", "quit", "echo") or (name == "_exit"):
                     found.append(f"{rel}:{node.lineno} calls {name}")
+    assert not found, "\n".join(found)
+
+
+def test_the_rollout_layer_knows_no_model():
+    """rollout/ integrates any ``RolloutSystem``: it never names the learned model's drive
+    entries (its latent inputs ``nu`` and ``phase``); the model's ``GeneratedCode`` reads them."""
+    found = []
+    for path in sorted((SRC / "rollout").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) \
+                    and node.slice.value in ("nu", "phase"):
+                found.append(f"{path.relative_to(SRC)}:{node.lineno} reads [{node.slice.value!r}]")
     assert not found, "\n".join(found)

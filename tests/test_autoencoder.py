@@ -1,7 +1,7 @@
 import numpy as np
 
+from symrom.learn.training import fit_decoder, principal_encoder, varimax
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.training import fit_decoder, principal_encoder, varimax
 
 
 def _random_ae(rng, l=3):

@@ -81,7 +81,7 @@ def test_help_pages_show_no_type_next_to_flags():
 
 def test_progress_reaches_the_end_with_the_batch_integrator(planted_block, tmp_path):
     from symrom.evaluate.metrics import evaluate
-    from symrom.model.training import TrainConfig, train
+    from symrom.learn.training import TrainConfig, train
     from symrom.rollout.integrate import RolloutOptions
 
     ds, _ = planted_block

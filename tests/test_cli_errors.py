@@ -107,7 +107,7 @@ def test_train_does_not_overwrite_without_force(good, tmp_path):
     r = _run("train", good, "--out", out, "--force")
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in out.iterdir()) == ["equations.txt", "model.json"]
-    assert json.loads((out / "model.json").read_text())["format_version"] == 2
+    assert json.loads((out / "model.json").read_text())["format_version"] == 3
 
 
 def _corrupt_model(model, tmp_path, edit):

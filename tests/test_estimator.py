@@ -8,6 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 import symrom
+import symrom.testing
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.model.hybrid import HybridModel, ModelDataError
@@ -45,18 +46,26 @@ def test_top_level_api(planted_axis, tmp_path):
     assert direct["horizons"]["full"]["components"] == metrics["horizons"]["full"]["components"]
 
 
-def test_linear_planted_system_has_its_analytic_eigenvalues(planted_axis):
-    ds, truth = planted_axis
+# A planted system linear in the state: each latent j obeys ddxi_j = k_j xi_j + c_j dxi_j + (input,
+# constant), so its eigenvalues are the roots of s^2 - c_j s - k_j, whatever the coordinates.
+LINEAR = {"contact": [{"1": 0.5, "xi1": -6.0, "dxi1": -1.2, "nu1": 3.0},
+                      {"1": -1.0, "xi2": -4.0, "dxi2": -0.8, "nu2": 2.5}],
+          "flight": [{"xi1": -2.0, "dxi1": -0.6, "nu1": 1.5},
+                     {"1": -3.0, "xi2": -1.0, "dxi2": -0.4}]}
+
+
+def test_linear_planted_system_has_its_analytic_eigenvalues():
+    ds, _ = symrom.testing.make_planted_dataset(n_jumps=24, n_samples=400, embedding="axis", noise=1e-4,
+                                                seed=1, equations=LINEAR)
     model = symrom.train(ds, symrom.TrainConfig(trig=False))
-    # ddxi = K xi + C dxi + ... : eigenvalues of [[0, I], [K, C]] at any point.
-    for st in model.stability():
-        k = model.phase_names.index(st.phase)
-        names = model.library.feature_names
-        K = np.array([[model.Xi[k, names.index(f"xi{i}"), j] for i in (1, 2)] for j in range(2)])
-        C = np.array([[model.Xi[k, names.index(f"dxi{i}"), j] for i in (1, 2)] for j in range(2)])
-        A = np.block([[np.zeros((2, 2)), np.eye(2)], [K, C]])
-        np.testing.assert_allclose(np.sort_complex(st.eigenvalues), np.sort_complex(np.linalg.eigvals(A)),
-                                   atol=1e-9)
+    stability = {st.phase: st for st in model.stability()}
+    assert sorted(stability) == ["contact", "flight"]
+    for phase, rows in LINEAR.items():
+        expected = np.concatenate([np.roots([1.0, -row[f"dxi{j}"], -row[f"xi{j}"]])
+                                   for j, row in enumerate(rows, start=1)])
+        np.testing.assert_allclose(np.sort_complex(stability[phase].eigenvalues), np.sort_complex(expected),
+                                   atol=1e-3)
+        assert not stability[phase].fast_unstable
 
 
 def _unstable(model: HybridModel) -> HybridModel:

@@ -10,9 +10,9 @@ import pytest
 from typer.testing import CliRunner
 
 from symrom.cli import app
-from symrom.model.export import export, model_hash
-from symrom.model.persistence import save_model
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
+from symrom.model.export import export
+from symrom.model.persistence import model_hash, save_model
 from symrom.rollout.integrate import RolloutOptions, rollout
 from conftest import one_line_error
 

@@ -5,16 +5,22 @@ import copy
 import numpy as np
 import pytest
 
+import symrom
 from symrom.evaluate.metrics import evaluate
-from symrom.model.finetune import FineTuneConfig, finetune
-from symrom.model.training import TrainConfig, train
+from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import PLANTED_2D, make_planted_dataset
 
 
 @pytest.fixture(scope="module")
-def source_and_target():
-    source, _ = make_planted_dataset(24, 400, embedding="block", seed=5)
+def source_data():
+    return make_planted_dataset(24, 400, embedding="block", seed=5)[0]
+
+
+@pytest.fixture(scope="module")
+def source_and_target(source_data):
+    source = source_data
     shifted = copy.deepcopy(PLANTED_2D)
     shifted["contact"][0]["xi1"] = -7.0   # a stiffer leg
     shifted["contact"][1]["nu2"] = 2.0    # weaker actuation
@@ -77,3 +83,28 @@ def test_rollout_finetuning_keeps_the_phases_the_rows_lack(source_and_target):
 def test_unknown_finetuning_method_is_refused():
     with pytest.raises(ValueError, match="fine-tuning method"):
         FineTuneConfig(method="gradient")
+
+
+def test_a_model_fitted_by_the_estimator_is_finetuned_with_its_own_sparsity(source_data, source_and_target):
+    """The threshold, measure and ridge of fine-tuning come from the source's regressor as
+    its model file records it, however it was fitted (not only through ``train``)."""
+    _, target, _ = source_and_target
+    rom = symrom.SymbolicROM(regressor=symrom.STLSQ(threshold=0.05, measure="explained")).fit(source_data)
+    trained = train(source_data, TrainConfig(threshold=0.05, measure="explained"))
+    np.testing.assert_array_equal(rom.model.Xi, trained.Xi)  # the same source, fitted two ways
+    a, b = finetune(rom.model, target), finetune(trained, target)
+    np.testing.assert_array_equal(a.mask, b.mask)
+    np.testing.assert_allclose(a.Xi, b.Xi, atol=1e-12)
+    used = a.info["finetune"]["regressor"]
+    assert (used["kind"], used["threshold"], used["measure"]) == ("finetune", 0.05, "explained")
+
+
+def test_a_model_without_a_recorded_regressor_is_refused(source_and_target):
+    from dataclasses import replace
+
+    from symrom.model.hybrid import ModelDataError
+
+    model, target, _ = source_and_target
+    bare = replace(model, estimator={})
+    with pytest.raises(ModelDataError, match="estimator.regressor: the model records no regressor"):
+        finetune(bare, target)

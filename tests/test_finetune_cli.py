@@ -10,19 +10,18 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from _logs import flight_segment, needs_go1, proxy_go1, sim_go1, write_hardware
+from _logs import flight_segment, proxy_go1, sim_go1, write_hardware
 from conftest import one_line_error
 from symrom.cli import app
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.experiments.finetune import HORIZONS, FineTuneCheck, FineTuneRefused, run_finetune, val_score
-from symrom.model.encoders import unit_floored
-from symrom.model.finetune import DecoderRefitError, FineTuneConfig, finetune
+from symrom.learn.encoders import unit_floored
+from symrom.learn.finetune import DecoderRefitError, FineTuneConfig, finetune
+from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import load_model, save_model
-from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
-pytestmark = pytest.mark.skipif(not needs_go1, reason="Go1 pronk controller not installed")
 runner = CliRunner()
 BASE = TrainConfig(latent_dim=2, encoder_components=("x", "y", "z"), decoded_weight=0.0, alpha=1e-3)
 

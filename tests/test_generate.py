@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from _simdata import N_JUMPS, SEED, config, have, reference_file, tmp_path
+from _simdata import N_JUMPS, SEED, config, reference_file, tmp_path
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
 from symrom.sim import generate as gen
@@ -18,7 +18,6 @@ from symrom.sim.froggy import MOTION as FROGGY
 from symrom.sim.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
 from symrom.sim.parts import read_part, write_part
 
-needs_pronk = pytest.mark.skipif(not have("pronk"), reason="Go1 pronk controller not installed")
 
 
 def _same_file(a, b) -> None:
@@ -156,7 +155,6 @@ def test_noise_variant_is_recorded_and_valid():
     assert not np.array_equal(ds.q[:10], clean.q[:10])  # noisy start and readings
 
 
-@needs_pronk
 @pytest.mark.slow
 def test_go1_pronk_dataset():
     ds = read_dataset(reference_file("pronk"))
@@ -184,7 +182,7 @@ def test_cli_generate_and_show(tmp_path):
     from symrom.cli import app
 
     runner = CliRunner()
-    motion, robot = ("pronk", "go1") if have("pronk") else ("froggy", "a1")
+    motion, robot = "pronk", "go1"
     out = tmp_path / "cli.h5"
     args = ["generate", "--robot", robot, "--motion", motion, "--jumps", "1", "--out", str(out)]
     r = runner.invoke(app, args)
@@ -209,7 +207,7 @@ def test_cli_generate_and_show(tmp_path):
 
 @pytest.mark.slow
 def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
-    motion, robot = ("pronk", "go1") if have("pronk") else ("froggy", "a1")
+    motion, robot = "pronk", "go1"
     out = tmp_path / "two.h5"
     code = "import sys; from symrom.cli import main; sys.argv[0] = 'symrom'; main()"
     r = subprocess.run([sys.executable, "-c", code, "generate", "--robot", robot, "--motion", motion,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from _logs import at_times, flight_segment, jump, needs_go1, sim_go1, write_hardware, write_plain
+from _logs import at_times, flight_segment, jump, sim_go1, write_hardware, write_plain
 from conftest import one_line_error
 from symrom.cli import app
 from symrom.data.dataset import DatasetError, validate
@@ -19,10 +19,9 @@ from symrom.data.importers import import_logs
 from symrom.data.io import read_dataset
 from symrom.data.timebase import TimeBase, TimeBaseError
 from symrom.evaluate.metrics import evaluate
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
-pytestmark = pytest.mark.skipif(not needs_go1, reason="Go1 pronk controller not installed")
 runner = CliRunner()
 KN = 2  # fr_kn
 TAU_RL_KN = 11

@@ -3,8 +3,8 @@ import json
 import numpy as np
 import pytest
 
+from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
-from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import rollout
 
 
@@ -14,7 +14,7 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     text = path.read_text()
-    assert "pickle" not in text and json.loads(text)["format_version"] == 2
+    assert "pickle" not in text and json.loads(text)["format_version"] == 3
     back = load_model(path)
     for a, b in [(model.autoencoder.W_e, back.autoencoder.W_e), (model.autoencoder.W_d, back.autoencoder.W_d),
                  (model.Xi, back.Xi), (model.mask, back.mask)]:
@@ -50,7 +50,7 @@ def test_format_1_files_still_load(planted_block, tmp_path):
 
 
 def test_custom_blocks_round_trip(planted_block, tmp_path):
-    from symrom.model.estimator import SymbolicROM
+    from symrom.learn.estimator import SymbolicROM
     from symrom.model.library import Custom, Inputs, Polynomial
 
     ds, _ = planted_block
@@ -103,3 +103,86 @@ def test_a_non_finite_model_is_refused_by_key_not_by_json(planted_block, tmp_pat
     with pytest.raises(ModelFileError, match=r"^info\.finetune\.val\[1\]: not a finite number"):
         save_model(model, path)
     assert not path.exists() and list(tmp_path.iterdir()) == []
+
+
+def _exotic_rom():
+    """An estimator whose every plug-in differs from the defaults."""
+    import symrom
+
+    return symrom.SymbolicROM(2, symrom.Polynomial(1) + symrom.Inputs(),
+                              encoder=symrom.PCAEncoder(components=("x", "z", "pitch", "fr_kn"), scaling="spread"),
+                              regressor=symrom.STLSQ(threshold=0.04, measure="explained", alpha=1e-6,
+                                                     collinearity=0.999),
+                              decoded_weight=0.5, contact_phase="contact", path_thresholds=(0.01, 0.1))
+
+
+def test_load_restores_the_exact_plug_ins(planted_block, tmp_path):
+    import symrom
+
+    ds, _ = planted_block
+    rom = _exotic_rom().fit(ds)
+    rom.save(tmp_path / "m.json")
+    assert json.loads((tmp_path / "m.json").read_text())["estimator"]["regressor"]["kind"] == "stlsq"
+    back = symrom.SymbolicROM.load(tmp_path / "m.json")
+    assert back.encoder == rom.encoder and back.regressor == rom.regressor
+    assert (back.decoded_weight, back.contact_phase, back.path_thresholds) == (0.5, "contact", (0.01, 0.1))
+    refit = back.fit(ds).model  # the restored estimator fits the same model again
+    np.testing.assert_array_equal(refit.Xi, rom.model.Xi)
+
+
+def test_every_plug_in_round_trips_through_the_registry():
+    import symrom
+    from symrom.learn.adam import Adam, AdamConfig
+    from symrom.learn.encoders import AdamAutoencoder
+    from symrom.learn.plugins import ENCODERS, REGRESSORS, encoder_from_dict, regressor_from_dict
+
+    encoders = [symrom.PCAEncoder(), symrom.PCAEncoder(("x", "z"), "spread", 1),
+                AdamAutoencoder(AdamConfig(epochs=7), ("x", "y"), seed=3)]
+    regressors = [symrom.STLSQ(0.2, "contribution", 1e-3, 0.1, 0.99, 9), symrom.FineTune(0.5, 0.02, "explained"),
+                  symrom.Refine(symrom.STLSQ(0.03), windows=(0.1, None), stride=2),
+                  Adam(AdamConfig(learning_rate=1e-2), threshold=0.05, seed=4)]
+    assert {type(e).kind for e in encoders} == set(ENCODERS) and {type(r).kind for r in regressors} == set(REGRESSORS)
+    for e in encoders:
+        d = json.loads(json.dumps(e.to_dict()))
+        assert encoder_from_dict(d) == e and d["kind"] == type(e).kind
+    for r in regressors:
+        d = json.loads(json.dumps(r.to_dict()))
+        assert regressor_from_dict(d) == r and d["kind"] == type(r).kind
+
+
+@pytest.mark.parametrize("edit,needle", [
+    (lambda d: d["estimator"]["regressor"].update(kind="lasso"), "estimator.regressor: unknown kind 'lasso'"),
+    (lambda d: d["estimator"]["encoder"].update(whiten=True), "estimator.encoder: 'pca' has no setting 'whiten'"),
+    (lambda d: d["estimator"].pop("encoder"), "estimator.encoder: not recorded"),
+])
+def test_load_refuses_what_it_cannot_restore(planted_block, tmp_path, edit, needle):
+    import symrom
+
+    ds, _ = planted_block
+    d = model_to_dict(_exotic_rom().fit(ds).model)
+    edit(d)
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps(d))
+    load_model(path)  # the model itself is fine
+    with pytest.raises(ModelFileError, match=needle.replace(".", r"\.")):
+        symrom.SymbolicROM.load(path)
+
+
+def test_format_2_files_still_load_with_their_plug_ins(planted_block, tmp_path):
+    import symrom
+
+    ds, _ = planted_block
+    rom = _exotic_rom().fit(ds)
+    d = model_to_dict(rom.model)
+    est = d.pop("estimator")
+    legacy = {"STLSQ": est["regressor"], "PCAEncoder": est["encoder"]}
+    for name, rec in legacy.items():  # format 2 named the class instead of the kind
+        rec.pop("kind")
+        rec["name"] = name
+    d["format_version"] = 2
+    d["info"].update(encoder=est["encoder"], regressor=est["regressor"], decoded_weight=est["decoded_weight"])
+    path = tmp_path / "v2.json"
+    path.write_text(json.dumps(d))
+    back = symrom.SymbolicROM.load(path)
+    assert back.encoder == rom.encoder and back.regressor == rom.regressor and back.decoded_weight == 0.5
+    np.testing.assert_array_equal(back.model.Xi, rom.model.Xi)

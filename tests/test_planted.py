@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from symrom.evaluate.metrics import evaluate
-from symrom.model.training import AdamConfig, TrainConfig, train
+from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
 from conftest import normalised_mae

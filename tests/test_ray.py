@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 ray = pytest.importorskip("ray")
 
 import _tasks  # noqa: E402
-from _simdata import SEED, have, reference_file  # noqa: E402
+from _simdata import SEED, reference_file  # noqa: E402
 from conftest import one_line_error  # noqa: E402
 from symrom.cli import app  # noqa: E402
 from symrom.data.io import write_dataset  # noqa: E402
@@ -31,7 +31,6 @@ from symrom.sim.generate import parts_dir, run_record_path  # noqa: E402
 ray.cloudpickle.register_pickle_by_value(_tasks)
 
 runner = CliRunner()
-needs_pronk = pytest.mark.skipif(not have("pronk"), reason="Go1 pronk controller not installed")
 JUMPS = 3  # the shared pronk reference: go1, seed SEED, one local worker
 
 
@@ -119,7 +118,6 @@ def test_unreachable_address_is_one_clear_line(tmp_path):
 
 
 # ---------------------------------------------------------------- generation
-@needs_pronk
 @pytest.mark.slow
 def test_generate_on_ray_is_byte_identical(ray_address, tmp_path):
     out = tmp_path / "ray.h5"
@@ -134,7 +132,6 @@ def test_generate_on_ray_is_byte_identical(ray_address, tmp_path):
     assert not parts_dir(out).exists()
 
 
-@needs_pronk
 @pytest.mark.slow
 def test_a_worker_killed_mid_jump_is_retried_and_recorded(ray_address, tmp_path):
     out = tmp_path / "killed_worker.h5"
@@ -154,7 +151,6 @@ def test_a_worker_killed_mid_jump_is_retried_and_recorded(ray_address, tmp_path)
     assert "lost to dying workers, run again" in stdout
 
 
-@needs_pronk
 @pytest.mark.slow
 def test_a_run_killed_midway_resumes_to_the_same_file(ray_address, tmp_path):
     out = tmp_path / "resumed.h5"

@@ -5,11 +5,11 @@ import pytest
 
 from symrom.data.dataset import jump_bounds
 from symrom.evaluate.metrics import evaluate
-from symrom.model.estimator import trajectories
-from symrom.model.regressors.refine import Refine
-from symrom.model.regressors.stlsq import STLSQ
+from symrom.learn.estimator import trajectories
+from symrom.learn.regressors.refine import Refine
+from symrom.learn.regressors.stlsq import STLSQ
+from symrom.learn.training import TrainConfig, train
 from symrom.model.shooting import Parameters, cut_windows, simulate
-from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import make_planted_dataset
 

@@ -1,6 +1,6 @@
 import numpy as np
 
-from symrom.model.regressors.stlsq import STLSQConfig, solve_support, stlsq, weighted_loss, weighted_targets
+from symrom.learn.regressors.stlsq import STLSQConfig, solve_support, stlsq, weighted_loss, weighted_targets
 
 
 def _problem(rng, n=300, p=6, l=2):

@@ -19,12 +19,12 @@ from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import (BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry, Metrics,
                                     RecordError)
 from symrom.evaluate.tables import fmt_value
+from symrom.learn.training import TrainConfig, reconstruction_error, train
 from symrom.model.persistence import save_model
-from symrom.model.training import TrainConfig, reconstruction_error, train
 from symrom.names import TABLE2_COMPONENTS
 from symrom.report import figures
-from symrom.report.document import render_html
 from symrom.report.context import Context
+from symrom.report.document import render_html
 from symrom.report.html import build_report
 from symrom.report.roles import build_sections
 from symrom.report.run import load_run

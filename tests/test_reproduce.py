@@ -8,11 +8,10 @@ from dataclasses import replace
 
 import pytest
 
-from _simdata import have, reference_file
+from _simdata import reference_file
 from symrom.experiments.reproduce import ReproduceConfig, reproduce
-from symrom.model.training import AdamConfig
+from symrom.learn.training import AdamConfig
 
-pytestmark = pytest.mark.skipif(not (have("pronk") and have("froggy")), reason="controllers missing")
 
 
 @pytest.fixture(scope="module")

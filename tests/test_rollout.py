@@ -5,7 +5,7 @@ import pytest
 
 from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.tables import table2
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 
 
@@ -60,7 +60,7 @@ def test_shorter_horizon_is_more_accurate(model_and_data):
 def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset, backend):
     from dataclasses import replace
 
-    from symrom.model.training import TrainConfig, train
+    from symrom.learn.training import TrainConfig, train
 
     ds, _ = planted_block
     model = train(ds, TrainConfig())
@@ -78,7 +78,7 @@ def test_compiled_rk4_matches_the_numpy_reference(planted_block, reset, backend)
 
 
 def test_lsoda_with_the_generated_right_hand_side_matches(planted_block):
-    from symrom.model.training import TrainConfig, train
+    from symrom.learn.training import TrainConfig, train
 
     ds, _ = planted_block
     model = train(ds, TrainConfig())

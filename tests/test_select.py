@@ -88,6 +88,11 @@ def test_cli_train_select(planted_block, tmp_path):
     assert r.exit_code == 0, r.output
     assert {p.name for p in (tmp_path / "m").iterdir()} == {"model.json", "selection.json", "equations.txt"}
     assert "chosen of" in r.output
+    # explicit settings --select would not use are refused, before any work
+    one_line_error(CliRunner().invoke(app, ["train", str(data), "--select", "--threshold", "0.05", "--no-trig",
+                                            "--out", str(tmp_path / "ignored")]),
+                   "--threshold", "--trig/--no-trig", "not used with --select")
+    assert not (tmp_path / "ignored").exists()
     no_val = tmp_path / "noval.h5"
     write_dataset(replace(ds, split=np.where(ds.split == "val", "train", ds.split)), no_val)
     one_line_error(CliRunner().invoke(app, ["train", str(no_val), "--select", "--out", str(tmp_path / "n")]),

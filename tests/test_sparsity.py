@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from symrom.model.audit import audit_collinearity, correlations
+from symrom.learn.audit import audit_collinearity, correlations
+from symrom.learn.regressors.stlsq import STLSQConfig, stlsq
+from symrom.learn.training import TrainConfig, train
 from symrom.model.library import Library
-from symrom.model.regressors.stlsq import STLSQConfig, stlsq
-from symrom.model.training import TrainConfig, train
 from symrom.testing import make_planted_dataset
 
 # Stiff, damped latents driven by small inputs: each stays where sin(xi) ~ xi and

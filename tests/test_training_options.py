@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from symrom.model.training import TrainConfig, train
+from symrom.learn.training import TrainConfig, train
 from symrom.names import Q_NAMES
 
 

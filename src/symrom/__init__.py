@@ -19,14 +19,14 @@ from symrom.baselines.newton import AffineForce, Newton
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate
-from symrom.model.encoders import PCAEncoder
-from symrom.model.estimator import SymbolicROM
+from symrom.learn.encoders import PCAEncoder
+from symrom.learn.estimator import SymbolicROM
+from symrom.learn.regressors import STLSQ, FineTune
+from symrom.learn.regressors.refine import Refine
+from symrom.learn.training import TrainConfig, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import Custom, Inputs, Library, Polynomial, Trigonometric
 from symrom.model.persistence import load_model, save_model
-from symrom.model.regressors import STLSQ, FineTune
-from symrom.model.regressors.refine import Refine
-from symrom.model.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 
 __all__ = ["ASlip", "ASlipParams", "AffineForce", "Custom", "Dataset", "FineTune", "HybridModel", "Inputs", "Library",

@@ -268,9 +268,23 @@ def _import_report(ds) -> None:
                 for j, x in gaps[:6]) + (" ..." if len(gaps) > 6 else ""), highlight=False, soft_wrap=True)
 
 
+# train's options that --select does not use (it chooses them on the val split)
+SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "seed", "encoder_components",
+                  "decoded_weight", "alpha", "measure", "collinearity", "encoder_scaling", "trig", "refine")
+
+
+def _refuse_ignored(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
+    """One line naming the options of ``names`` given on the command line, which would be ignored."""
+    given = ["/".join(p.opts + p.secondary_opts) for p in ctx.command.params  # typer's own click: by name
+             if p.name in names and getattr(ctx.get_parameter_source(p.name), "name", "DEFAULT") != "DEFAULT"]
+    if given:
+        raise ValueError(f"{', '.join(given)}: not used with --select ({why}); leave {'it' if len(given) == 1 else 'them'} out")
+
+
 @app.command("train", cls=_Command)
 @guarded
 def train_cmd(
+    ctx: typer.Context,
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
     out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt).")],
     latent_dim: Annotated[int, typer.Option("--latent-dim", help="Latent dimension l.")] = 2,
@@ -299,7 +313,7 @@ def train_cmd(
     refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
     select: Annotated[bool, typer.Option(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
-                         "split (the options above are then not used).")] = False,
+                         "split (it refuses the options above, which it would not use).")] = False,
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
     workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
     resume: Annotated[bool, typer.Option(
@@ -311,9 +325,11 @@ def train_cmd(
     """Train a hybrid symbolic model on the dataset's train split (or select it on val)."""
     from symrom.atomic import atomic_dir, check_output_file
     from symrom.data.io import read_dataset
-    from symrom.model.persistence import save_model
-    from symrom.model.training import AdamConfig, TrainConfig, train
+    from symrom.learn.training import AdamConfig, TrainConfig, train
+    from symrom.model.persistence import write_model_files
 
+    if select:
+        _refuse_ignored(ctx, SELECT_IGNORES, "--select chooses them on the val split")
     check_output_file(out, force, inputs=(data,))
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
@@ -334,8 +350,7 @@ def train_cmd(
             task, completed=frac, description=f"training: {stage}"))
     model.info["data_path"] = str(data)
     with atomic_dir(out, force) as tmp:
-        save_model(model, tmp / "model.json")
-        (tmp / "equations.txt").write_text(model.equations_text() + "\n")
+        write_model_files(model, tmp)
     terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
     out_console.print(f"model: {out / 'model.json'}  (l={latent_dim}, p={poly_order}, "
                       f"{model.library.n_features} candidates; active terms: {terms})")
@@ -347,37 +362,21 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     """``train --select``: the validation selection, its table and the chosen model. Each
     finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
     that ``--resume`` continues an interrupted selection."""
-    import shutil
-
-    from symrom.atomic import atomic_dir
     from symrom.data.io import read_dataset
-    from symrom.experiments.select import SelectionConfig, check_splits, select, write_selection
+    from symrom.experiments.select import SelectionConfig, check_parts, check_splits, select_into
     from symrom.experiments.sweep import parse_latent_dims
-    from symrom.model.persistence import save_model
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers)
-    parts = Path(str(out) + ".parts")
-    if parts.exists() and not resume and not force:
-        raise ValueError(f"{parts} holds an interrupted selection; use --resume to continue it or --force "
-                         "to start over")
+    check_parts(out, resume, force)
     ds = read_dataset(data)
     check_splits(ds)
     runner = _start_backend(backend, workers, address)
-    if parts.exists() and not resume:
-        shutil.rmtree(parts)  # --force: start over
     out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("selection", total=len(cfg.cells()) + cfg.refine_top)
-        sel = select(ds, cfg, progress=lambda done, total, what: bar.update(
+        sel = select_into(out, ds, cfg, resume=resume, force=force, progress=lambda done, total, what: bar.update(
             task, completed=done, total=total, description=f"selection: {what}"), backend=runner,
-                     cells_dir=parts)
-    with atomic_dir(out, force) as tmp:
-        write_selection(sel, tmp)
-        if sel.model is not None:
-            sel.model.info["data_path"] = str(data)
-            save_model(sel.model, tmp / "model.json")
-            (tmp / "equations.txt").write_text(sel.model.equations_text() + "\n")
-    shutil.rmtree(parts, ignore_errors=True)
+                          info={"data_path": str(data)})
     if sel.model is None:
         raise ValueError(f"every one of the {len(sel.rows)} candidates diverged on a validation jump; "
                          f"the table is in {out / 'selection.json'}")
@@ -484,10 +483,9 @@ def finetune_cmd(
     """Fine-tune a model on new jumps (the phases they hold), checked on their val split."""
     from symrom.atomic import atomic_dir, check_output_file
     from symrom.data.io import read_dataset
-    from symrom.evaluate.tables import table2
-    from symrom.experiments.finetune import FineTuneCheck, check_data, run_finetune
-    from symrom.model.finetune import FineTuneConfig
-    from symrom.model.persistence import load_model, save_model
+    from symrom.experiments.finetune import FineTuneCheck, check_data, run_finetune, write_finetune
+    from symrom.learn.finetune import FineTuneConfig
+    from symrom.model.persistence import load_model
 
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator("val", integrator)
@@ -505,13 +503,7 @@ def finetune_cmd(
     tuned.info["finetune"]["source_model"] = str(model_path)
     record = result.to_dict()
     with atomic_dir(out, force) as tmp:
-        save_model(tuned, tmp / "model.json")
-        (tmp / "equations.txt").write_text(tuned.equations_text() + "\n")
-        (tmp / "finetune.json").write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
-        for name, metrics in (("val_before", result.before), ("val_after", result.after)):
-            (tmp / name).mkdir()
-            (tmp / name / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-            (tmp / name / "table.md").write_text(table2(metrics, title=f"{name.replace('_', ' ')} fine-tuning"))
+        write_finetune(tmp, result)
     out_console.print(f"fine-tuning rows (train): {_phase_rows(ds, ds.rows_of('train'))}",
                       highlight=False, soft_wrap=True)
     for name in record["phases_kept"]:
@@ -567,8 +559,8 @@ def export_cmd(
 ) -> None:
     """Write the model as standalone code: encoder, decoder, each phase's dynamics, an RK4 step."""
     from symrom.atomic import atomic_dir, check_output_file
-    from symrom.model.export import TARGETS, export, model_hash
-    from symrom.model.persistence import load_model
+    from symrom.model.export import TARGETS, export
+    from symrom.model.persistence import load_model, model_hash
 
     if to not in TARGETS:
         raise ValueError(f"--to must be one of {', '.join(TARGETS)}, got {to!r}")
@@ -638,7 +630,6 @@ def demo_cmd(
     from symrom.evaluate.tables import table2
     from symrom.experiments.demo import demo_config
     from symrom.experiments.reproduce import reproduce
-    from symrom.model.persistence import load_model
     from symrom.report.html import build_report
 
     check_output_file(out, force)
@@ -653,8 +644,7 @@ def demo_cmd(
 
             summary = reproduce(tmp, cfg, command=command, say=say)
         go1 = summary["experiments"]["go1_sim"]
-        text = load_model(tmp / "go1_sim" / "model.json").equations_text()
-        (tmp / "go1_sim" / "equations.txt").write_text(text + "\n")
+        text = (tmp / "go1_sim" / "equations.txt").read_text().rstrip("\n")
     # The report is built where the run now is, so that it names that directory.
     with console.status("demo: report"):
         build_report(out, out / "report.html")
@@ -769,6 +759,7 @@ def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | 
     """Roll a CoM baseline out on ``split``, print its table and write metrics, table and ``files``."""
     from symrom.atomic import atomic_dir
     from symrom.evaluate.metrics import evaluate
+    from symrom.evaluate.outputs import write_baseline
     from symrom.evaluate.tables import table2
     from symrom.rollout.integrate import RolloutOptions
 
@@ -776,13 +767,10 @@ def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | 
         task = bar.add_task(f"{title} rollouts", total=len(resets) * ds.jumps_in(split).size)
         metrics, _ = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
                               model_name=title, data_name=str(data), progress=_ticker(bar, task))
-    table = table2(metrics, components=tuple(model.components), title=f"{title}, {ds.robot} {ds.motion} ({split})")
+    title = f"{title}, {ds.robot} {ds.motion} ({split})"
     with atomic_dir(out, force) as tmp:
-        (tmp / "metrics.json").write_text(json.dumps(metrics, indent=1) + "\n")
-        (tmp / "table.md").write_text(table)
-        for name, text in files.items():
-            (tmp / name).write_text(text)
-    typer.echo(table)
+        write_baseline(tmp, metrics, tuple(model.components), title, files)
+    typer.echo(table2(metrics, components=tuple(model.components), title=title))
     _divergence_warnings(metrics)
 
 

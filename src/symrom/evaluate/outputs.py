@@ -1,14 +1,50 @@
-"""Writing an evaluation to a directory: metrics.json, table.md and jump plots."""
+"""Writing evaluations: the one writer of ``metrics.json`` and ``table.md``, and the
+evaluation and baseline folders built on it.
+
+``metrics.json`` is strict JSON: a number that is not finite (NaN, infinity; e.g. an error
+of a horizon at which no sample could be scored) is written as ``null``, never as the
+``NaN`` token most JSON readers refuse.
+"""
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+from typing import Any
 
+from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.evaluate.plots import plot_jump
-from symrom.evaluate.tables import table2
+from symrom.evaluate.tables import TABLE2_COMPONENTS, table2
 from symrom.rollout.integrate import Rollout
+
+
+def finite_or_null(obj: Any) -> Any:
+    """``obj`` (JSON-ready) with every non-finite float replaced by None."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_or_null(v) for v in obj]
+    return obj
+
+
+def write_json(path: str | Path, obj: Any) -> Path:
+    """``obj`` as strict JSON (non-finite numbers as null), atomically."""
+    write_text_atomic(path, json.dumps(finite_or_null(obj), indent=1, allow_nan=False) + "\n")
+    return Path(path)
+
+
+def write_metrics(folder: str | Path, metrics: dict, title: str = "",
+                  components: tuple[str, ...] = TABLE2_COMPONENTS) -> list[Path]:
+    """``metrics.json`` and ``table.md`` (Table 2 of ``metrics`` over ``components``) in the
+    existing directory ``folder``; the paths written."""
+    folder = Path(folder)
+    table = table2(metrics, components=components, title=title)
+    write_text_atomic(folder / "table.md", table)
+    return [write_json(folder / "metrics.json", metrics), folder / "table.md"]
 
 
 def write_evaluation(out: Path, metrics: dict, rollouts: dict[str, Rollout], ds: Dataset,
@@ -17,11 +53,22 @@ def write_evaluation(out: Path, metrics: dict, rollouts: dict[str, Rollout], ds:
     into the directory ``out``. Returns the paths written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    written = [out / "metrics.json", out / "table.md"]
-    written[0].write_text(json.dumps(metrics, indent=1, allow_nan=False))
-    written[1].write_text(table2(metrics, title=title))
+    written = write_metrics(out, metrics, title=title)
     for j in plot_jumps if plot_jumps is not None else list(rollouts.values())[0].jumps[:1]:
         p = out / f"jump_{int(j)}.png"
         plot_jump(ds, rollouts, int(j), p, title=f"{title} jump {int(j)}".strip())
         written.append(p)
+    return written
+
+
+def write_baseline(folder: str | Path, metrics: dict, components: tuple[str, ...], title: str,
+                   files: dict[str, str] | None = None) -> list[Path]:
+    """A baseline's folder in the existing directory ``folder``: its ``metrics.json`` and
+    ``table.md`` over the components it predicts, and ``files`` (name -> text, e.g. its
+    ``params.json``). Returns the paths written."""
+    folder = Path(folder)
+    written = write_metrics(folder, metrics, title=title, components=components)
+    for name, text in (files or {}).items():
+        write_text_atomic(folder / name, text)
+        written.append(folder / name)
     return written

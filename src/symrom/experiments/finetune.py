@@ -31,15 +31,18 @@ split stays an honest measure of the result.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
-from symrom.model.encoders import unit_floored
-from symrom.model.finetune import FineTuneConfig, check_decoder, finetune
+from symrom.evaluate.outputs import write_json, write_metrics
+from symrom.learn.encoders import unit_floored
+from symrom.learn.finetune import FineTuneConfig, check_decoder, finetune
 from symrom.model.hybrid import HybridModel
+from symrom.model.persistence import write_model_files
 from symrom.names import Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
@@ -161,3 +164,16 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
                           f"score {score0:.4g} before, at best {min(a['score'] for a in attempts):.4g} after "
                           f"(tolerance +{100 * check.tolerance:g} %), diverged val jumps {div0} before; the source "
                           "model stays the better one")
+
+
+def write_finetune(folder: str | Path, result: FineTuneResult) -> list[Path]:
+    """A fine-tuning's folder in the existing directory ``folder``: the tuned model
+    (``model.json``, ``equations.txt``), ``finetune.json`` (``FineTuneResult.to_dict``) and
+    the val evaluations before and after (``val_before/``, ``val_after/``: ``metrics.json``,
+    ``table.md``). Returns the paths written."""
+    folder = Path(folder)
+    written = write_model_files(result.model, folder) + [write_json(folder / "finetune.json", result.to_dict())]
+    for name, metrics in (("val_before", result.before), ("val_after", result.after)):
+        (folder / name).mkdir(exist_ok=True)
+        written += write_metrics(folder / name, metrics, title=f"{name.replace('_', ' ')} fine-tuning")
+    return written

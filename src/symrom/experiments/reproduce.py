@@ -16,6 +16,8 @@ interrupted run resumes where it stopped and datasets are never regenerated):
     summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
                    role and files, which the report renders
 
+Every ``model.json`` has its ``equations.txt`` beside it (``write_model_files``).
+
 Experiments: SIM Go1 pronking, SIM A1 froggy (phases contact / partial /
 flight), sim-to-real (train on noisy Go1, fine-tune on the proxy's training
 jumps, choose on its val jumps, evaluate on its test jump), the baselines (aSLIP
@@ -46,15 +48,16 @@ from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate
-from symrom.evaluate.outputs import write_evaluation
+from symrom.evaluate.outputs import write_evaluation, write_json
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
 from symrom.execution import Backend, make_backend
-from symrom.model.finetune import FineTuneConfig, finetune
+from symrom.experiments.select import (Selection, SelectionConfig, encoder_name, library_name, select, selection_rule,
+                                      write_selection)
+from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.model.hybrid import HybridModel
-from symrom.model.persistence import load_model, save_model
-from symrom.experiments.select import Selection, SelectionConfig, select, selection_rule, write_selection
-from symrom.model.training import AdamConfig, TrainConfig, train
+from symrom.model.persistence import load_model, write_model_files
 from symrom.rollout.integrate import RolloutOptions
 
 Say = Callable[..., None]  # say(message, transient=False); transient = a progress count
@@ -84,7 +87,7 @@ class ExperimentSpec:
     latent_dims: tuple[int, ...] = (2, 3, 4)
 
     def paper_config(self, seed: int = 0) -> TrainConfig:
-        return TrainConfig(self.paper_latent_dim, 1, seed=seed)
+        return TrainConfig(latent_dim=self.paper_latent_dim, poly_order=1, seed=seed)
 
 
 @dataclass
@@ -190,7 +193,7 @@ def _train_or_load(path: Path, ds: Dataset, tc: TrainConfig) -> tuple[HybridMode
     model = train(ds, tc)
     wall = time.perf_counter() - t0
     model.info["wall_time_s"] = wall
-    save_model(model, path)
+    write_model_files(model, path.parent)
     return model, wall
 
 
@@ -225,7 +228,7 @@ def _selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig,
     if sel.model is None:
         raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
     write_selection(sel, d / "selection")
-    save_model(sel.model, d / "model.json")
+    write_model_files(sel.model, d)
     return sel.model, sel.to_dict()
 
 
@@ -291,8 +294,8 @@ def run_baselines(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceCon
         metrics, _ = evaluate(model, ds, "test", (None, 0.1), RolloutOptions(cfg.integrator), model_name=name,
                               data_name=f"data/{exp.data}.h5")
         d.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(d / "params.json", json.dumps(params, indent=1))
-        write_text_atomic(d / "metrics.json", json.dumps(metrics, indent=1))
+        write_json(d / "params.json", params)
+        write_json(d / "metrics.json", metrics)
         out[name] = metrics
     return out
 
@@ -364,7 +367,7 @@ def run_proxy(run: Path, noisy: Path, proxy: Path, settings: TrainConfig, cfg: R
         model = models[k]
         choice = {"version": 1, "rows": rows, "chosen": k, "split": "val",
                   "rule": selection_rule(proxy_selection(cfg))}
-        save_model(model, d / "model.json")
+        write_model_files(model, d)
         write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))
     mpath = d / "eval" / "metrics.json"
     metrics = (json.loads(mpath.read_text()) if _done(mpath)
@@ -422,6 +425,13 @@ def run_sweep_step(run: Path, data: Path, cfg: ReproduceConfig, say: Say) -> dic
     return result
 
 
+def config_facts(tc: TrainConfig) -> dict:
+    """A training configuration in the words of the selection's table (the manifest's facts)."""
+    return {"encoder": encoder_name(tc), "latent_dim": tc.latent_dim,
+            "library": library_name(tc.poly_order, tc.trig, tc.inputs), "threshold": tc.threshold,
+            "measure": tc.measure, "decoded_weight": tc.decoded_weight, "alpha": tc.alpha, "refine": tc.refine}
+
+
 def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEntry]:
     """The run's experiments with their roles and files (paths relative to ``run``), for the report."""
     def rel(*parts: str) -> str:
@@ -440,10 +450,7 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
         out.append(ManifestEntry(f"{exp.name}/paper_defaults", LEARNED, f"{exp.name} with the paper's defaults",
                                  files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json"),
                                         "data": data}, of=exp.name,
-                                 facts={"config": {"encoder": "all", "latent_dim": exp.paper_latent_dim,
-                                                   "library": "poly1+trig+inputs", "threshold": 0.01,
-                                                   "measure": "coefficient", "decoded_weight": 1.0, "alpha": 0.0,
-                                                   "refine": False}}))
+                                 facts={"config": config_facts(exp.paper_config(cfg.seed))}))
         for name in entry.get("baselines", {}):
             d = rel(exp.name, name)
             out.append(ManifestEntry(f"{exp.name}/{name}", BASELINE, BASELINE_TITLES[name], of=exp.name,

@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -56,14 +57,15 @@ from typing import Any
 
 import numpy as np
 
-from symrom.atomic import write_text_atomic
+from symrom.atomic import atomic_dir, write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.evaluate.metrics import evaluate
 from symrom.execution import Backend, LocalBackend
-from symrom.experiments.sweep import load_cell
-from symrom.model.encoders import unit_floored
+from symrom.experiments.grid import Store, run_grid
+from symrom.learn.encoders import unit_floored
+from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
-from symrom.model.training import TrainConfig, data_hash, train
+from symrom.model.persistence import write_model_files
 from symrom.names import BASE_NAMES, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
@@ -113,6 +115,21 @@ def parse_library(text: str) -> dict[str, Any]:
     if not any(p.startswith("poly") for p in parts):
         raise ValueError(f"library {text!r}: needs a poly<p> block (the constant)")
     return out
+
+
+def library_name(poly_order: int, trig: bool, inputs: bool) -> str:
+    """TrainConfig's library fields -> ``poly1+trig+inputs`` (the inverse of ``parse_library``)."""
+    return f"poly{poly_order}" + ("+trig" if trig else "") + ("+inputs" if inputs else "")
+
+
+def encoder_name(config: TrainConfig) -> str:
+    """The grid's name (``ENCODERS``) of the encoder ``config`` describes; ValueError if none."""
+    fields = ("encoder_components", "encoder_scaling", "encoder_base_latents")
+    for name, choice in ENCODERS.items():
+        grid = replace(TrainConfig(latent_dim=config.latent_dim), **choice.settings(config.latent_dim))
+        if all(getattr(grid, f) == getattr(config, f) for f in fields):
+            return name
+    raise ValueError(f"the encoder settings {[getattr(config, f) for f in fields]} are none of the grid's")
 
 
 @dataclass
@@ -359,30 +376,15 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     sha = data_hash(ds)
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top
-    rows: list[dict] = []
-    keys = {c: cell_key(cfg, sha, c) for c in cells} if cells_dir is not None else {}
-    todo = []
-    done = 0
-    for c in cells:
-        stored = load_cell(cell_path(cells_dir, c), keys[c]) if keys else None
-        if stored is None:
-            todo.append(c)
-        else:
-            rows += stored["rows"]
-            done += 1
-            say(done, total, f"{c[0]} l={c[1]} {c[2]} (reused)")
-    retries: list[dict] = []
-    for task in backend.map(run_cell, [(c, c) for c in todo], (ds, cfg), label="selection cell"):
-        c, what = task.key, f"{task.key[0]} l={task.key[1]} {task.key[2]}"
-        rows += task.value
-        retries += [{"task": what, **r} for r in task.retries]
-        if keys:
-            write_text_atomic(cell_path(cells_dir, c), json.dumps(
-                {"key": keys[c], "cell": list(c), "rows": task.value,
-                 "execution": {"backend": backend.name, "worker": task.worker, "retries": task.retries}},
-                indent=1, allow_nan=False) + "\n")
-        done += 1
-        say(done, total, what)
+    store = None if cells_dir is None else Store(
+        path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c),
+        record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},
+        value=lambda stored: stored["rows"])
+    grid = run_grid(cells, run_cell, (ds, cfg), backend, "selection cell", store, progress=lambda done, n, c, task: say(
+        done, total, f"{c[0]} l={c[1]} {c[2]}" + (" (reused)" if task is None else "")))
+    rows: list[dict] = [r for c in cells for r in grid.results[c]]
+    retries = [{"task": f"{c[0]} l={c[1]} {c[2]}", **r} for c in grid.ran for r in grid.retries[c]]
+    todo = grid.ran
     order = {c: i for i, c in enumerate(cells)}
     rows.sort(key=lambda r: (order[(r["encoder"], r["latent_dim"], r["library"])], r["threshold"]))
     refined_models = {}
@@ -418,3 +420,41 @@ def write_selection(sel: Selection, out: str | Path) -> Path:
 def selection_config(**overrides: Any) -> SelectionConfig:
     """The default grid with ``overrides`` applied (names as in ``SelectionConfig``)."""
     return replace(SelectionConfig(), **overrides)
+
+
+def parts_dir(out: str | Path) -> Path:
+    """Where ``select_into`` keeps the finished cells of a selection written to ``out``."""
+    return Path(str(out) + ".parts")
+
+
+def check_parts(out: str | Path, resume: bool, force: bool) -> Path:
+    """The cells folder of ``out``; ValueError if it holds an interrupted selection that
+    neither ``resume`` continues nor ``force`` discards (checked before any work)."""
+    parts = parts_dir(out)
+    if parts.exists() and not resume and not force:
+        raise ValueError(f"{parts} holds an interrupted selection; use --resume to continue it or --force "
+                         "to start over")
+    return parts
+
+
+def select_into(out: str | Path, ds: Dataset, cfg: SelectionConfig = SelectionConfig(), resume: bool = False,
+                force: bool = False, progress: Callable[[int, int, str], None] | None = None,
+                backend: Backend | None = None, info: dict | None = None) -> Selection:
+    """The selection's folder ``out``, written atomically: ``selection.json``
+    (``write_selection``) and the chosen model (``model.json``,
+    ``equations.txt``; ``info`` merged into its record), if any candidate stood.
+
+    Each finished cell is kept in ``out.parts`` (``parts_dir``) until the folder is
+    written, so that ``resume`` continues an interrupted selection; ``force`` starts over
+    (and replaces ``out``). The parts are removed once the folder is in place."""
+    parts = check_parts(out, resume, force)
+    if parts.exists() and not resume:
+        shutil.rmtree(parts)  # force: start over
+    sel = select(ds, cfg, progress=progress, backend=backend, cells_dir=parts)
+    with atomic_dir(Path(out), force) as tmp:
+        write_selection(sel, tmp)
+        if sel.model is not None:
+            sel.model.info.update(info or {})
+            write_model_files(sel.model, tmp)
+    shutil.rmtree(parts, ignore_errors=True)
+    return sel

@@ -7,7 +7,7 @@ are kept (one "cell"):
   (squared 2-norm over the 18 components, rad^2 and m^2 mixed as in the paper)
   averaged over the training rows, with the
   bootstrap the resampled rows, repeats counted
-  (``symrom.model.training.reconstruction_error``);
+  (``symrom.learn.training.reconstruction_error``);
 - ``active_terms``: |Xi|, nonzero coefficients summed over all phases;
 - ``rmse_test`` (optional): accuracy of the model, the mean over the 12 Table-2
   components of the test-split full-horizon RMSE (RK4 rollouts), ``None`` if
@@ -49,7 +49,8 @@ import numpy as np
 from symrom.atomic import write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.execution import Backend, LocalBackend
-from symrom.model.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
+from symrom.experiments.grid import Store, run_grid
+from symrom.learn.training import SOLVERS, AdamConfig, TrainConfig, data_hash, reconstruction_error, train
 from symrom.names import N_Q, TABLE2_COMPONENTS
 
 CELL_VERSION = 1
@@ -189,16 +190,6 @@ def _cell_path(out: Path, latent_dim: int, seed: int) -> Path:
     return out / "cells" / f"l{latent_dim:02d}_s{seed}.json"
 
 
-def load_cell(path: Path, key: str) -> dict[str, Any] | None:
-    """The stored cell (a JSON object) if it exists, parses and carries ``key``; else None
-    (recompute)."""
-    try:
-        cell = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return cell if isinstance(cell, dict) and cell.get("key") == key else None
-
-
 def summarise(cells: dict[tuple[int, int], dict[str, Any]], config: SweepConfig,
               data_sha256: str = "") -> dict[str, Any]:
     """The sweep result (layout of ``sweep.json``) from all cells ``{(l, s): cell}``.
@@ -236,28 +227,19 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
     out = Path(out)
     (out / "cells").mkdir(parents=True, exist_ok=True)
     sha = data_hash(ds)
-    todo, cells = [], {}
-    for d in config.latent_dims:
-        for s in config.seeds:
-            cell = load_cell(_cell_path(out, d, s), cell_key(config, sha, d, s))
-            if cell is None:
-                todo.append((d, s))
-            else:
-                cells[(d, s)] = cell
-    total = len(config.latent_dims) * len(config.seeds)
+    store = Store(path=lambda c: _cell_path(out, *c), key=lambda c: cell_key(config, sha, *c),
+                  record=lambda c, cell, key, execution: {**cell, "key": key, "execution": execution},
+                  value=lambda stored: stored)
     tell = progress or (lambda done, n, info: None)
-    for (d, s) in cells:
-        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": True})
-    backend = backend or LocalBackend(config.workers)
+
+    def told(done: int, total: int, c: tuple[int, int], task) -> None:
+        info = {"latent_dim": c[0], "seed": c[1], "reused": task is None}
+        tell(done, total, info if task is None else {**info, "retries": len(task.retries)})
+
+    cells = [(d, s) for d in config.latent_dims for s in config.seeds]
     # Large dimensions first: they take longest, so the workers stay busy to the end.
-    todo.sort(key=lambda c: (-c[0], c[1]))
-    for task in backend.map(run_cell, [((d, s), (d, s)) for d, s in todo], (ds, config), label="sweep cell"):
-        (d, s), cell = task.key, task.value
-        cell["key"] = cell_key(config, sha, d, s)
-        cell["execution"] = {"backend": backend.name, "worker": task.worker, "retries": task.retries}
-        write_text_atomic(_cell_path(out, d, s), json.dumps(cell, indent=1) + "\n")
-        cells[(d, s)] = cell
-        tell(len(cells), total, {"latent_dim": d, "seed": s, "reused": False, "retries": len(task.retries)})
-    result = summarise(cells, config, sha)
+    grid = run_grid(cells, run_cell, (ds, config), backend or LocalBackend(config.workers), "sweep cell", store,
+                    order=lambda c: (-c[0], c[1]), progress=told)
+    result = summarise(grid.results, config, sha)
     write_text_atomic(out / "sweep.json", json.dumps(result, indent=1) + "\n")
     return result

@@ -32,14 +32,17 @@ import hashlib
 import math
 import time
 from collections import OrderedDict
+from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-from symrom.model.export import dynamics_expressions
-from symrom.model.hybrid import HybridModel
+from symrom.model.expressions import latent_expressions
 from symrom.model.library import symbols
+
+if TYPE_CHECKING:  # the model is only read here; hybrid.py imports this module
+    from symrom.model.hybrid import HybridModel
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
 CACHE_SIZE = 16  # compiled models kept per process
@@ -149,7 +152,7 @@ def model_source(model: HybridModel) -> str:
     l = model.latent_dim
     s, nu = symbols(l)
     sub = {v: sympy.Symbol(f"s{i}") for i, v in enumerate(s)} | {v: sympy.Symbol(f"u{i}") for i, v in enumerate(nu)}
-    exprs = [[e.xreplace(sub) for e in rows] for rows in dynamics_expressions(model)]
+    exprs = [[e.xreplace(sub) for e in rows] for rows in latent_expressions(model.library, model.Xi)]
     state = {sympy.Symbol(f"s{i}"): i for i in range(2 * l)}
     atoms = set().union(*(e.atoms(sympy.sin, sympy.cos) for rows in exprs for e in rows))
     trig = sorted({state[a.args[0]] for a in atoms if a.args[0] in state})

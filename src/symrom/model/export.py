@@ -19,7 +19,6 @@ model file's content) and its phase names; phase k is the k-th name.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 from pathlib import Path
@@ -28,33 +27,13 @@ import numpy as np
 import sympy
 
 from symrom.atomic import write_text_atomic
+from symrom.model.expressions import latent_expressions
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import symbols
+from symrom.model.persistence import model_hash
 
 TARGETS = ("c", "casadi", "python")
 PREFIX = "symrom_model"
-
-
-def model_hash(model: HybridModel) -> str:
-    """SHA-256 of the model's file content (the canonical JSON of ``model_to_dict``)."""
-    from symrom.model.persistence import model_to_dict
-
-    text = json.dumps(model_to_dict(model), sort_keys=True, allow_nan=False)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def dynamics_expressions(model: HybridModel) -> list[list[sympy.Expr]]:
-    """Per phase, the l right-hand sides ddxi_j as sympy expressions with the exact
-    (double) coefficients of the active terms, over ``symbols(l)``."""
-    feats = model.library.sympy_features()
-    out = []
-    for k in range(len(model.phase_names)):
-        rows = []
-        for j in range(model.latent_dim):
-            terms = [sympy.Float(repr(float(c)), 17) * f for c, f in zip(model.Xi[k][:, j], feats) if c != 0]
-            rows.append(sympy.Add(*terms) if terms else sympy.Float(0.0))
-        out.append(rows)
-    return out
 
 
 def export(model: HybridModel, target: str, out: str | os.PathLike) -> list[Path]:
@@ -109,7 +88,7 @@ int symrom_rk4_step(int phase, double s[2 * SYMROM_LATENT_DIM], const double nu[
 #endif
 """
     cases = []
-    for k, rows in enumerate(dynamics_expressions(model)):
+    for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
         body = "\n".join(f"        ddxi[{j}] = {sympy.ccode(e.xreplace(subs))};" for j, e in enumerate(rows))
         cases.append(f"    case {k}: /* {model.phase_names[k]} */\n{body}\n        return 0;")
     source = f"""/* symrom model sha256: {digest}; phases: {names} */
@@ -197,7 +176,7 @@ def casadi_functions(model: HybridModel):
              "tanh": ca.tanh, "Abs": ca.fabs, "sign": ca.sign, "atan": ca.atan}
     args = [xi[i] for i in range(l)] + [dxi[i] for i in range(l)] + [nu[i] for i in range(l)]
     fns, per_phase = {}, []
-    for k, rows in enumerate(dynamics_expressions(model)):
+    for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
         f = sympy.lambdify([*s_sym, *nu_sym], rows, modules=[table, "math"])
         dd = ca.vertcat(*[ca.SX(v) if not isinstance(v, ca.SX) else v for v in f(*args)])
         name = model.phase_names[k]
@@ -259,7 +238,7 @@ def _export_python(model: HybridModel, out: Path) -> list[Path]:
     subs = {v: sympy.Symbol(f"s[{i}]") for i, v in enumerate(s)} | {v: sympy.Symbol(f"nu[{i}]") for i, v in enumerate(nu)}
     printer = NumPyPrinter({"fully_qualified_modules": True})
     cases = []
-    for k, rows in enumerate(dynamics_expressions(model)):
+    for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
         body = ", ".join(printer.doprint(e.xreplace(subs)) for e in rows)
         cases.append(f"    if phase == {k}:  # {model.phase_names[k]}\n        return numpy.array([{body}], dtype=float)")
     text = f'''"""symrom model, exported: encoder, decoder, latent dynamics and one RK4 step (NumPy only).

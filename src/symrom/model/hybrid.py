@@ -21,9 +21,12 @@ import sympy
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
+from symrom.model.expressions import latent_expressions
+from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
-from symrom.rollout.system import RolloutSystem
+from symrom.rollout.system import GeneratedCode, RolloutSystem
 
 # A phase's linearised dynamics grow by more than this factor over a typical
 # stay in the phase: a "fast" unstable mode, worth a warning.
@@ -100,7 +103,10 @@ class HybridModel:
     """autoencoder; library; phase_names (P,); Xi (P, p, l); mask (P, p, l) bool;
     latent_scale (2l,): largest |xi|, |dxi| seen in training, the yardstick for
     divergence; info: robot, motion, dt, training configuration, solver, seeds,
-    data hash; phase_info: per phase name, what training saw of it."""
+    data hash; phase_info: per phase name, what training saw of it; estimator: the
+    configuration of the learner that fitted it (its plug-ins, ``{"encoder": {"kind":
+    ...}, "regressor": {"kind": ...}, "decoded_weight", "contact_phase",
+    "path_thresholds"}``), JSON-ready: kept here, read by ``symrom.learn``."""
 
     autoencoder: LinearAutoencoder
     library: Library
@@ -110,6 +116,7 @@ class HybridModel:
     latent_scale: np.ndarray
     info: dict[str, Any] = field(default_factory=dict)
     phase_info: dict[str, PhaseInfo] = field(default_factory=dict)
+    estimator: dict[str, Any] = field(default_factory=dict)
 
     components: ClassVar[tuple[str, ...]] = Q_NAMES
 
@@ -217,15 +224,17 @@ class HybridModel:
             ph.append(phase[a:b])
         lib, Xi = self.library, self.Xi
 
+        def c_params(drive: dict[str, np.ndarray]) -> np.ndarray:
+            """(n, 1 + l): the C right-hand side's data per sample, [phase index, nu]."""
+            return np.column_stack([drive["phase"], drive["nu"]]).astype(float)
+
         def acceleration(drive: dict[str, np.ndarray], xs: np.ndarray, vs: np.ndarray) -> np.ndarray:
             return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
 
-        from symrom.model.kernel import compiled_rollout
-
-        def generated():
-            from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
-
-            return generated_integrator(self), generated_rhs(self), lambda: generated_c_rhs(self)
+        def generated() -> GeneratedCode:
+            return GeneratedCode(integrator=generated_integrator(self), rhs=generated_rhs(self),
+                                 rhs_args=lambda drive, k: (int(drive["phase"][k]), drive["nu"][k]),
+                                 c_rhs=lambda: generated_c_rhs(self), c_params=c_params)
 
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
@@ -235,16 +244,7 @@ class HybridModel:
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:
         """Per phase, the l right-hand sides of ddxi_j, coefficients rounded to ``digits``
         significant digits."""
-        feats = self.library.sympy_features()
-        out = {}
-        for k, name in enumerate(self.phase_names):
-            rhs = []
-            for j in range(self.latent_dim):
-                terms = [sympy.Float(float(f"{c:.{digits}g}"), digits) * f
-                         for c, f in zip(self.Xi[k][:, j], feats) if c != 0]
-                rhs.append(sympy.Add(*terms) if terms else sympy.Integer(0))
-            out[name] = rhs
-        return out
+        return dict(zip(self.phase_names, latent_expressions(self.library, self.Xi, digits)))
 
     def equations_text(self, latex: bool = False, digits: int = 3) -> str:
         """All phases' equations as plain text (or LaTeX)."""

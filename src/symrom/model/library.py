@@ -395,12 +395,6 @@ class Library:
         """Highest degree of the polynomial blocks (0 if none)."""
         return max((b.order for b in self.blocks if isinstance(b, Polynomial)), default=0)
 
-    @property
-    def uses_inputs(self) -> bool:
-        """Whether any term depends on the latent inputs nu."""
-        _, nu = symbols(self.latent_dim)
-        return any(e.has(*nu) for e in self.sympy_features())
-
     def _state(self, xi: np.ndarray, dxi: np.ndarray) -> np.ndarray:
         xi, dxi = np.asarray(xi, dtype=float), np.asarray(dxi, dtype=float)
         return np.concatenate([xi.reshape(-1, self.latent_dim), dxi.reshape(-1, self.latent_dim)], axis=1)

@@ -1,5 +1,10 @@
 """The model file: versioned JSON, human-readable, no pickle (``docs/design.md``).
 
+format_version 3 adds ``estimator``: the configuration of the learner that
+fitted the model, each plug-in a ``{"kind": ...}`` record (the encoder and
+regressor settings that format 2 kept in ``info``). Files of format 2 and 1
+are still read, their records taken from ``info``.
+
 format_version 2 adds, per phase, whether it was trained, its operating point
 and typical duration, the regressor's report (terms left out and why, the
 sparsity path, the refinement) and, for readers, the stability diagnostics;
@@ -8,6 +13,7 @@ and the library as a list of term blocks. Files of format 1 are still read.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -19,8 +25,10 @@ from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel, PhaseInfo
 from symrom.model.library import Library
 
-FORMAT_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+FORMAT_VERSION = 3
+READABLE_VERSIONS = (1, 2, 3)
+# what format 2 kept in ``info`` and format 3 keeps in ``estimator``
+LEGACY_ESTIMATOR_KEYS = ("encoder", "regressor", "decoded_weight")
 
 
 class ModelFileError(ValueError):
@@ -43,8 +51,15 @@ def model_to_dict(model: HybridModel) -> dict:
                           **({"stability": stab[name]} if name in stab else {})}
                    for k, name in enumerate(model.phase_names)},
         "phase_names": list(model.phase_names),
+        "estimator": model.estimator,
         "info": model.info,
     }
+
+
+def model_hash(model: HybridModel) -> str:
+    """SHA-256 of the model's file content (the canonical JSON of ``model_to_dict``)."""
+    text = json.dumps(model_to_dict(model), sort_keys=True, allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def _check_finite(model: HybridModel) -> None:
@@ -85,6 +100,15 @@ def save_model(model: HybridModel, path: str | os.PathLike) -> None:
     write_text_atomic(path, json.dumps(d, indent=1, allow_nan=False))
 
 
+def write_model_files(model: HybridModel, folder: str | os.PathLike) -> list[Path]:
+    """A model folder's files in ``folder`` (which exists): ``model.json`` and
+    ``equations.txt`` (the plain-text equations); the one writer of both. Returns the paths."""
+    folder = Path(folder)
+    save_model(model, folder / "model.json")
+    write_text_atomic(folder / "equations.txt", model.equations_text() + "\n")
+    return [folder / "model.json", folder / "equations.txt"]
+
+
 def _array(d: dict, key: str, where: str, shape: tuple[int, ...]) -> np.ndarray:
     if key not in d:
         raise ModelFileError(f"{where}.{key}: missing")
@@ -120,6 +144,19 @@ def model_from_dict(d: dict) -> HybridModel:
                            _array(d.get("decoder", {}), "W_d", "decoder", (18, l)),
                            _array(d.get("decoder", {}), "B_d", "decoder", (18,)))
     Xi, mask, info = [], [], {}
+    record = dict(d.get("info", {}))
+    if d["format_version"] >= 3:
+        estimator = d.get("estimator")
+        if estimator is None:
+            raise ModelFileError("estimator: missing (format 3 records the learner's configuration)")
+        if not isinstance(estimator, dict):
+            raise ModelFileError(f"estimator: expected an object, got {estimator!r}")
+    else:
+        estimator = {k: record[k] for k in LEGACY_ESTIMATOR_KEYS if k in record}
+        training = record.get("training") or {}
+        for key, name in (("contact_phase", "contact_phase"), ("path_thresholds", "path")):
+            if name in training:
+                estimator[key] = training[name]
     for n in names:
         if n not in phases:
             raise ModelFileError(f"phases.{n}: missing")
@@ -129,7 +166,7 @@ def model_from_dict(d: dict) -> HybridModel:
             info[n] = _phase_info(phases[n], f"phases.{n}", l)
     try:
         return HybridModel(ae, lib, names, np.array(Xi), np.array(mask),
-                           _array(d, "latent_scale", "model", (2 * l,)), dict(d.get("info", {})), info)
+                           _array(d, "latent_scale", "model", (2 * l,)), record, info, dict(estimator))
     except ValueError as e:
         raise ModelFileError(f"model: {e}") from None
 

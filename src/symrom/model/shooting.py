@@ -1,6 +1,6 @@
 """Batch rollouts of the latent dynamics with exact parameter sensitivities.
 
-The rollout-aware refinement (``symrom.model.regressors.refine``) fits the
+The rollout-aware refinement (``symrom.learn.regressors.refine``) fits the
 coefficients of a hybrid latent model to trajectories. It needs the rollout
 of many windows at once and the derivative of every simulated state with
 respect to every active coefficient. Both come from one pass of classical
@@ -25,7 +25,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from symrom.model.library import Library
-from symrom.model.regressors.base import Trajectory
+
+
+@dataclass
+class Trajectory:
+    """One training jump, encoded: xi, dxi, nu (n, l) and model phase indices (n,)."""
+
+    xi: np.ndarray
+    dxi: np.ndarray
+    nu: np.ndarray
+    phase: np.ndarray
 
 
 @dataclass

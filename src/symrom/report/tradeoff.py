@@ -45,7 +45,7 @@ def encoder_weights(run: Run, entry: ManifestEntry, l: int) -> tuple[np.ndarray,
     ds = run.dataset(swept)
     if ds is None:
         return None
-    from symrom.model.training import contact_rows, principal_encoder
+    from symrom.learn.training import contact_rows, principal_encoder
 
     rows = contact_rows(ds, ds.rows_of("train"), "contact")
     return principal_encoder(ds.q[rows], l), f"exact solver step (a) on {swept.name} training data"

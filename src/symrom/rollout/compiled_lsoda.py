@@ -41,10 +41,10 @@ def _driver():
         raise ImportError(INSTALL_HINT) from e
 
     @numba.njit
-    def run(fp, x_true, v_true, nu, phase, resets, limit, dt, max_steps, rtol, atol, X, V):
+    def run(fp, x_true, v_true, params, resets, limit, dt, max_steps, rtol, atol, X, V):
         n, d = x_true.shape
         y = np.empty(2 * d)
-        p = np.empty(1 + d)  # the callback's data: phase index, held inputs
+        p = np.empty(params.shape[1])  # the callback's data, held over the interval
         te = np.array([0.0, dt])
         for k in range(n):
             if k == 0 or resets[k]:
@@ -57,8 +57,7 @@ def _driver():
             V[k] = y[d:]
             if k == n - 1:
                 break
-            p[0] = phase[k]
-            p[1:] = nu[k]
+            p[:] = params[k]
             sol, ok = lsoda(fp, y, te, p, rtol, atol, max_steps)
             if not ok:
                 return k + 1
@@ -68,18 +67,18 @@ def _driver():
     return run
 
 
-def integrate(c_rhs: int, x_true: np.ndarray, v_true: np.ndarray, nu: np.ndarray, phase: np.ndarray,
+def integrate(c_rhs: int, x_true: np.ndarray, v_true: np.ndarray, params: np.ndarray,
               resets: np.ndarray, limit: np.ndarray, dt: float, max_steps: int, rtol: float,
               atol: float) -> tuple[np.ndarray, np.ndarray, int]:
     """One jump, as ``integrate_lsoda``: c_rhs the address of the C right-hand side
-    ``f(t, y, dy, p)`` with p = [phase index, nu...]; x_true, v_true (n, d) start and
-    reset states; nu (n, d) held inputs; phase (n,) phase indices; resets (n,) bool;
+    ``f(t, y, dy, p)``; x_true, v_true (n, d) start and reset states; params (n, m) the
+    data p held over each sample (``GeneratedCode.c_params``); resets (n,) bool;
     limit (2d,). Returns X, V (n, d), NaN from the first bad sample on, and that
     sample's index (-1 if none)."""
     n, d = x_true.shape
     X, V = np.full((n, d), np.nan), np.full((n, d), np.nan)
     k = _driver()(c_rhs, np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
-                  np.ascontiguousarray(nu, dtype=float), np.ascontiguousarray(phase, dtype=float),
+                  np.ascontiguousarray(params, dtype=float),
                   np.ascontiguousarray(resets, dtype=np.bool_), np.ascontiguousarray(limit, dtype=float),
                   float(dt), int(max_steps), float(rtol), float(atol), X, V)
     return X, V, int(k)

@@ -214,16 +214,16 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
                          "(and LSODA solver 'scipy')")
     if options.method == "lsoda":
         Xs, Vs, div = [], [], []
-        c_rhs = generated[2]() if numbalsoda else None
+        c_rhs = generated.c_rhs() if numbalsoda else None
         for i, (x, v) in enumerate(zip(sysm.x, sysm.v)):
             drive = {name: d[i] for name, d in sysm.drive.items()}  # (n, ...)
             resets = reset_mask(x.shape[0], options.reset, dt)
             if c_rhs is not None:
-                X, V, d = compiled_lsoda.integrate(c_rhs, x, v, drive["nu"], drive["phase"], resets, limit[i],
+                X, V, d = compiled_lsoda.integrate(c_rhs, x, v, generated.c_params(drive), resets, limit[i],
                                                    dt, options.max_steps, options.rtol, options.atol)
             else:
                 if generated is not None:
-                    rhs, args = generated[1], (lambda k, dr=drive: (int(dr["phase"][k]), dr["nu"][k]))
+                    rhs, args = generated.rhs, (lambda k, dr=drive: generated.rhs_args(dr, k))
                 else:
                     d = x.shape[1]
 
@@ -246,7 +246,7 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
     resets = reset_mask(int(lens.max()), options.reset, dt)
     if options.backend == "table" and sysm.compiled is None:
         raise ValueError("this model has no compiled integrator; use backend 'numpy'")
-    fast = generated[0] if generated is not None else sysm.compiled if options.backend != "numpy" else None
+    fast = generated.integrator if generated is not None else sysm.compiled if options.backend != "numpy" else None
     if fast is not None:
         X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, dt, options.substeps)
         Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]

@@ -25,6 +25,27 @@ from symrom.data.dataset import Dataset
 Acceleration = Callable[[dict[str, np.ndarray], np.ndarray, np.ndarray], np.ndarray]
 
 
+@dataclass(frozen=True)
+class GeneratedCode:
+    """A system's own compiled code, for the ``generated`` backend and the compiled LSODA.
+
+    The integrators hand it the drive as they hold it and never look inside:
+
+    integrator: a fixed-step RK4 integrator with the interface of ``RolloutSystem.compiled``;
+    rhs: LSODA's right-hand side ``rhs(y (2d,), t, *rhs_args(drive, k)) -> dy/dt (2d,)``;
+    rhs_args(drive, k): those extra arguments at sample k of one jump's drive {name: (n, ...)};
+    c_rhs(): the address of the same right-hand side as a C function
+    ``void f(double t, double *y, double *dy, double *p)`` (compiled on the first call);
+    c_params(drive): (n, m) float, the data ``p`` of each sample of one jump's drive.
+    """
+
+    integrator: Callable
+    rhs: Callable
+    rhs_args: Callable[[dict[str, np.ndarray], int], tuple]
+    c_rhs: Callable[[], int]
+    c_params: Callable[[dict[str, np.ndarray]], np.ndarray]
+
+
 @dataclass
 class RolloutSystem:
     """A model set up on J jumps of a dataset, for the integrators.
@@ -37,9 +58,8 @@ class RolloutSystem:
     compiled: optionally, a compiled fixed-step RK4 integrator of this system
     (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
-    the system's own compiled code, (RK4 integrator, LSODA right-hand side
-    ``rhs(y, t, phase, nu)``, a function giving the address of that right-hand side
-    as a C function for a compiled LSODA), for the ``generated`` backend.
+    the system's own compiled code (``GeneratedCode``), called only when the
+    ``generated`` backend or the compiled LSODA is asked for.
     """
 
     x: list[np.ndarray]
@@ -49,7 +69,7 @@ class RolloutSystem:
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
     compiled: Callable | None = None
-    generated: Callable[[], tuple[Callable, Callable, Callable[[], int]]] | None = None
+    generated: Callable[[], GeneratedCode] | None = None
 
     @property
     def n_jumps(self) -> int:

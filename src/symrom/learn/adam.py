@@ -17,12 +17,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
 
@@ -123,6 +123,7 @@ class Adam(Regressor):
     whole training run draws from one stream); progress: (stage, fraction).
     """
 
+    kind: ClassVar[str] = "adam"
     config: AdamConfig = field(default_factory=AdamConfig)
     threshold: float = 0.01
     seed: int = 0
@@ -130,7 +131,7 @@ class Adam(Regressor):
     progress: Progress | None = field(default=None, repr=False, compare=False)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": "Adam", "config": asdict(self.config), "threshold": self.threshold, "seed": self.seed}
+        return {"kind": self.kind, "config": asdict(self.config), "threshold": self.threshold, "seed": self.seed}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:

@@ -6,8 +6,10 @@
 (c) autoencoder frozen, one sparse Xi per phase minimising
     ||ddxi - Theta Xi||^2 + ||ddq - W_d Theta Xi||^2 (+ sparsity).
 
-``train(ds, TrainConfig(...))`` is a thin wrapper: ``TrainConfig.estimator()``
-builds the ``SymbolicROM`` with its plug-ins and ``fit`` does the work.
+``train(ds, TrainConfig(...))`` is a thin wrapper: ``TrainConfig`` is the
+command line's flat factory of an estimator, ``TrainConfig.estimator()`` builds
+the ``SymbolicROM`` with its plug-ins and ``fit`` does the work. The model file
+records the plug-ins themselves (``HybridModel.estimator``), not this object.
 Solvers: ``exact`` (default) takes each step's closed-form optimum
 (``PCAEncoder`` then ``STLSQ``); ``adam`` is the paper's gradient training
 (``AdamAutoencoder`` then ``Adam``, needs torch).
@@ -29,14 +31,14 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.model.adam import Adam, AdamConfig, Progress
-from symrom.model.encoders import (SCALINGS, AdamAutoencoder, PCAEncoder, check_components,
-                                   component_mask, fit_decoder, principal_encoder, varimax)
-from symrom.model.estimator import SymbolicROM, contact_rows, data_hash
+from symrom.learn.adam import Adam, AdamConfig, Progress
+from symrom.learn.encoders import (SCALINGS, AdamAutoencoder, PCAEncoder, check_components, fit_decoder,
+                                   principal_encoder, varimax)
+from symrom.learn.estimator import SymbolicROM, contact_rows, data_hash
+from symrom.learn.regressors.base import Regressor
+from symrom.learn.regressors.stlsq import STLSQ, check_measure
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import LibrarySpec
-from symrom.model.regressors.base import Regressor
-from symrom.model.regressors.stlsq import MEASURES, STLSQ
 
 __all__ = ["AdamConfig", "SOLVERS", "TrainConfig", "contact_rows", "data_hash", "fit_decoder",
            "principal_encoder", "reconstruction_error", "train", "varimax"]
@@ -59,7 +61,7 @@ class TrainConfig:
     ``coefficient`` (the paper) or ``contribution``; ``collinearity``: leave out
     terms whose |correlation| with a simpler one exceeds it on a phase's rows
     (None = keep all, the paper); ``refine``: refine the coefficients on rollout
-    error (``symrom.model.regressors.refine``); ``path``: thresholds of a sparsity
+    error (``symrom.learn.regressors.refine``); ``path``: thresholds of a sparsity
     path to record with validation errors (None = none).
     """
 
@@ -69,7 +71,6 @@ class TrainConfig:
     inputs: bool = True
     solver: str = "exact"
     threshold: float = 0.01
-    ridge: float = 0.0
     alpha: float = 0.0
     seed: int = 0
     contact_phase: str = "contact"
@@ -93,8 +94,7 @@ class TrainConfig:
         self.encoder_components = check_components(self.encoder_components, self.latent_dim)
         if self.encoder_scaling not in SCALINGS:
             raise ValueError(f"encoder_scaling must be one of {SCALINGS}, got {self.encoder_scaling!r}")
-        if self.measure not in MEASURES:
-            raise ValueError(f"measure must be one of {MEASURES}, got {self.measure!r}")
+        check_measure(self.measure)
         if not self.alpha >= 0:
             raise ValueError(f"alpha must be >= 0, got {self.alpha}")
         if not self.decoded_weight >= 0:
@@ -106,17 +106,14 @@ class TrainConfig:
         if self.refine and self.solver != "exact":
             raise ValueError("refine applies to the exact solver")
 
-    def encoder_mask(self) -> np.ndarray:
-        """(18,) bool: the configuration components the encoder reads."""
-        return component_mask(self.encoder_components)
-
     def regressor(self) -> Regressor:
         """The step (c) plug-in these settings describe."""
         if self.solver == "adam":
-            return Adam(self.adam, self.threshold, self.seed)
-        base = STLSQ(self.threshold, self.measure, self.alpha, self.ridge, self.collinearity)
+            return Adam(config=self.adam, threshold=self.threshold, seed=self.seed)
+        base = STLSQ(threshold=self.threshold, measure=self.measure, alpha=self.alpha,
+                     collinearity=self.collinearity)
         if self.refine:
-            from symrom.model.regressors.refine import Refine
+            from symrom.learn.regressors.refine import Refine
 
             return Refine(base)
         return base
@@ -124,13 +121,17 @@ class TrainConfig:
     def estimator(self, progress: Progress | None = None) -> SymbolicROM:
         """The ``SymbolicROM`` these settings describe."""
         if self.solver == "adam":
-            encoder = AdamAutoencoder(self.adam, self.encoder_components, self.seed, progress)
-            regressor = Adam(self.adam, self.threshold, self.seed, progress=progress)
+            encoder = AdamAutoencoder(config=self.adam, components=self.encoder_components, seed=self.seed,
+                                      progress=progress)
+            regressor = Adam(config=self.adam, threshold=self.threshold, seed=self.seed, progress=progress)
         else:
-            encoder = PCAEncoder(self.encoder_components, self.encoder_scaling, self.encoder_base_latents)
+            encoder = PCAEncoder(components=self.encoder_components, scaling=self.encoder_scaling,
+                                 base_latents=self.encoder_base_latents)
             regressor = self.regressor()
-        return SymbolicROM(self.latent_dim, LibrarySpec.standard(self.poly_order, self.trig, self.inputs),
-                           encoder, regressor, self.decoded_weight, self.contact_phase, self.path)
+        return SymbolicROM(latent_dim=self.latent_dim,
+                           library=LibrarySpec.standard(self.poly_order, self.trig, self.inputs),
+                           encoder=encoder, regressor=regressor, decoded_weight=self.decoded_weight,
+                           contact_phase=self.contact_phase, path_thresholds=self.path)
 
 
 def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | None = None,

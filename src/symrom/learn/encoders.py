@@ -30,12 +30,12 @@ alike.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 
-from symrom.model.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
+from symrom.learn.adam import AdamConfig, Progress, fit_autoencoder_adam, generator
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.names import BASE_NAMES, JOINT_NAMES, N_Q, Q_NAMES, Q_UNITS
 
@@ -144,6 +144,7 @@ class PCAEncoder:
     base_latents: None (one PCA, the paper) or the number of latents taken from the
     base pose, the rest from the joints."""
 
+    kind: ClassVar[str] = "pca"
     components: tuple[str, ...] | None = None
     scaling: str = "none"
     base_latents: int | None = None
@@ -180,15 +181,16 @@ class PCAEncoder:
         return LinearAutoencoder(W_e, np.zeros(latent_dim), W_d, B_d)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": "PCAEncoder", "components": None if self.components is None else list(self.components),
+        return {"kind": self.kind, "components": None if self.components is None else list(self.components),
                 "scaling": self.scaling, "base_latents": self.base_latents}
 
 
 @dataclass
 class AdamAutoencoder:
-    """Steps (a) and (b) by Adam (``symrom.model.adam``). ``generator_`` holds the
+    """Steps (a) and (b) by Adam (``symrom.learn.adam``). ``generator_`` holds the
     run's torch generator after ``fit``, for the Adam regressor to continue."""
 
+    kind: ClassVar[str] = "adam_autoencoder"
     config: AdamConfig = field(default_factory=AdamConfig)
     components: tuple[str, ...] | None = None
     seed: int = 0
@@ -202,7 +204,5 @@ class AdamAutoencoder:
                                     self.config, self.generator_, self.progress or (lambda s, f: None))
 
     def to_dict(self) -> dict[str, Any]:
-        from dataclasses import asdict
-
-        return {"name": "AdamAutoencoder", "config": asdict(self.config), "seed": self.seed,
+        return {"kind": self.kind, "config": asdict(self.config), "seed": self.seed,
                 "components": None if self.components is None else list(self.components)}

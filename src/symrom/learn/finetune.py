@@ -40,12 +40,15 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.learn.adam import Adam
+from symrom.learn.estimator import data_hash, phase_data, trajectories
+from symrom.learn.plugins import PluginConfigError, regressor_from_dict
+from symrom.learn.regressors.base import Coefficients, RegressionProblem
+from symrom.learn.regressors.prior import FineTune
+from symrom.learn.regressors.refine import Refine
+from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.estimator import data_hash, phase_data, trajectories
 from symrom.model.hybrid import HybridModel, ModelDataError
-from symrom.model.regressors.base import Coefficients, RegressionProblem
-from symrom.model.regressors.prior import FineTune
-from symrom.model.regressors.refine import Refine
 
 
 FINETUNE_METHODS = ("acceleration", "rollout")
@@ -89,6 +92,27 @@ def source_spread(model: HybridModel) -> np.ndarray:
     s = model.info.get("latent_spread")
     s = np.asarray(s, dtype=float) if s is not None and len(s) == l else np.asarray(model.latent_scale[:l])
     return np.maximum(s, 1e-12)
+
+
+def source_sparsity(model: HybridModel) -> tuple[float, str, float]:
+    """(threshold, measure, alpha) of the regressor that fitted ``model``, read from its
+    file's ``estimator.regressor`` (a refinement's: its initial regressor's; Adam's: its
+    coefficient threshold, no ridge); ``ModelDataError`` when the file records none."""
+    record = model.estimator.get("regressor")
+    if record is None:
+        raise ModelDataError("estimator.regressor: the model records no regressor, so its sparsity "
+                             "threshold and measure are unknown; fine-tune it by method 'rollout'")
+    try:
+        reg = regressor_from_dict(record, "estimator.regressor")
+    except PluginConfigError as e:
+        raise ModelDataError(str(e)) from None
+    while isinstance(reg, Refine):
+        reg = reg.initial
+    if isinstance(reg, (STLSQ, FineTune)):
+        return float(reg.threshold), reg.measure, float(reg.alpha)
+    if isinstance(reg, Adam):
+        return float(reg.threshold), "coefficient", 0.0
+    raise ModelDataError(f"estimator.regressor: fine-tuning cannot take its threshold from kind {reg.kind!r}")
 
 
 def decoder_excitation(xi: np.ndarray, spread: np.ndarray) -> tuple[float, np.ndarray]:
@@ -153,8 +177,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         W_d, B_d = ae0.W_d.copy(), ae0.B_d.copy()
     decoder["max_abs_W_d"] = float(np.abs(W_d).max())
     ae = LinearAutoencoder(ae0.W_e.copy(), ae0.B_e.copy(), W_d, B_d)
-    trained = model.info.get("training", {})
-    weight = float(model.info.get("decoded_weight", trained.get("decoded_weight", 1.0)))
+    weight = float(model.estimator.get("decoded_weight", 1.0))
     phases = phase_data(ds, rows, ae, model.library, weight, model.phase_names)
     if all(p is None for p in phases):
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
@@ -164,9 +187,10 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         index[rows] = row_phase
         trajs, regressor = trajectories(ds, rows, ae, index), Refine()
     else:
-        threshold = float(trained.get("threshold", 0.01)) if config.threshold is None else config.threshold
-        trajs, regressor = [], FineTune(config.prior_weight, threshold, trained.get("measure", "coefficient"),
-                                        float(trained.get("alpha", 0.0)))
+        threshold, measure, alpha = source_sparsity(model)
+        trajs, regressor = [], FineTune(prior_weight=config.prior_weight,
+                                        threshold=threshold if config.threshold is None else config.threshold,
+                                        measure=measure, alpha=alpha)
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
                                 np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
     fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
@@ -177,7 +201,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     refit = [n for n, p in zip(model.phase_names, phases) if p is not None]
     n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
     info = dict(model.info)
-    info["finetune"] = {"config": asdict(config), "data_sha256": data_hash(ds),
+    info["finetune"] = {"config": asdict(config), "regressor": regressor.to_dict(), "data_sha256": data_hash(ds),
                         "source": ds.source, "n_rows": int(rows.sum()),
                         "base_data_sha256": model.info.get("data_sha256"),
                         "phases_refit": refit, "rows_per_phase": n_rows,

@@ -5,9 +5,9 @@ settings until ``fit``; its parts are plug-ins:
 
 - ``library``: term blocks (``symrom.model.library``), bound to the latent
   dimension at fit;
-- ``encoder``: steps (a) and (b) (``symrom.model.encoders``): the exact
+- ``encoder``: steps (a) and (b) (``symrom.learn.encoders``): the exact
   ``PCAEncoder`` or the paper's ``AdamAutoencoder``;
-- ``regressor``: step (c) (``symrom.model.regressors``): ``STLSQ``, ``Adam``,
+- ``regressor``: step (c) (``symrom.learn.regressors``): ``STLSQ``, ``Adam``,
   ``FineTune`` (towards a prior model) or ``Refine`` (rollout-aware).
 
 ``fit(ds)`` trains on the ``train`` split and leaves the fitted model in
@@ -37,13 +37,14 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset, jump_bounds
-from symrom.model.adam import Adam
+from symrom.learn.adam import Adam
+from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
+from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor_from_dict
+from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
+from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.encoders import AdamAutoencoder, PCAEncoder
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
-from symrom.model.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
-from symrom.model.regressors.stlsq import STLSQ
 from symrom.names import Q_NAMES
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
@@ -182,8 +183,7 @@ class SymbolicROM:
                            if r.any() else None, _median_stay(ds, rows, k)))
         record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
                   "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
-                  "n_train_jumps": int(np.unique(ds.jump[rows]).size), "encoder": self.encoder.to_dict(),
-                  "library": lib.spec.to_list(), "decoded_weight": self.decoded_weight,
+                  "n_train_jumps": int(np.unique(ds.jump[rows]).size),
                   "encoder_rows": (f"the {self.contact_phase!r} phase" if has_contact
                                    else f"all training rows (they hold no {self.contact_phase!r} row)"),
                   "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist()}
@@ -207,11 +207,20 @@ class SymbolicROM:
                 report["path"] = paths[name]
             phase_info[name] = PhaseInfo(trained=n_rows > 0, n_rows=n_rows, operating_point=op,
                                          duration_s=stay, report=report)
-        record = {**prep["record"], "regressor": regressor.to_dict(),
+        record = {**prep["record"],
                   "untrained_phases": [n for n, p in phase_info.items() if not p.trained], **(info or {})}
         say("done", 1.0)
         return HybridModel(prep["ae"], prep["lib"], list(prep["phase_names"]), coefs.Xi, coefs.mask,
-                           prep["scale"].copy(), record, phase_info)
+                           prep["scale"].copy(), record, phase_info, self.to_dict(regressor))
+
+    # ------------------------------------------------------------------ configuration
+    def to_dict(self, regressor: Regressor | None = None) -> dict:
+        """The settings beyond the model's latent_dim and library (which its file holds
+        anyway), each plug-in as its ``{"kind": ...}`` record, JSON-ready: what a model
+        file keeps as ``estimator``. ``regressor``: the one that fitted (default: this one's)."""
+        return {"encoder": self.encoder.to_dict(), "regressor": (regressor or self.regressor).to_dict(),
+                "decoded_weight": float(self.decoded_weight), "contact_phase": self.contact_phase,
+                "path_thresholds": None if self.path_thresholds is None else list(self.path_thresholds)}
 
     # ------------------------------------------------------------------ use
     @property
@@ -256,11 +265,26 @@ class SymbolicROM:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> SymbolicROM:
-        """A fitted estimator from a model file (its settings as recorded there)."""
-        from symrom.model.persistence import load_model
+        """A fitted estimator from a model file, with the exact plug-ins recorded there;
+        ``ModelFileError`` naming the key when the file does not record one (no default
+        is put in its place)."""
+        from symrom.model.persistence import ModelFileError, load_model
 
         model = load_model(path)
-        rom = cls(latent_dim=model.latent_dim, library=model.library.spec,
-                  decoded_weight=float(model.info.get("decoded_weight", 1.0)))
+        est = model.estimator
+        for key in ("encoder", "regressor"):
+            if key not in est:
+                raise ModelFileError(f"{path}: estimator.{key}: not recorded (a model not fitted by "
+                                     "SymbolicROM); use symrom.load_model for the model alone")
+        try:
+            encoder = encoder_from_dict(est["encoder"], "estimator.encoder")
+            regressor = regressor_from_dict(est["regressor"], "estimator.regressor")
+        except PluginConfigError as e:
+            raise ModelFileError(f"{path}: {e}") from None
+        paths = est.get("path_thresholds")
+        rom = cls(latent_dim=model.latent_dim, library=model.library.spec, encoder=encoder, regressor=regressor,
+                  decoded_weight=float(est.get("decoded_weight", 1.0)),
+                  contact_phase=str(est.get("contact_phase", "contact")),
+                  path_thresholds=None if paths is None else tuple(float(t) for t in paths))
         rom.model_ = model
         return rom

@@ -10,7 +10,7 @@ the shared work, then calls the subclass's ``_reduce``:
 - per phase, it leaves out terms that are zero up to rounding on that phase's
   rows (the latent ground force in flight) and, with ``collinearity`` set,
   every term that is near-collinear with a simpler one there
-  (``symrom.model.audit``), recording what it left out and why;
+  (``symrom.learn.audit``), recording what it left out and why;
 - ``_reduce(problem, allowed)`` then returns Xi and the active mask, never
   using a term outside ``allowed``.
 """
@@ -19,12 +19,13 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from symrom.model.audit import audit_collinearity, null_terms
+from symrom.learn.audit import audit_collinearity, null_terms
 from symrom.model.library import Library
+from symrom.model.shooting import Trajectory
 
 
 @dataclass
@@ -41,16 +42,6 @@ class PhaseData:
     @property
     def n_rows(self) -> int:
         return int(self.theta.shape[0])
-
-
-@dataclass
-class Trajectory:
-    """One training jump, encoded: xi, dxi, nu (n, l) and model phase indices (n,)."""
-
-    xi: np.ndarray
-    dxi: np.ndarray
-    nu: np.ndarray
-    phase: np.ndarray
 
 
 @dataclass
@@ -96,6 +87,7 @@ class Regressor(ABC):
     """
 
     collinearity: float | None = None
+    kind: ClassVar[str] = ""  # the registry's name of a concrete regressor
 
     def fit(self, problem: RegressionProblem, init: Coefficients | None = None) -> Coefficients:
         """Coefficients for ``problem``; ``init`` is a starting or prior solution
@@ -141,8 +133,9 @@ class Regressor(ABC):
         """Xi and mask for ``problem`` using only the terms ``allowed`` (P, p) per phase."""
 
     def to_dict(self) -> dict[str, Any]:
-        """The regressor and its settings, JSON-ready (recorded in the model file)."""
+        """The regressor's configuration, ``{"kind": ..., settings...}``, JSON-ready (recorded
+        in the model file; ``symrom.learn.plugins.regressor_from_dict`` reads it back)."""
         from dataclasses import asdict, is_dataclass
 
         body = asdict(self) if is_dataclass(self) else {}
-        return {"name": type(self).__name__, **body}
+        return {"kind": self.kind, **body}

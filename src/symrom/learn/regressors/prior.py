@@ -10,11 +10,12 @@ phase without rows keeps the source coefficients unchanged. ``prior_weight``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
-from symrom.model.regressors.stlsq import MEASURES, STLSQConfig, stlsq
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
+from symrom.learn.regressors.stlsq import STLSQConfig, check_measure, stlsq
 
 
 @dataclass(frozen=True)
@@ -22,14 +23,14 @@ class FineTune(Regressor):
     """prior_weight: pull towards the source (relative to mean(diag Theta^T Theta));
     threshold, measure, alpha: as in ``STLSQ``. ``fit`` needs ``init``: the source."""
 
+    kind: ClassVar[str] = "finetune"
     prior_weight: float = 0.01
     threshold: float = 0.01
     measure: str = "coefficient"
     alpha: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.measure not in MEASURES:
-            raise ValueError(f"unknown sparsity measure {self.measure!r}; choose from {MEASURES}")
+        check_measure(self.measure)
         if not self.prior_weight >= 0:
             raise ValueError(f"prior_weight must be >= 0, got {self.prior_weight}")
 
@@ -38,7 +39,8 @@ class FineTune(Regressor):
         if init is None:
             raise ValueError("fine-tuning needs the source model's coefficients (init)")
         Xi, mask = init.Xi.copy(), init.mask.copy()
-        cfg = STLSQConfig(self.threshold, self.prior_weight, self.alpha, measure=self.measure,
+        # the pull towards the source is STLSQ's ridge with the source as its prior
+        cfg = STLSQConfig(threshold=self.threshold, ridge=self.prior_weight, alpha=self.alpha, measure=self.measure,
                           target_spread=tuple(float(s) for s in problem.target_spread))
         for k, ph in enumerate(problem.phases):
             if ph is None:

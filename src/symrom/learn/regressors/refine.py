@@ -29,13 +29,13 @@ never adds terms. ``max_jumps`` caps the training jumps used (evenly spaced).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.linalg
 
-from symrom.model.regressors.base import Coefficients, RegressionProblem, Regressor
-from symrom.model.regressors.stlsq import STLSQ
+from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
+from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.shooting import Parameters, Windows, cut_windows, simulate
 
 # A sample after its window left the bound counts this many times the bound (in
@@ -53,6 +53,7 @@ class Refine(Regressor):
     the largest |xi|, |dxi| of the training jumps; substeps: RK4 steps per sample;
     stride: score every stride-th sample of a window."""
 
+    kind: ClassVar[str] = "refine"
     initial: Regressor = field(default_factory=STLSQ)
     windows: tuple[float | None, ...] = (0.05, 0.1, 0.2, 0.4, 0.8, None)
     velocity_weight: float = 0.1
@@ -75,7 +76,7 @@ class Refine(Regressor):
         return None
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": "Refine", "initial": self.initial.to_dict(), "windows": list(self.windows),
+        return {"kind": self.kind, "initial": self.initial.to_dict(), "windows": list(self.windows),
                 "velocity_weight": self.velocity_weight, "max_jumps": self.max_jumps,
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
                 "stride": self.stride}

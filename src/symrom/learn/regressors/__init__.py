@@ -2,13 +2,13 @@
 
 ``STLSQ``: sequentially thresholded least squares, exact on each support;
 ``FineTune``: STLSQ pulled towards a source model; ``Adam`` (in
-``symrom.model.adam``): the paper's gradient training; ``Refine``: rollout-aware
+``symrom.learn.adam``): the paper's gradient training; ``Refine``: rollout-aware
 refinement of another regressor's coefficients.
 """
 
-from symrom.model.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor, Trajectory
-from symrom.model.regressors.prior import FineTune
-from symrom.model.regressors.stlsq import STLSQ, STLSQConfig
+from symrom.learn.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor, Trajectory
+from symrom.learn.regressors.prior import FineTune
+from symrom.learn.regressors.stlsq import STLSQ, STLSQConfig
 
 __all__ = ["Coefficients", "FineTune", "PhaseData", "RegressionProblem", "Regressor", "STLSQ",
            "STLSQConfig", "Trajectory"]

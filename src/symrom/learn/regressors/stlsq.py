@@ -31,15 +31,22 @@ What "small" means is the ``measure``:
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import numpy as np
 import scipy.linalg
 
-from symrom.model.audit import negligible
-from symrom.model.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor
+from symrom.learn.audit import negligible
+from symrom.learn.regressors.base import Coefficients, PhaseData, RegressionProblem, Regressor
 
 _JITTER = 1e-10  # smallest ridge on the equilibrated normal equations
 MEASURES = ("coefficient", "contribution", "explained")
+
+
+def check_measure(measure: str) -> None:
+    """ValueError unless ``measure`` is a sparsity measure: the one check of it."""
+    if measure not in MEASURES:
+        raise ValueError(f"unknown sparsity measure {measure!r}; choose from {', '.join(MEASURES)}")
 
 
 @dataclass(frozen=True)
@@ -59,6 +66,9 @@ class STLSQConfig:
     max_iter: int = 25
     measure: str = "coefficient"
     target_spread: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        check_measure(self.measure)
 
 
 def weighted_targets(ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -198,8 +208,6 @@ def stlsq(Theta: np.ndarray, ddxi: np.ndarray, ddq: np.ndarray, W_d: np.ndarray,
     ``config.ridge`` > 0 the coefficients are pulled towards the prior (used for
     fine-tuning); ``mask`` (p, l) restricts the starting support.
     """
-    if config.measure not in MEASURES:
-        raise ValueError(f"unknown sparsity measure {config.measure!r}; choose from {MEASURES}")
     if config.measure != "coefficient" and config.target_spread is None:
         raise ValueError(f"the {config.measure} measure needs the latent accelerations' target_spread")
     Zs, G = weighted_targets(ddxi, ddq, W_d)
@@ -242,6 +250,7 @@ class STLSQ(Regressor):
     The defaults are the paper's: |Xi| < 0.01 dropped, no ridge, every term kept.
     """
 
+    kind: ClassVar[str] = "stlsq"
     threshold: float = 0.01
     measure: str = "coefficient"
     alpha: float = 0.0
@@ -250,8 +259,7 @@ class STLSQ(Regressor):
     max_iter: int = 25
 
     def __post_init__(self) -> None:
-        if self.measure not in MEASURES:
-            raise ValueError(f"unknown sparsity measure {self.measure!r}; choose from {MEASURES}")
+        check_measure(self.measure)
         for name in ("threshold", "alpha", "ridge"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
@@ -259,8 +267,8 @@ class STLSQ(Regressor):
             raise ValueError(f"collinearity must lie in (0, 1], got {self.collinearity}")
 
     def config(self, target_spread: np.ndarray) -> STLSQConfig:
-        return STLSQConfig(self.threshold, self.ridge, self.alpha, self.max_iter, self.measure,
-                           tuple(float(s) for s in target_spread))
+        return STLSQConfig(threshold=self.threshold, ridge=self.ridge, alpha=self.alpha, max_iter=self.max_iter,
+                           measure=self.measure, target_spread=tuple(float(s) for s in target_spread))
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:

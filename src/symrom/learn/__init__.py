@@ -1,0 +1,1 @@
+"""Learning a symbolic model from data: the estimator, encoders, regressors, training and fine-tuning."""
