@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -239,3 +240,26 @@ def test_report_of_a_train_folder_then_with_its_evaluation(data, tmp_path):
     r = _run("report", ev, "--out", tmp_path / "ev.html")
     assert r.exit_code == 0, r.output
     assert "ddxi1" in (tmp_path / "ev.html").read_text()
+
+
+# ----------------------------------------------------------------- 12: the README, a front page
+def test_readme_is_a_front_page_with_the_details_in_docs():
+    text = (ROOT / "README.md").read_text()
+    assert len(text.splitlines()) < 200
+    heads = [line for line in text.splitlines() if line.startswith("## ")]
+    assert heads == ["## Quick start", "## Install", "## Using it", "## Results", "## Documentation"]
+    # The quick start, as .ci/run reads it: the block's second line is the test command.
+    block = text.split("## Quick start", 1)[1].split("```")[1].strip().splitlines()
+    assert block == ["python3.11 -m pip install -e . && symrom demo",
+                     "python3.11 -m pip install -e '.[adam,test,ray]' && python3.11 -m pytest -q"]
+    assert "symrom reproduce --out runs/paper" in text and "29 min 43 s" in text  # results: command, wall time
+    pages = set(re.findall(r"\]\((docs/[a-z_]+\.md)\)", text))
+    assert {"docs/method.md", "docs/results.md", "docs/benchmarks.md", "docs/design.md",
+            "docs/import.md", "docs/engines.md"} <= pages
+    for page in pages - {"docs/import.md", "docs/engines.md"}:  # those two come with their own changes
+        assert (ROOT / page).is_file(), page
+    results = (ROOT / "docs" / "results.md").read_text()
+    assert "29 min 43 s" in results and "| experiment | horizon | RMSE | fl_hx |" in results
+    for img in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", results):
+        assert (ROOT / "docs" / img).is_file(), img
+    assert "python benchmarks/bench_learner.py" in (ROOT / "docs" / "benchmarks.md").read_text()
