@@ -342,7 +342,7 @@ def test_configuration_is_a_collapsed_table_not_json(tmp_path):
     assert table.collapsed and ["datasets[1].jumps", "150"] in table.rows
     assert ["selection.thresholds", "0.001, 0.01"] in table.rows
     page = render_html("t", [], [Section("run", "run").add(*blocks)])
-    assert "<details><summary>Configuration of the run (6 rows)</summary>" in page
+    assert "<details><summary>Configuration of the run (7 rows)</summary>" in page
     assert '"refine_top"' not in page  # no JSON dump
 
 
