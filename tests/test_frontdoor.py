@@ -225,6 +225,10 @@ def test_report_of_a_train_folder_then_with_its_evaluation(data, tmp_path):
     assert '<section id="table2">' not in html and "symrom evaluate" in html  # says how to add the evaluation
     ev = folder / "eval"
     assert _run("evaluate", folder / "model.json", path, "--integrator", "rk4", "--out", ev).exit_code == 0
+    # A baseline's evaluation beside it (its "model" names no model file) is not taken for the model's.
+    (folder / "a_baseline").mkdir()
+    (folder / "a_baseline" / "metrics.json").write_text(
+        json.dumps({**json.loads((ev / "metrics.json").read_text()), "model": "Newton"}))
     r = _run("report", folder, "--force")
     assert r.exit_code == 0, r.output
     html = (folder / "report.html").read_text()
@@ -235,7 +239,7 @@ def test_report_of_a_train_folder_then_with_its_evaluation(data, tmp_path):
 
     x = metrics["horizons"]["full"]["components"]["x"]["rmse"]
     assert fmt_value(x) in md  # the numbers are those of the evaluation
-    assert f"test jumps: {metrics['n_jumps']}" in md
+    assert f"test jumps: {metrics['n_jumps']}" in md and "metrics: eval/metrics.json" in md
     # An evaluation folder alone finds its model through its metrics.
     r = _run("report", ev, "--out", tmp_path / "ev.html")
     assert r.exit_code == 0, r.output

@@ -151,6 +151,24 @@ def _recorded_path(recorded: str | None, folder: Path) -> str | None:
     return None
 
 
+def _evaluations_of(folder: Path) -> list[Path]:
+    """The ``metrics.json`` files in ``folder``'s subfolders, best first: those whose
+    ``model`` is ``folder/model.json``, then those of some model file (a baseline's names
+    no file), then those in a subfolder ``eval`` (the documented layout)."""
+    own = str((folder / "model.json").resolve())
+
+    def rank(p: Path) -> tuple[bool, bool, bool, str]:
+        try:
+            rec = json.loads(p.read_text())
+            model = str(rec.get("model", "")) if isinstance(rec, dict) else ""
+        except (OSError, ValueError):
+            model = ""
+        return (_recorded_path(model, folder) != own, not model.endswith("model.json"),
+                p.parent.name != "eval", str(p))
+
+    return sorted(folder.glob("*/metrics.json"), key=rank)
+
+
 def model_folder_run(folder: str | Path) -> Run:
     """A model folder read as a run of one learned experiment, named for the folder:
     ``model.json`` (``symrom train``), the evaluation's ``metrics.json`` in the folder or
@@ -162,7 +180,7 @@ def model_folder_run(folder: str | Path) -> Run:
     files: dict[str, str] = {}
     metrics = folder / "metrics.json"
     if not metrics.is_file():
-        metrics = next(iter(sorted(folder.glob("*/metrics.json"))), metrics)
+        metrics = next(iter(_evaluations_of(folder)), metrics)
     recorded: dict = {}
     if metrics.is_file():
         files["metrics"] = str(metrics.relative_to(folder))
