@@ -315,7 +315,8 @@ def train_cmd(
         (tmp / "equations.txt").write_text(model.equations_text() + "\n")
     terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
     out_console.print(f"model: {out / 'model.json'}  (l={latent_dim}, p={poly_order}, "
-                      f"{model.library.n_features} library terms; active terms: {terms})", highlight=False, soft_wrap=True)
+                      f"{model.library.n_features} library terms; active terms: {terms})",
+                      highlight=False, soft_wrap=True)
     _model_warnings(model)
 
 
