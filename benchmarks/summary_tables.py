@@ -1,4 +1,4 @@
-"""The README's result tables, printed from a run directory of ``symrom reproduce``.
+"""The result tables of docs/results.md, printed from a run directory of ``symrom reproduce``.
 
     python benchmarks/summary_tables.py runs/paper
 

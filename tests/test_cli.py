@@ -49,6 +49,7 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     r = runner.invoke(app, ["demo", "--out", str(out), "--jumps", "4", "--workers", "1"])
     assert r.exit_code == 0, r.output
     assert f"report: {out / 'report.html'}" in r.output.replace("\n", "")
+    assert f"dataset: {out / 'data' / 'go1_sim.h5'}" in r.output.replace("\n", "")  # where its jumps are
     summary = json.loads((out / "summary.json").read_text())
     assert set(summary["experiments"]) == {"go1_sim"}
     go1 = summary["experiments"]["go1_sim"]

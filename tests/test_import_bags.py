@@ -7,14 +7,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from _logs import jump, needs_go1, sim_go1, write_plain, write_ros1, write_ros2
+from _logs import jump, sim_go1, write_plain, write_ros1, write_ros2
 from conftest import one_line_error
 from symrom.cli import app
 from symrom.data.bags import parse_topics, read_bag
 from symrom.data.importers import import_logs, log_kind
 from symrom.data.io import read_dataset
 
-pytestmark = pytest.mark.skipif(not needs_go1, reason="Go1 pronk controller not installed")
 runner = CliRunner()
 ARRAYS = ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase")
 

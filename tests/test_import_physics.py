@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from _logs import at_times, jump, needs_go1, proxy_go1, sim_go1, write_hardware, write_plain
+from _logs import at_times, jump, proxy_go1, sim_go1, write_hardware, write_plain
 from conftest import one_line_error
 from symrom.cli import app
 from symrom.data.consistency import stale_mask
@@ -19,7 +19,6 @@ from symrom.data.io import read_dataset
 from symrom.data.preprocess import differentiate
 from symrom.data.timebase import TimeBase, jump_timing, on_grid
 
-pytestmark = pytest.mark.skipif(not needs_go1, reason="Go1 pronk controller not installed")
 runner = CliRunner()
 FR_HY, RL_KN = 1, 11
 

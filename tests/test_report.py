@@ -23,8 +23,8 @@ from symrom.learn.training import TrainConfig, reconstruction_error, train
 from symrom.model.persistence import save_model
 from symrom.names import TABLE2_COMPONENTS
 from symrom.report import figures
+from symrom.report.document import Section, render_html
 from symrom.report.context import Context
-from symrom.report.document import render_html
 from symrom.report.html import build_report
 from symrom.report.roles import build_sections
 from symrom.report.run import load_run
@@ -131,7 +131,8 @@ def test_html_has_every_section_and_no_external_resource(built):
         assert f'<section id="{sid}">' in html
     for title in SECTION_TITLES:
         assert title in html
-    assert html.count('src="data:image/png;base64,') == 8  # 3 jumps, aSLIP, 3 heatmaps, trade-off
+    # 3 jumps, 3 horizon figures (error per component beside the floor), aSLIP, 3 heatmaps, trade-off
+    assert html.count('src="data:image/png;base64,') == 11
     assert not _external_links(html) and "http" not in html
     assert "<script" not in html and "<link" not in html
     assert "go1_proxy before fine-tuning" in html and "unreadable" not in html
@@ -184,7 +185,7 @@ def test_a_run_holding_one_experiment_renders(run_dir, tmp_path):
     ids = re.findall(r'<section id="([a-z0-9]+)">', html)
     assert ids == ["experiments", "table2", "predictions", "equations", "data", "run"]
     assert "commands, versions and seeds unknown" in html and "paper row" not in html
-    assert html.count('src="data:image/png;base64,') == 1  # its test jump
+    assert html.count('src="data:image/png;base64,') == 2  # its test jump, its errors beside the floor
     assert (tmp_path / "r_files").is_dir() and md_path == tmp_path / "r.md"
 
 
@@ -304,3 +305,127 @@ def test_figures_from_arrays(tmp_path):
     s = figures.sweep_stats(sweep)
     assert s["E_mean"][0] == pytest.approx(0.1) and figures.best_dim(sweep) == 2
     assert figures.tradeoff_figure(sweep, tmp_path / "t.png").is_file()
+
+
+# ---------------------------------------------------------------- readable at 1400 px
+def test_page_structure_is_readable(built):
+    """Every table scrolls inside its own box, numbers right and text left, no unlabelled
+    column, the run's files are links that resolve, Table 2's words agree with its note."""
+    html, _, out = built
+    assert html.count("<table") == html.count('<div class="scroll"><table')
+    assert ".scroll{overflow-x:auto" in html
+    assert "<th></th>" not in html and '<th class="num"></th>' not in html
+    # Table 2: the "row" column is text (left), the component columns numbers (right).
+    head = re.search(r"<thead><tr><th>horizon</th><th>row</th>(.*?)</tr></thead>", html).group(1)
+    assert head.startswith('<th class="num">fl_hx [rad]</th>')
+    assert "<td>ours RMSE</td>" in html and re.search(r'<td class="num">\d\.\de-\d</td>', html)
+    # The experiments' files are links, relative to the report, to files that exist.
+    hrefs = re.findall(r'<a href="([^"#][^"]*)">', html)
+    assert len(hrefs) >= 10
+    for h in hrefs:
+        assert (out.parent / h).exists(), h
+    table2 = html[html.index('<section id="table2">'):]
+    table2 = table2[:table2.index("</section>")]
+    assert "excluded" not in table2 and "scored up to the time it diverged, and counted" in table2
+
+
+def test_configuration_is_a_collapsed_table_not_json(tmp_path):
+    from symrom.report.common import run_blocks
+    from symrom.report.document import Table
+    from symrom.report.run import Run
+
+    config = {"seed": 0, "datasets": [{"name": "go1_sim", "jumps": 156}, {"name": "a1_sim", "jumps": 150}],
+              "selection": {"thresholds": [0.001, 0.01], "refine_top": 3}}
+    run = Run(tmp_path, {"run": {"command": "symrom demo", "config": config}}, [])
+    blocks = run_blocks(run)
+    table = next(b for b in blocks if isinstance(b, Table) and b.caption.startswith("Configuration"))
+    assert table.collapsed and ["datasets[1].jumps", "150"] in table.rows
+    assert ["selection.thresholds", "0.001, 0.01"] in table.rows
+    page = render_html("t", [], [Section("run", "run").add(*blocks)])
+    assert "<details><summary>Configuration of the run (7 rows)</summary>" in page
+    assert '"refine_top"' not in page  # no JSON dump
+
+
+def _figure_of(monkeypatch, fn, *args, **kwargs):
+    """The matplotlib figure ``fn`` draws (captured where it is saved)."""
+    seen = {}
+    real = figures._save
+
+    def keep(fig, path):
+        seen["fig"] = fig
+        return real(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    fn(*args, **kwargs)
+    return seen["fig"]
+
+
+def test_tradeoff_figure_has_one_y_axis_per_panel_and_honest_units(run_dir, tmp_path, monkeypatch):
+    sweep = json.loads((run_dir / "sweep" / "sweep.json").read_text())
+    fig = _figure_of(monkeypatch, figures.tradeoff_figure, sweep, tmp_path / "t.png")
+    boxes = [tuple(np.round(ax.get_position().bounds, 3)) for ax in fig.axes]
+    assert len(boxes) == 3 and len(set(boxes)) == 3  # three panels, no twin axes
+    labels = " ".join(ax.get_ylabel() for ax in fig.axes)
+    assert "rad$^2$/m$^2$" not in labels and "rad$^2$ + m$^2$" in labels
+
+
+def test_full_horizon_line_is_drawn_on_top_of_the_reset_line(run_dir, tmp_path, monkeypatch):
+    from symrom.data.io import read_dataset
+    from symrom.evaluate import plots
+    from symrom.model.persistence import load_model
+    from symrom.rollout.integrate import rollout
+
+    ds = read_dataset(run_dir / "data" / "go1_sim.h5")
+    model = load_model(run_dir / "go1_sim" / "model.json")
+    j = int(ds.jumps_in("test")[0])
+    ros = {k: rollout(model, ds, [j], RolloutOptions(method="rk4", reset=r)) for k, r in (("full", None), ("0.1", 0.1))}
+    seen = {}
+    real = plots.write_with
+
+    def keep(path, writer):
+        import matplotlib.pyplot as plt
+
+        seen["fig"] = plt.gcf()
+        return real(path, writer)
+
+    monkeypatch.setattr(plots, "write_with", keep)
+    plots.plot_jump(ds, ros, j, tmp_path / "j.png")
+    lines = {ln.get_label(): ln for ln in seen["fig"].axes[0].get_lines()}
+    full, reset = lines["predicted, full horizon"], lines["predicted, 0.1 s resets"]
+    assert full.get_zorder() > reset.get_zorder() and full.get_linestyle() == "--"
+    assert reset.get_linewidth() > full.get_linewidth()  # the reset line shows around the dashes
+
+
+def test_horizon_figure_draws_the_reconstruction_floor(built):
+    html, md, _ = built
+    assert "RMSE of each Table 2 component at each horizon beside the reconstruction floor" in html
+    assert re.search(r"!\[go1_sim: RMSE of each Table 2 component[^\]]*\]\(report_files/horizons_go1_sim\.png\)", md)
+
+
+CHROMIUM = next((p for p in (shutil.which("chromium"), shutil.which("chromium-browser"), "/usr/bin/chromium")
+                 if p and Path(p).is_file()), None)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no headless Chromium on this machine")
+def test_report_fits_1400_px_in_a_real_browser(built, tmp_path):
+    """Headless Chromium at 1400 px: the page does not scroll sideways (wide tables scroll
+    in their own box), and a screenshot is taken."""
+    import subprocess
+
+    html, _, out = built
+    probe = tmp_path / "probe.html"
+    script = ("<script>window.addEventListener('load',()=>{const w=document.documentElement.scrollWidth;"
+              "let clipped=0;for(const d of document.querySelectorAll('table')){const box=d.parentElement;"
+              "if(d.scrollWidth>box.clientWidth+1&&getComputedStyle(box).overflowX!=='auto')clipped++;}"
+              "document.body.setAttribute('data-probe',w+','+clipped);});</script>")
+    probe.write_text(html.replace("</body>", script + "</body>"))
+    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+             "--disable-component-update", "--no-first-run", "--window-size=1400,2000"]
+    dom = subprocess.run([*flags, "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=180)
+    width, clipped = map(int, re.search(r'data-probe="(\d+),(\d+)"', dom.stdout).groups())
+    assert width <= 1400 and clipped == 0, (width, clipped)
+    shot = tmp_path / "report.png"
+    subprocess.run([*flags, f"--screenshot={shot}", out.as_uri()], capture_output=True, timeout=180)
+    from PIL import Image
+
+    assert Image.open(shot).size == (1400, 2000)

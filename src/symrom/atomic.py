@@ -2,8 +2,9 @@
 
 Every writer in symrom goes through these helpers: files by ``atomic_path`` /
 ``write_text_atomic`` / ``write_with`` (temporary file beside the target, then
-rename), directories by ``atomic_dir`` (temporary directory, then swap), and
-``check_output_file`` refuses to overwrite an existing output unless asked.
+rename), directories by ``atomic_dir`` (temporary directory, then swap),
+``check_output_file`` refuses to overwrite an existing output unless asked, and
+``check_writable`` refuses, before any work, an output that could not be written.
 """
 
 from __future__ import annotations
@@ -110,4 +111,31 @@ def check_output_file(path: str | os.PathLike, force: bool,
                                      "(--force would delete the input)")
     if path.exists() and not force:
         raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
+    check_writable(path)
+    return path
+
+
+class OutputNotWritableError(PermissionError):
+    """An output's location cannot be written (read-only folder, a file in the way)."""
+
+
+def check_writable(path: str | os.PathLike, inside: bool = False) -> Path:
+    """Refuse, before any work, an output ``path`` that could not be written.
+
+    The writers above make their temporary file or folder beside ``path`` (in its
+    parent, created if missing), so the nearest existing folder above ``path`` must
+    be a folder this process may write in; with ``inside`` (a folder written into in
+    place, e.g. a resumable run directory) ``path`` itself counts, if it exists.
+    Raises ``OutputNotWritableError`` naming ``path`` and the folder in the way.
+    """
+    path = Path(path)
+    start = path if inside else path.parent
+    anc = start.absolute()
+    while not anc.exists() and not anc.is_symlink() and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise OutputNotWritableError(f"cannot write {path}: {anc} is not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise OutputNotWritableError(f"cannot write {path}: the folder {anc} is not writable "
+                                     "(permission denied)")
     return path

@@ -40,7 +40,7 @@ class _Command(TyperCommand):
 
 app = typer.Typer(cls=_Group, add_completion=False, no_args_is_help=True,
                   help="Symbolic reduced-order models of legged-robot jumping, learned from data.")
-console = Console(stderr=True)
+console = Console(stderr=True, log_path=False)  # log lines: time and message, no cli.py:NNN
 out_console = Console()
 
 _STATE = {"debug": False}
@@ -62,6 +62,7 @@ def _start_backend(name: str, workers: int | None, address: str | None, local_de
     address fails before any work)."""
     from symrom.execution import make_backend
 
+    _check_workers(workers)
     backend = make_backend(name, local_default if workers is None and name == "local" else workers, address)
     if name == "ray":
         with console.status("connecting to Ray"):
@@ -72,8 +73,24 @@ def _start_backend(name: str, workers: int | None, address: str | None, local_de
     return backend
 
 
+def _check_workers(workers: int | None) -> None:
+    """--workers: at least 1 (checked before any work)."""
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers {workers}: the number of workers must be at least 1")
+
+
+def _show_version(value: bool) -> None:
+    if value:
+        from symrom import __version__
+
+        typer.echo(f"symrom {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def _main(debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks on errors.")] = False) -> None:
+def _main(debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks on errors.")] = False,
+          version: Annotated[bool, typer.Option("--version", callback=_show_version, is_eager=True,
+                                                help="Print the version and exit.")] = False) -> None:
     _STATE["debug"] = debug
 
 
@@ -89,6 +106,9 @@ def guarded(fn: Callable) -> Callable:
         except KeyboardInterrupt:
             console.print("[red]interrupted[/red]")
             raise typer.Exit(130) from None
+        except BrokenPipeError:
+            _quiet_stdout()
+            raise typer.Exit(141) from None  # as a shell reports a process ended by SIGPIPE
         except Exception as e:  # noqa: BLE001 - the CLI boundary
             if _STATE["debug"]:
                 raise
@@ -97,6 +117,20 @@ def guarded(fn: Callable) -> Callable:
             raise typer.Exit(1) from None
 
     return wrapper
+
+
+def _quiet_stdout() -> None:
+    """The reader of stdout has gone (``symrom equations m.json | head``): send what is
+    left to /dev/null so that neither the command nor Python's exit reports it."""
+    import os
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a real file (a test runner's capture)
+        pass
+    finally:
+        os.close(devnull)
 
 
 def progress_bar() -> Progress:
@@ -331,6 +365,7 @@ def train_cmd(
     if select:
         _refuse_ignored(ctx, SELECT_IGNORES, "--select chooses them on the val split")
     check_output_file(out, force, inputs=(data,))
+    _check_workers(workers)
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
@@ -353,7 +388,8 @@ def train_cmd(
         write_model_files(model, tmp)
     terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
     out_console.print(f"model: {out / 'model.json'}  (l={latent_dim}, p={poly_order}, "
-                      f"{model.library.n_features} candidates; active terms: {terms})")
+                      f"{model.library.n_features} library terms; active terms: {terms})",
+                      highlight=False, soft_wrap=True)
     _model_warnings(model)
 
 
@@ -378,10 +414,10 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
             task, completed=done, total=total, description=f"selection: {what}"), backend=runner,
                           info={"data_path": str(data)})
     if sel.model is None:
-        raise ValueError(f"every one of the {len(sel.rows)} candidates diverged on a validation jump; "
+        raise ValueError(f"every one of the {len(sel.rows)} candidate models diverged on a validation jump; "
                          f"the table is in {out / 'selection.json'}")
     r = sel.rows[sel.chosen]
-    out_console.print(f"chosen of {len(sel.rows)} candidates: encoder {r['encoder']}, l={r['latent_dim']}, "
+    out_console.print(f"chosen of {len(sel.rows)} candidate models: encoder {r['encoder']}, l={r['latent_dim']}, "
                       f"{r['library']}, threshold {r['threshold']:g}, refined {'yes' if r['refine'] else 'no'}; "
                       f"{r['active_terms']} active terms, val score {r['score']:.3g} ({sel.seconds:.0f} s)\n"
                       f"model: {out / 'model.json'}  table: {out / 'selection.json'}", highlight=False, soft_wrap=True)
@@ -414,7 +450,7 @@ def evaluate_cmd(
     split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
     reset: Annotated[Optional[list[float]], typer.Option("--reset", help="Reset period(s) in s (repeatable).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda (the paper's) or rk4 (batch).")] = "lsoda",
-    plot_jump: Annotated[Optional[list[int]], typer.Option("--plot-jump", help="Jump index to plot (repeatable).")] = None,
+    plot_jump: Annotated[Optional[list[int]], typer.Option("--plot-jump", help="K-th jump of the evaluated split to plot, from 0 (repeatable; default 0).")] = None,
     force: Force = False,
 ) -> None:
     """Roll the model out on a split (full horizon and periodic resets); write metrics, table, plots."""
@@ -435,22 +471,26 @@ def evaluate_cmd(
         raise ValueError(f"{data} has no {split!r} jumps")
     model.check_data(ds)  # robot, layout and phases: refused before any work starts
     model.phase_index(ds, ds.rows_of(split))
-    if plot_jump:
-        bad = [j for j in plot_jump if not 0 <= j < ds.n_jumps]
-        if bad:
-            raise ValueError(f"--plot-jump {bad[0]}: the dataset has jumps 0..{ds.n_jumps - 1}")
+    split_jumps = ds.jumps_in(split)
+    bad = [k for k in plot_jump or [] if not 0 <= k < split_jumps.size]
+    if bad:
+        raise ValueError(f"--plot-jump {bad[0]}: counts the jumps of the {split} split, which has "
+                         f"{split_jumps.size} (0..{split_jumps.size - 1})")
+    plots = [int(split_jumps[k]) for k in plot_jump or [0]]  # dataset jump indices
     with progress_bar() as bar:
         task = bar.add_task("rollouts", total=len(resets) * ds.jumps_in(split).size)
         tick = _ticker(bar, task)
 
         metrics, rollouts = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
                                      model_name=str(model_path), data_name=str(data), progress=tick)
-    plots = plot_jump if plot_jump else [int(ds.jumps_in(split)[0])]
     with atomic_dir(out, force) as tmp:
-        write_evaluation(tmp, metrics, rollouts, ds, plots, title=f"{ds.robot} {ds.motion} ({split})")
+        written = write_evaluation(tmp, metrics, rollouts, ds, plots, title=f"{ds.robot} {ds.motion} ({split})")
     typer.echo(table2(metrics))
     _divergence_warnings(metrics)
-    out_console.print(f"metrics: {out / 'metrics.json'}")
+    out_console.print(f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
+    for k, (j, p) in enumerate(zip(plots, written[2:])):
+        out_console.print(f"plot: {out / p.name}  ({split} jump {(plot_jump or [0])[k]}, dataset jump {j})",
+                          highlight=False, soft_wrap=True)
 
 
 def _divergence_warnings(metrics: dict) -> None:
@@ -540,10 +580,19 @@ def equations_cmd(
     typer.echo(model.equations_text(latex=latex, digits=digits))
     stab = model.stability()
     if stab:
-        typer.echo("\nlinearised at each phase's training mean: eigenvalues (1/s)")
+        typer.echo("\n% linearised at each phase's training mean: eigenvalues (1/s)" if latex
+                   else "\nlinearised at each phase's training mean: eigenvalues (1/s)")
         for st in stab:
-            eig = ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}"
-                            for z in sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag)))
+            zs = sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag))
+            if latex:
+                eig = ",\\ ".join(f"{z.real:.3g} {'+' if z.imag >= 0 else '-'} {abs(z.imag):.3g}i"
+                                   if abs(z.imag) > 1e-12 else f"{z.real:.3g}" for z in zs)
+                growth = "" if st.growth is None else (rf" \quad \text{{(fastest mode $\times${st.growth:.3g} "
+                                                       rf"over {st.duration_s:.3g} s)}}")
+                name = st.phase.replace("_", r"\_")
+                typer.echo(rf"\lambda_{{\mathrm{{{name}}}}} \in \{{{eig}\}}{growth}")
+                continue
+            eig = ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}" for z in zs)
             growth = "" if st.growth is None else f"  (fastest mode x{st.growth:.3g} over {st.duration_s:.3g} s)"
             typer.echo(f"[{st.phase}] {eig}{growth}")
     _model_warnings(model)
@@ -564,6 +613,11 @@ def export_cmd(
 
     if to not in TARGETS:
         raise ValueError(f"--to must be one of {', '.join(TARGETS)}, got {to!r}")
+    if to == "casadi":
+        import importlib.util
+
+        if importlib.util.find_spec("casadi") is None:
+            raise ValueError("--to casadi needs CasADi, which is not installed: pip install 'symrom[export]'")
     check_output_file(out, force)
     model = load_model(model_path)
     with atomic_dir(out, force) as tmp:
@@ -589,8 +643,10 @@ def reproduce_cmd(
     import shlex
     from dataclasses import replace
 
+    from symrom.atomic import check_writable
     from symrom.experiments.reproduce import ReproduceConfig, reproduce
 
+    check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
     cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=runner.workers, seed=seed,
                   backend=backend, address=getattr(runner, "address", None))
@@ -609,7 +665,7 @@ def reproduce_cmd(
             html, _ = build_report(out, out / "report.html")
     for name, exp in summary["experiments"].items():
         full = exp["metrics"]["horizons"]["full"]
-        typer.echo(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} candidates, active terms "
+        typer.echo(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
                    f"{exp['active_terms']}, diverged {full['diverged_jumps']}/{exp['metrics']['n_jumps']}")
     typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
     typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
@@ -633,6 +689,7 @@ def demo_cmd(
     from symrom.report.html import build_report
 
     check_output_file(out, force)
+    _check_workers(workers)
     cfg = demo_config(jumps, workers=workers)
     command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with atomic_dir(out, force) as tmp:
@@ -651,7 +708,9 @@ def demo_cmd(
     typer.echo(text)
     typer.echo(table2(go1["metrics"], title="SIM Go1, test split"))
     typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
-    out_console.print(f"report: {out / 'report.html'}")
+    out_console.print(f"dataset: {out / go1['data']}  ({cfg.datasets[0].jumps} simulated jumps)\n"
+                      f"model: {out / go1['model']}\nreport: {out / 'report.html'}", highlight=False,
+                      soft_wrap=True)
 
 
 @app.command("aslip", cls=_Command)
@@ -777,11 +836,13 @@ def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | 
 @app.command("report", cls=_Command)
 @guarded
 def report_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory made by `symrom reproduce`.")],
+    run_dir: Annotated[Path, typer.Argument(help="Run directory (symrom reproduce, demo) or model folder (symrom train; "
+                                                 "its evaluation's metrics.json in it or a subfolder).")],
     out: Annotated[Optional[Path], typer.Option("--out", help="Output HTML file (default DIR/report.html); the Markdown twin and its figures go next to it.")] = None,
     force: Force = False,
 ) -> None:
-    """Build the self-contained HTML report (and its Markdown twin) of a run directory."""
+    """Build the self-contained HTML report (and its Markdown twin) of a run directory or a model folder."""
+    from symrom.atomic import check_writable
     from symrom.report.html import build_report
 
     if not run_dir.is_dir():
@@ -789,6 +850,7 @@ def report_cmd(
     out = run_dir / "report.html" if out is None else out
     if out.suffix.lower() not in (".html", ".htm"):
         raise ValueError(f"--out {out}: expected an .html file")
+    check_writable(out)
     with console.status("report") as status:
         html, md = build_report(run_dir, out, force=force,
                                 progress=lambda msg: status.update(f"report: {msg}"))
@@ -812,11 +874,14 @@ def generate_cmd(
     force: Force = False,
 ) -> None:
     """Simulate jumps in PyBullet, check them and write a dataset file."""
+    from symrom.atomic import check_writable
     from symrom.robots import get_robot
     from symrom.sim.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
                                      run_record_path)
 
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
+    check_writable(out)
+    _check_workers(workers)
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
                                          noise=NoiseConfig() if noise else None))
     runner = _start_backend(backend, workers, address)
@@ -853,11 +918,13 @@ def show_cmd(
     force: Force = False,
 ) -> None:
     """Render frames of one logged jump (replayed in PyBullet) as PNG files."""
+    from symrom.atomic import check_writable
     from symrom.data.io import read_dataset
     from symrom.sim.render import render_jump
 
     if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:
         raise FileExistsError(f"{out} already holds frames of jump {jump}; use --force to overwrite them")
+    check_writable(out, inside=True)
     ds = read_dataset(data)
     with console.status(f"rendering jump {jump}"):
         paths = render_jump(ds, jump, out, n_frames=frames)
@@ -885,6 +952,7 @@ def sweep_cmd(
     from symrom.data.io import read_dataset
     from symrom.experiments.sweep import SweepConfig, parse_latent_dims, run_sweep
 
+    _check_workers(workers)
     dims = parse_latent_dims(latent_dims)
     config = SweepConfig(latent_dims=dims, seeds=seeds, poly_order=poly_order, solver=solver,
                          lam=lam, workers=1 if workers is None else workers, rmse_test=rmse_test)

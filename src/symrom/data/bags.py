@@ -34,7 +34,6 @@ segmentation (``segment``).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import tomllib
 from pathlib import Path
@@ -132,16 +131,6 @@ class _Messages:
                 self._keep(channel.topic, message.log_time, store.deserialize_cdr(message.data, name))
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for p in files:
-        with open(p, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-    return h.hexdigest()
-
-
 def quat_to_rpy(qxyzw: np.ndarray) -> np.ndarray:
     """Unit quaternions (n, 4) x y z w -> ZYX roll, pitch, yaw (n, 3) rad (R = Rz Ry Rx)."""
     from scipy.spatial.transform import Rotation
@@ -160,7 +149,7 @@ def body_rates_to_euler(rpy: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
 def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None = None):
     """One bag (ROS 1 ``.bag``, ROS 2 bag folder, ``.mcap``) -> ``importers.RawLog`` (one jump;
     see the module docstring). ``topics``: {role: topic} over ``DEFAULT_TOPICS``."""
-    from symrom.data.importers import LogError, RawLog, log_kind
+    from symrom.data.rawlog import LogError, RawLog, log_kind, sha256_file
     from symrom.robots import get_robot
     from symrom.robots.kinematics import rpy_to_matrix
 
@@ -255,7 +244,7 @@ def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None 
              + tuple(f"{topics['base']} d{b}" for b in BASE_NAMES),
              "tau": tuple(f"{topics['joints']} {j} effort" for j in desc.joint_names)}
     used = {"joints": topics["joints"], "base": topics["base"], "contacts": how}
-    return RawLog(path=path, layout=f"{kind} bag" if kind != "mcap" else "mcap", sha256=_sha256(path),
+    return RawLog(path=path, layout=f"{kind} bag" if kind != "mcap" else "mcap", sha256=sha256_file(path),
                   jump=np.zeros(n, np.int32), t=rel, q=q, dq=dq, ddq=None, tau=tau, contact=contact,
                   lines=None, columns=names, topics=used)
 

@@ -47,7 +47,7 @@ import numpy as np
 from scipy.integrate import trapezoid
 from scipy.interpolate import Akima1DInterpolator
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS
+from symrom.names import BASE_POS, JOINTS
 
 G = 9.81  # m/s^2
 

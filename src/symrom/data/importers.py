@@ -64,7 +64,6 @@ The import then, in this order:
 from __future__ import annotations
 
 import csv
-import hashlib
 import math
 import os
 from dataclasses import asdict, dataclass
@@ -75,7 +74,8 @@ import numpy as np
 from symrom.data.checks import PlausibilityLimits, check_samples
 from symrom.data.consistency import (ConsistencyLimits, foot_height, retime_stale, stale_rows, time_scale,
                                      vertical_impulse)
-from symrom.data.dataset import Dataset, jump_bounds
+from symrom.data.dataset import Dataset
+from symrom.data.rawlog import LogError, RawLog, log_kind, sha256_file
 from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
 from symrom.data.segment import SEGMENT, segment_log
 from symrom.data.timebase import METHOD as TIMEBASE_METHOD
@@ -83,10 +83,6 @@ from symrom.data.timebase import TimeBase, TimeBaseError, check_gaps, choose_dt,
 from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.motions import get_motion
 from symrom.robots import get_robot
-
-
-class LogError(ValueError):
-    """A log file cannot be imported; the message names the file (and line, column)."""
 
 
 # ----------------------------------------------------------------- layouts
@@ -207,57 +203,6 @@ def _column_map(path: Path, header: list[str], layout: Layout) -> dict[str, int]
 
 # ----------------------------------------------------------------- reading
 
-@dataclass
-class RawLog:
-    """One log file's samples (n rows): arrays in symrom's order and SI units.
-
-    ``jump`` (n,) local jump ids 0..k-1; ``t`` (n,) s since the jump's first
-    sample; ``q``, ``dq`` (n, 18); ``ddq`` (n, 18) or None if not logged;
-    ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8; ``lines`` (n,) the file's
-    line of each sample (None for a bag: rows are counted); ``columns``: the
-    header's name of each field's columns (``q``, ``dq``, ``tau``), for messages;
-    ``topics``: a bag's topic of each role.
-    """
-
-    path: Path
-    layout: str
-    sha256: str
-    jump: np.ndarray
-    t: np.ndarray
-    q: np.ndarray
-    dq: np.ndarray
-    ddq: np.ndarray | None
-    tau: np.ndarray
-    contact: np.ndarray
-    lines: np.ndarray | None = None
-    columns: dict[str, tuple[str, ...]] | None = None
-    topics: dict[str, str] | None = None
-
-    @property
-    def n_jumps(self) -> int:
-        return int(self.jump[-1]) + 1
-
-    def bounds(self) -> np.ndarray:
-        """(k, 2) ``[start, stop)`` rows of each of the file's jumps."""
-        return jump_bounds(self.jump)
-
-    def where(self, row: int) -> str:
-        """'FILE, jump J, row R (line L)': a row of the file, for messages (R counts from 0
-        within the jump)."""
-        j = int(self.jump[row])
-        start = int(self.bounds()[j, 0])
-        line = f" (line {int(self.lines[row])})" if self.lines is not None else ""
-        return f"{self.path}, jump {j}, row {row - start}{line}"
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]], str]:
     """Header cells, (line number, cells) of every non-blank line, and the delimiter."""
     try:
@@ -343,47 +288,6 @@ def _jumps_from_column(path: Path, ids: np.ndarray, t: np.ndarray, lines: list[i
     return local
 
 
-_HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
-_MCAP_MAGIC = b"\x89MCAP0\r\n"
-_ROS1_MAGIC = b"#ROSBAG V2.0"
-READS = "CSV logs (text), ROS 1 bags (.bag), ROS 2 bag folders (metadata.yaml) and MCAP files (.mcap)"
-
-
-def log_kind(path: str | os.PathLike) -> str:
-    """What a log file is, from its content (not its name): ``csv``, ``ros1``, ``ros2`` (a bag
-    folder) or ``mcap``. LogError naming the file for anything else (an HDF5 file, a text file
-    named like one, a folder without a ROS 2 bag)."""
-    path = Path(path)
-    if path.is_dir():
-        if (path / "metadata.yaml").is_file():
-            return "ros2"
-        raise LogError(f"{path}: is a directory without a metadata.yaml, so not a ROS 2 bag; "
-                       f"symrom import reads {READS}")
-    try:
-        with open(path, "rb") as f:
-            head = f.read(16)
-    except FileNotFoundError:
-        raise LogError(f"{path}: no such file") from None
-    except OSError as e:
-        raise LogError(f"{path}: cannot read ({e.strerror or e})") from None
-    if head.startswith(_HDF5_MAGIC):
-        raise LogError(f"{path}: an HDF5 file (a symrom dataset?), not a log; symrom import reads {READS}")
-    if head.startswith(_MCAP_MAGIC):
-        return "mcap"
-    if head.startswith(_ROS1_MAGIC):
-        return "ros1"
-    suffix = path.suffix.lower()
-    if head.startswith(b"SQLite format 3"):
-        raise LogError(f"{path}: the database of a ROS 2 bag; give its folder (the one holding "
-                       f"metadata.yaml), {path.parent}")
-    if suffix in (".h5", ".hdf5", ".hdf", ".bag", ".mcap", ".db3"):
-        what = {".bag": "a ROS 1 bag", ".mcap": "an MCAP file", ".db3": "a ROS 2 bag database"}.get(
-            suffix, "an HDF5 file")
-        raise LogError(f"{path}: named like {what} ({suffix}) but its content is not one (it starts "
-                       f"{head[:12]!r}); symrom import reads {READS}; if it is a CSV log, name it .csv")
-    return "csv"
-
-
 def read_log(path: str | os.PathLike) -> RawLog:
     """Read one CSV log (either layout, see the module docstring) into a ``RawLog``."""
     path = Path(path)
@@ -418,7 +322,7 @@ def read_log(path: str | os.PathLike) -> RawLog:
     t0 = np.repeat(t[starts], np.diff(np.r_[starts, len(t)]))
     has_acc = all(n in pos for n in layout.ddq)
     names = {f: tuple(header[pos[n]].strip() for n in getattr(layout, f)) for f in ("q", "dq", "tau")}
-    return RawLog(path=path, layout=layout.name, sha256=_sha256(path), jump=jump, t=t - t0,
+    return RawLog(path=path, layout=layout.name, sha256=sha256_file(path), jump=jump, t=t - t0,
                   q=cols(layout.q), dq=cols(layout.dq), ddq=cols(layout.ddq) if has_acc else None,
                   tau=cols(layout.tau), contact=contact.astype(np.uint8), lines=np.asarray(lines),
                   columns=names)

@@ -44,19 +44,22 @@ def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | 
     ncol = 3
     nrow = int(np.ceil(len(components) / ncol))
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.5 * nrow), sharex=True, squeeze=False)
-    styles = {"full": dict(color="C3", ls="--"), }
+    # The full horizon is drawn dashed on top of a wide, pale reset line, so that where the
+    # two agree both stay visible.
+    styles = {"full": dict(color="C3", ls="--", lw=1.3, zorder=4)}
+    reset_style = dict(ls="-", lw=2.6, alpha=0.55, zorder=3)
     seen: set = set()
     for ax, comp in zip(axes.ravel(), components):
         c = Q_NAMES.index(comp)
         shade_phases(ax, t, phase, ds.phase_names, seen)
-        ax.plot(t, ds.q[a:b, c], color="k", lw=1.6, label="true")
+        ax.plot(t, ds.q[a:b, c], color="k", lw=1.4, label="true", zorder=5)
         for i, (key, ro) in enumerate(rollouts.items()):
             idx = np.flatnonzero(ro.jumps == jump)
             if idx.size == 0:
                 continue
-            style = styles.get(key, dict(color=f"C{i}", ls="-"))
+            style = styles.get(key, dict(color="C0" if i <= 1 else f"C{i}", **reset_style))
             label = "predicted, full horizon" if key == "full" else f"predicted, {key} s resets"
-            ax.plot(t, ro.q_pred[idx[0]][:, c], lw=1.1, label=label, **style)
+            ax.plot(t, ro.q_pred[idx[0]][:, c], label=label, **style)
         ax.set_title(f"{comp} [{Q_UNITS[comp]}]", fontsize=10)
         ax.grid(alpha=0.3)
     for ax in axes[-1]:

@@ -229,6 +229,7 @@ def _selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig,
         raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
     write_selection(sel, d / "selection")
     write_model_files(sel.model, d)
+    say(f"{exp.name}: selection done: {len(sel.rows)} candidate models in {sel.seconds:.0f} s")
     return sel.model, sel.to_dict()
 
 

@@ -168,8 +168,10 @@ class SelectionConfig:
             raise ValueError(f"thresholds must be >= 0, got {self.thresholds}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must be >= 0, got {self.tolerance}")
-        if self.workers < 1 or self.refine_top < 0:
-            raise ValueError("workers must be >= 1 and refine_top >= 0")
+        if self.workers < 1:
+            raise ValueError(f"workers must be at least 1, got {self.workers}")
+        if self.refine_top < 0:
+            raise ValueError(f"refine_top must be >= 0, got {self.refine_top}")
         if self.reference is not None:
             keys = {"full", "0.1"}
             if set(self.reference) != keys:
@@ -390,12 +392,18 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     refined_models = {}
     # The refinements (refine_top of them) run in this process, which compiles the refinement
     # kernel once; a fresh worker process would compile it again before refining.
-    for k, i in enumerate(to_refine(rows, cfg.refine_top, cfg.reference is not None)):
+    picks = to_refine(rows, cfg.refine_top, cfg.reference is not None)
+    total = len(cells) + len(picks)  # fewer than refine_top when fewer candidates qualify
+    for k, i in enumerate(picks):
         row = rows[i]
+        # Said before it starts: a refinement takes as long as many cells.
+        say(len(cells) + k, total, f"refining {row['encoder']} l={row['latent_dim']} {row['library']}")
         new, model = run_refined(ds, cfg, row)
         rows.append(new)
         refined_models[len(rows) - 1] = model
         say(len(cells) + k + 1, total, f"refined {row['encoder']} l={row['latent_dim']} {row['library']}")
+    if not picks:
+        say(total, total, "no candidate to refine")
     chosen = choose(rows, cfg.tolerance, cfg.reference is not None)
     notes = [] if chosen is not None else ["every candidate diverged on a validation jump: none chosen"]
     model = None

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,10 +23,22 @@ class Para:
 
 
 @dataclass
+class Link:
+    """A table cell that is a path or address: ``href`` relative to the report's folder."""
+
+    text: str
+    href: str
+
+
+@dataclass
 class Table:
+    """Rows of cells: text, a ``Link`` or a list of links. Numeric cells are right-aligned,
+    text left-aligned; ``collapsed`` folds the table (HTML ``<details>``) under its caption."""
+
     header: list[str]
-    rows: list[list[str]]
+    rows: list[list]
     caption: str = ""
+    collapsed: bool = False
 
 
 @dataclass
@@ -62,10 +75,12 @@ h1{font-size:1.6em;border-bottom:2px solid #444;padding-bottom:.2em}
 h2{font-size:1.3em;margin-top:2em;border-bottom:1px solid #bbb}
 h3{font-size:1.05em;margin-top:1.4em}
 table{border-collapse:collapse;margin:.6em 0 1.2em;font-size:.82em}
-th,td{border:1px solid #ccc;padding:.25em .45em;text-align:right;white-space:nowrap}
-th{background:#eef1f5}td:first-child,td:nth-child(2){text-align:left}
+th,td{border:1px solid #ccc;padding:.25em .45em;text-align:left;vertical-align:top}
+td{max-width:36em;overflow-wrap:anywhere}
+th{background:#eef1f5}.num{text-align:right}td.num{white-space:nowrap}
 caption{caption-side:top;text-align:left;font-weight:600;padding:.3em 0}
-.scroll{overflow-x:auto}
+.scroll{overflow-x:auto;max-width:100%}
+details>summary{cursor:pointer;font-weight:600;margin:.6em 0}
 pre{background:#f6f8fa;border:1px solid #ddd;padding:.6em;white-space:pre-wrap;font-size:.85em}
 .note{background:#fff4e0;border-left:4px solid #e69500;padding:.4em .7em}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}
@@ -76,6 +91,44 @@ nav a{margin-right:1em}
 
 def _h(text: str) -> str:
     return html.escape(str(text), quote=True)
+
+
+# A number, a mean±std, a list of numbers, a count with a remark ("0 (12/12 ≤ paper)"), or a mark.
+_NUM = re.compile(r"^[-−+]?(\d[\d.,]*(e[-−+]?\d+)?%?)(\s*[±,]\s*[-−+]?\d[\d.]*(e[-−+]?\d+)?)*"
+                  r"(\s\(.*\))?$|^[✓✗—★]$", re.I)
+
+
+def is_numeric(cell) -> bool:
+    """Whether a cell is a number (or a mark in a column of numbers): right-aligned."""
+    return isinstance(cell, str) and bool(_NUM.match(cell.strip()))
+
+
+def _cell_html(c) -> str:
+    if isinstance(c, Link):
+        return f'<a href="{_h(c.href)}">{_h(c.text)}</a>'
+    if isinstance(c, list):
+        return "<br>".join(_cell_html(x) for x in c)
+    return _h(c)
+
+
+def _table_html(b: Table) -> str:
+    # A column is numeric when every non-empty cell in it is: header and cells right-aligned.
+    ncol = len(b.header)
+    num = [all(is_numeric(r[i]) for r in b.rows if i < len(r) and r[i] not in ("", None)) and
+           any(i < len(r) and r[i] not in ("", None) for r in b.rows) for i in range(ncol)]
+
+    def td(i, c, tag="td"):
+        cls = ' class="num"' if (i < ncol and num[i] and (tag == "th" or is_numeric(c))) else ""
+        return f"<{tag}{cls}>{_cell_html(c) if tag == 'td' else _h(c)}</{tag}>"
+
+    head = "".join(td(i, c, "th") for i, c in enumerate(b.header))
+    body = "".join("<tr>" + "".join(td(i, c) for i, c in enumerate(r)) + "</tr>" for r in b.rows)
+    if b.collapsed:
+        return (f"<details><summary>{_h(b.caption or 'table')} ({len(b.rows)} rows)</summary>"
+                f'<div class="scroll"><table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
+                "</details>")
+    cap = f"<caption>{_h(b.caption)}</caption>" if b.caption else ""
+    return f'<div class="scroll"><table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
 
 
 def render_html(title: str, intro: list, sections: list[Section]) -> str:
@@ -98,10 +151,7 @@ def _block_html(b) -> str:
     if isinstance(b, Para):
         return f'<p class="note">{_h(b.text)}</p>' if b.note else f"<p>{_h(b.text)}</p>"
     if isinstance(b, Table):
-        cap = f"<caption>{_h(b.caption)}</caption>" if b.caption else ""
-        head = "".join(f"<th>{_h(c)}</th>" for c in b.header)
-        body = "".join("<tr>" + "".join(f"<td>{_h(c)}</td>" for c in r) + "</tr>" for r in b.rows)
-        return f'<div class="scroll"><table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table></div>'
+        return _table_html(b)
     if isinstance(b, Pre):
         cap = f"<p><em>{_h(b.caption)}</em></p>" if b.caption else ""
         return f"{cap}<pre>{_h(b.text)}</pre>"
@@ -112,7 +162,11 @@ def _block_html(b) -> str:
     raise TypeError(f"unknown block {type(b).__name__}")
 
 
-def _md_cell(text: str) -> str:
+def _md_cell(text) -> str:
+    if isinstance(text, Link):
+        return f"[{_md_cell(text.text)}]({text.href})"
+    if isinstance(text, list):
+        return "<br>".join(_md_cell(x) for x in text)
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 

@@ -6,6 +6,7 @@
 - ``com_figure``: CoM x and z of one jump, truth vs learned vs the baselines;
 - ``tradeoff_figure``: accuracy vs complexity over latent dimensions;
 - ``selection_figure``: validation score vs active terms of a selection's candidates.
+- ``horizon_figure``: RMSE per component and horizon beside the reconstruction floor.
 
 Every function takes plain arrays (or the evaluation objects it plots) and a
 path, and returns the path written.
@@ -22,7 +23,7 @@ import numpy as np
 from symrom.atomic import write_with
 from symrom.data.dataset import Dataset
 from symrom.evaluate.plots import shade_phases, plot_jump
-from symrom.names import Q_NAMES
+from symrom.names import Q_NAMES, TABLE2_COMPONENTS
 from symrom.rollout.integrate import Rollout
 
 DPI = 110
@@ -161,43 +162,75 @@ def best_dim(sweep: dict) -> int:
 
 
 def tradeoff_figure(sweep: dict, path: str | os.PathLike, title: str = "") -> Path:
-    """Accuracy vs complexity over latent dimensions, as the paper's trade-off figure.
+    """Accuracy vs complexity over latent dimensions, one panel per quantity (one y-axis each).
 
-    Left axis: E_dec (mean squared reconstruction error of q, rad^2 and m^2
-    mixed) with error bars over seeds; right axis: active coefficients |Xi|
-    with error bars; offset axis: L_mod (red); the best dimension marked.
+    (a) E_dec, the reconstruction error sum_c (q_c - q_rec,c)^2 averaged over the training
+    rows (joint angles and orientation in rad, positions in m: rad^2 and m^2 summed), with
+    error bars over seeds, log scale; (b) active coefficients |Xi| with error bars;
+    (c) L_mod, its best dimension starred. The best dimension is marked in every panel.
     """
     plt = _pyplot()
     s = sweep_stats(sweep)
     dims, best = s["dims"], best_dim(sweep)
-    fig, ax = plt.subplots(figsize=(8, 4.2))
-    ax.errorbar(dims, s["E_mean"], yerr=s["E_std"], color="C0", marker="o", ms=4, capsize=3,
-                label=r"$\mathcal{E}_{dec}$")
-    ax.set_xlabel("latent dimension l")
-    ax.set_ylabel(r"reconstruction error $\mathcal{E}_{dec}$ [mean sq., rad$^2$/m$^2$]", color="C0")
-    ax.tick_params(axis="y", colors="C0")
-    ax2 = ax.twinx()
-    ax2.errorbar(dims, s["A_mean"], yerr=s["A_std"], color="C1", marker="s", ms=4, capsize=3,
-                 label=r"$|\Xi|$")
-    ax2.set_ylabel(r"active coefficients $|\Xi|$", color="C1")
-    ax2.tick_params(axis="y", colors="C1")
-    ax3 = ax.twinx()
-    ax3.spines["right"].set_position(("axes", 1.13))
-    ax3.plot(dims, s["L_mod"], color="C3", lw=1.8, marker="^", ms=4, label=r"$\mathcal{L}_{mod}$")
-    ax3.set_ylabel(r"combined loss $\mathcal{L}_{mod}$", color="C3")
-    ax3.tick_params(axis="y", colors="C3")
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.6), sharex=True)
+    ax_e, ax_a, ax_l = axes
+    ax_e.errorbar(dims, s["E_mean"], yerr=s["E_std"], color="C0", marker="o", ms=4, capsize=3)
+    ax_e.set_yscale("log")
+    ax_e.set_title(r"(a) reconstruction error $\mathcal{E}_{dec}$", fontsize=10)
+    ax_e.set_ylabel(r"mean $\sum_c (q_c-\hat q_c)^2$ (rad$^2$ + m$^2$)")
+    ax_a.errorbar(dims, s["A_mean"], yerr=s["A_std"], color="C1", marker="s", ms=4, capsize=3)
+    ax_a.set_title(r"(b) active coefficients $|\Xi|$", fontsize=10)
+    ax_a.set_ylabel("terms (all phases)")
+    ax_l.plot(dims, s["L_mod"], color="C3", lw=1.8, marker="^", ms=4)
+    ax_l.set_title(r"(c) combined loss $\mathcal{L}_{mod}$", fontsize=10)
+    ax_l.set_ylabel(r"$2\,\mathcal{E}_{dec} + 2\lambda \log|\Xi|$")
     if best in dims:
         i = int(np.flatnonzero(dims == best)[0])
-        ax.axvline(best, color="C3", ls=":", lw=1.2)
-        ax3.plot([best], [s["L_mod"][i]], marker="*", ms=14, color="C3", ls="none",
-                 label=f"best l = {best}")
-    ax.set_xticks(dims)
-    ax.grid(alpha=0.3)
-    handles = sum((a.get_legend_handles_labels()[0] for a in (ax, ax2, ax3)), [])
-    labels = sum((a.get_legend_handles_labels()[1] for a in (ax, ax2, ax3)), [])
-    ax.legend(handles, labels, loc="upper center", fontsize=8, ncol=4, frameon=False)
-    ax.set_title(title or "Accuracy vs complexity over latent dimensions", fontsize=11)
+        for ax in axes:
+            ax.axvline(best, color="C3", ls=":", lw=1.2)
+        ax_l.plot([best], [s["L_mod"][i]], marker="*", ms=14, color="C3", ls="none", label=f"best l = {best}")
+        ax_l.legend(fontsize=8, frameon=False)
+    for ax in axes:
+        ax.set_xticks(dims)
+        ax.set_xlabel("latent dimension l")
+        ax.grid(alpha=0.3)
+    fig.suptitle(title or "Accuracy vs complexity over latent dimensions", fontsize=11)
     fig.tight_layout()
+    return _save(fig, path)
+
+
+# Table 2's components by unit, one panel each.
+HORIZON_PANELS = (("joint angles [rad]", TABLE2_COMPONENTS[:6]), ("CoM position [m]", TABLE2_COMPONENTS[6:9]),
+                  ("orientation [rad]", TABLE2_COMPONENTS[9:]))
+HORIZON_STYLES = (dict(color="C3", marker="o", mfc="none"), dict(color="C0", marker="s"),
+                  dict(color="C2", marker="D"), dict(color="C4", marker="^"))
+
+
+def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, float] | None,
+                   path: str | os.PathLike, title: str = "") -> Path:
+    """RMSE per Table-2 component for each horizon (``{label: {component: rmse}}``) beside
+    the reconstruction floor (decode-encode of the true configurations; a rollout with
+    exact latent dynamics errs by it), log scale, one panel per unit."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), gridspec_kw={"width_ratios": [6, 3, 3]})
+    for ax, (unit, comps) in zip(axes, HORIZON_PANELS):
+        x = np.arange(len(comps))
+        if floor is not None:
+            ax.plot(x, [floor[c] for c in comps], color="k", ls="none", marker="_", ms=24, mew=2,
+                    label="reconstruction floor", zorder=2)
+        for k, (label, vals) in enumerate(rmse.items()):
+            y = [np.nan if vals.get(c) is None else vals[c] for c in comps]
+            ax.plot(x + 0.12 * (k - (len(rmse) - 1) / 2), y, ls="none", ms=6, label=f"RMSE, {label}", zorder=3,
+                    **HORIZON_STYLES[k % len(HORIZON_STYLES)])
+        ax.set_xticks(x, comps)
+        ax.set_yscale("log")
+        ax.set_title(unit, fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("RMSE (unit of the panel)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
+    fig.suptitle(title or "Error per component and horizon, and the reconstruction floor", fontsize=11)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     return _save(fig, path)
 
 

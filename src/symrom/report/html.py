@@ -47,15 +47,20 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force:
     title = "symrom report: symbolic reduced-order models of quadruped jumping"
     with atomic_dir(files_dir, force=True) as fig_dir:
         say("experiments")
-        secs = [Section("experiments", "Experiments of this run").add(*experiments_blocks(run))]
+        secs = [Section("experiments", "Experiments of this run").add(*experiments_blocks(run, html_path.parent))]
         secs += build_sections(run, Context(run, fig_dir))
         say("data and provenance")
-        secs += [Section("data", "Data summary").add(*data_blocks(run)),
+        secs += [Section("data", "Data summary").add(*data_blocks(run, html_path.parent)),
                  Section("run", "Commands, versions and seeds").add(*run_blocks(run))]
-        intro = [Para(f"Run directory: {run.dir.resolve()}. Built {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} "
-                      f"by symrom {__version__}. Reproduces arXiv 2508.06538 (Buriani, Liu et al.): "
-                      "Table 2, the aSLIP comparison, the latent-dimension trade-off and the learned equations, "
-                      "for whatever experiments this run holds.")]
+        built = f"Built {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by symrom {__version__}."
+        if run.kind == "model folder":
+            intro = [Para(f"Model folder: {run.dir.resolve()}. {built} The model's errors on its evaluated "
+                          "split (as in the paper's Table 2, our rows only), a predicted jump, its equations "
+                          "and their stability.")]
+        else:
+            intro = [Para(f"Run directory: {run.dir.resolve()}. {built} Reproduces arXiv 2508.06538 (Buriani, "
+                          "Liu et al.): Table 2, the aSLIP comparison, the latent-dimension trade-off and the "
+                          "learned equations, for whatever experiments this run holds.")]
         intro += [Para(n, note=True) for n in run.notes]
         write_text_atomic(md_path, render_markdown(title, intro, secs, files_dir.name))
         write_text_atomic(html_path, render_html(title, intro, secs))

@@ -95,7 +95,9 @@ def _options(entry: ManifestEntry) -> list:
     cfg = entry.facts.get("config")
     if not isinstance(cfg, dict):
         return []
-    parts = [f"{k.replace('_', ' ')} {v:g}" if isinstance(v, float) else f"{k.replace('_', ' ')} {v}"
+    names = {"candidates": "candidate models"}  # of the selection (not library terms)
+    parts = [f"{names.get(k, k.replace('_', ' '))} {v:g}" if isinstance(v, float)
+             else f"{names.get(k, k.replace('_', ' '))} {v}"
              for k, v in cfg.items() if v is not None and not isinstance(v, (dict, list))]
     return [Para("Settings: " + "; ".join(parts) + ".")]
 
@@ -103,6 +105,8 @@ def _options(entry: ManifestEntry) -> list:
 def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
     blocks: list = []
     for e in entries:
+        if run.kind == "model folder" and "metrics" not in e.files:
+            continue  # not evaluated yet: the run's notes say how
         blocks.append(heading(e))
         metrics = run.metrics(e)
         if metrics is None:
@@ -112,6 +116,14 @@ def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
         caption = f"{e.name}, {metrics.split} jumps: {metrics.n_jumps}"
         tables, wins = _tables(e, metrics, e.paper, caption, floor)
         blocks += _options(e) + tables
+        if floor is not None:
+            rmse = {horizon_label(k): {c: h.stat(c, "rmse") for c in TABLE2_COMPONENTS}
+                    for k, h in metrics.horizons.items() if h.components}
+            path = figures.horizon_figure(rmse, floor, ctx.fig_dir / f"horizons_{ctx.slug(e)}.png",
+                                          title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)")
+            blocks.append(Figure(path, f"{e.name}: RMSE of each Table 2 component at each horizon beside the "
+                                       "reconstruction floor (decode∘encode of the true configurations); a point "
+                                       "on the floor is as close as any latent model with this encoder can get"))
         how = ("; a diverged jump is scored up to the time it diverged" if metrics.scores_diverged
                else "; diverged jumps are left out of the statistics") if metrics.any_diverged else ""
         blocks.append(Para(f"Diverged {metrics.split} jumps — {diverged_text(metrics)}{how}.",
@@ -141,13 +153,17 @@ def predictions_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> 
         if e.of is not None:
             continue
         got = ctx.jumps.get(e)
+        if got is None and run.kind == "model folder" and "metrics" not in e.files:
+            continue  # not evaluated yet: the run's notes say how
         if got is None:
             blocks.append(Para(f"{e.name}: model, data or metrics missing; no prediction figure.", note=True))
             continue
         ds, j, ros = got
+        split = str(ds.split[j])
+        which = f"{split} jump 0 (dataset jump {j})"
         path = figures.jump_figure(ds, ros, j, ctx.fig_dir / f"jump_{ctx.slug(e)}.png",
-                                   title=f"{e.name}: {ds.motion}, test jump {j}")
-        blocks.append(Figure(path, f"{e.name}: test jump {j}, truth vs prediction"))
+                                   title=f"{e.name}: {ds.motion}, {which}")
+        blocks.append(Figure(path, f"{e.name}: {which}, truth vs prediction"))
         start = ds.jump_bounds()[j][0]
         div = [f"{horizon_label(k)} diverged at t = {ds.t[start + r.diverged_at[0]]:.3f} s"
                for k, r in ros.items() if r.diverged[0]]
@@ -188,7 +204,7 @@ def equations_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
                                                      for j, rhs in enumerate(eqs, 1))
                          for phase, eqs in model.equations(3).items())
         blocks.append(Pre(text, caption=f"{e.name}: l = {model.latent_dim}, p = {model.library.poly_order}, "
-                                        f"candidates: {model.library.n_features}; active terms: {terms}"))
+                                        f"library terms: {model.library.n_features}; active terms: {terms}"))
         blocks += stability_blocks(e.name, model)
     return blocks
 
@@ -202,9 +218,10 @@ def stability_blocks(name: str, model) -> list:
     rows = [[st.phase, ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}"
                                  for z in sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag))),
              DASH if st.duration_s is None else f"{st.duration_s:.3g}",
-             DASH if st.growth is None else f"{st.growth:.3g}", "fast unstable" if st.fast_unstable else ""]
+             DASH if st.growth is None else f"{st.growth:.3g}", "yes" if st.fast_unstable else "no"]
             for st in stab]
-    blocks: list = [Table(["phase", "eigenvalues [1/s]", "typical stay [s]", "growth of the fastest mode", ""],
+    blocks: list = [Table(["phase", "eigenvalues [1/s]", "typical stay [s]", "growth of the fastest mode",
+                           "fast unstable mode"],
                           rows, caption=f"{name}: stability of each phase's dynamics at its training mean")]
     warnings = [st.warning() for st in stab if st.warning()]
     if warnings:

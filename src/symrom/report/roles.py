@@ -51,10 +51,12 @@ INTROS: dict[str, str] = {
     "table2": "Signed error predicted − true over all samples of the test split (joint angles and orientation "
               "in rad, CoM position in m), full-horizon rollouts and rollouts reset to the true latent state "
               "every 0.1 s. The paper's mean±std gives an implied RMSE √(mean²+std²); ✓ marks a component "
-              "where our RMSE is not larger. Diverged jumps are excluded from the statistics and counted. "
+              "where our RMSE is not larger. A diverged jump is scored up to the time it diverged, and counted "
+              "(the note under each table names it and when). "
               "Each experiment's table is split into its joints and its base pose.",
     "predictions": "Truth (black) and the learned model's prediction of the front-left and rear-right joint "
-                   "angles and the CoM pose, full horizon (dashed) and with 0.1 s resets; shaded spans mark "
+                   "angles and the CoM pose, full horizon (red, dashed, drawn on top) and with 0.1 s resets (wide, pale "
+                   "blue); shaded spans mark "
                    "the phases other than the first.",
 }
 
@@ -90,10 +92,11 @@ def build_sections(run: Run, ctx: Context) -> list[Section]:
     for sid, parts in plan.items():
         if not parts:
             continue
+        blocks = [b for render, entries in parts for b in render(run, entries, ctx)]
+        if not blocks:  # nothing to show (a model folder without its evaluation has no Table 2)
+            continue
         sec = Section(sid, SECTIONS[sid])
         if sid in INTROS:
             sec.add(Para(INTROS[sid]))
-        for render, entries in parts:
-            sec.add(*render(run, entries, ctx))
-        sections.append(sec)
+        sections.append(sec.add(*blocks))
     return sections

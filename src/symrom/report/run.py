@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from symrom.data.dataset import Dataset
-from symrom.evaluate.records import ManifestEntry, Metrics, RecordError, read_manifest
+from symrom.evaluate.records import LEARNED, ManifestEntry, Metrics, RecordError, read_manifest
 from symrom.model.hybrid import HybridModel
 
 # What reading a run's file can raise: missing or unreadable (OSError), or not of its
@@ -31,6 +31,7 @@ class Run:
     entries: list[ManifestEntry]
     notes: list[str] = field(default_factory=list)
     _cache: dict = field(default_factory=dict)
+    kind: str = "run"  # "run" (reproduce, demo) or "model folder" (train, evaluate)
 
     # ------------------------------------------------------------ entries
     def entry(self, name: str | None) -> ManifestEntry | None:
@@ -112,15 +113,19 @@ class NotARunError(ValueError):
 
 def load_run(run_dir: str | Path) -> Run:
     """Collect what the run directory holds; raise only if ``run_dir`` is not a directory
-    (``FileNotFoundError``) or not a run: no ``summary.json`` (``NotARunError``)."""
+    (``FileNotFoundError``) or neither a run (``summary.json``) nor a model folder
+    (``model_folder_run``) (``NotARunError``)."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise FileNotFoundError(f"{run_dir}: no such run directory")
     run = Run(run_dir, {}, [])
     path = run_dir / "summary.json"
     if not path.is_file():
-        raise NotARunError(f"{run_dir}: not a run directory (it holds no summary.json; "
-                           "`symrom reproduce --out DIR` or `symrom demo` makes one)")
+        if (run_dir / "model.json").is_file() or (run_dir / "metrics.json").is_file():
+            return model_folder_run(run_dir)
+        raise NotARunError(f"{run_dir}: not a run directory (no summary.json: `symrom reproduce --out DIR` "
+                           "or `symrom demo` makes one) nor a model folder (model.json: `symrom train`, or "
+                           "metrics.json: `symrom evaluate`)")
     try:
         summary = json.loads(path.read_text())
         if not isinstance(summary, dict):
@@ -132,4 +137,78 @@ def load_run(run_dir: str | Path) -> Run:
         run.entries = read_manifest(summary.get("manifest", []))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecordError) as e:
         run.note(f"summary.json: unreadable ({e}); the report shows no experiments")
+    return run
+
+
+def _recorded_path(recorded: str | None, folder: Path) -> str | None:
+    """A path a model or metrics file recorded (as given on the command line, so relative
+    to where that command ran, or to ``folder``): the one that exists, absolute."""
+    if not recorded:
+        return None
+    for p in (Path(recorded), folder / recorded):
+        if p.is_file():
+            return str(p.resolve())
+    return None
+
+
+def _evaluations_of(folder: Path) -> list[Path]:
+    """The ``metrics.json`` files in ``folder``'s subfolders, best first: those whose
+    ``model`` is ``folder/model.json``, then those of some model file (a baseline's names
+    no file), then those in a subfolder ``eval`` (the documented layout)."""
+    own = str((folder / "model.json").resolve())
+
+    def rank(p: Path) -> tuple[bool, bool, bool, str]:
+        try:
+            rec = json.loads(p.read_text())
+            model = str(rec.get("model", "")) if isinstance(rec, dict) else ""
+        except (OSError, ValueError):
+            model = ""
+        return (_recorded_path(model, folder) != own, not model.endswith("model.json"),
+                p.parent.name != "eval", str(p))
+
+    return sorted(folder.glob("*/metrics.json"), key=rank)
+
+
+def model_folder_run(folder: str | Path) -> Run:
+    """A model folder read as a run of one learned experiment, named for the folder:
+    ``model.json`` (``symrom train``), the evaluation's ``metrics.json`` in the folder or
+    in one of its subfolders (``symrom evaluate --out DIR/eval``), and the dataset the
+    model or the metrics name. A folder of ``symrom evaluate`` alone finds its model
+    through the metrics. What is missing becomes a note."""
+    folder = Path(folder)
+    run = Run(folder, {}, [], kind="model folder")
+    files: dict[str, str] = {}
+    metrics = folder / "metrics.json"
+    if not metrics.is_file():
+        metrics = next(iter(_evaluations_of(folder)), metrics)
+    recorded: dict = {}
+    if metrics.is_file():
+        files["metrics"] = str(metrics.relative_to(folder))
+        try:
+            recorded = json.loads(metrics.read_text())
+        except (OSError, ValueError):
+            recorded = {}  # reported when the renderers read it
+        recorded = recorded if isinstance(recorded, dict) else {}
+    model = folder / "model.json"
+    if model.is_file():
+        files["model"] = "model.json"
+    elif (found := _recorded_path(recorded.get("model"), folder)) is not None:
+        files["model"] = found
+    data = None
+    if "model" in files:
+        try:
+            info = json.loads((folder / files["model"]).read_text()).get("info") or {}
+            data = _recorded_path(info.get("data_path"), folder)
+        except (OSError, ValueError, AttributeError):
+            data = None
+    data = data or _recorded_path(recorded.get("data"), folder)
+    if data is not None:
+        files["data"] = data
+    else:
+        run.note("the dataset the model was trained or evaluated on was not found: no figure, "
+                 "no reconstruction floor and no data summary")
+    if "metrics" not in files:
+        run.note(f"{folder} holds no evaluation (metrics.json): `symrom evaluate {folder / 'model.json'} DATA "
+                 f"--out {folder / 'eval'}` adds Table 2 and a predicted jump")
+    run.entries = [ManifestEntry(name=folder.resolve().name, role=LEARNED, title="", files=files)]
     return run

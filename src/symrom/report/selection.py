@@ -55,7 +55,7 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
             blocks.append(Para(f"{e.name}: no selection table; skipped.", note=True))
             continue
         rows, chosen = table["rows"], table.get("chosen")
-        blocks.append(Para(f"{len(rows)} candidates in {table.get('seconds', 0):.0f} s. Rule: {table.get('rule', '')}."))
+        blocks.append(Para(f"{len(rows)} candidate models in {table.get('seconds', 0):.0f} s. Rule: {table.get('rule', '')}."))
         if chosen is None:
             blocks.append(Para("No candidate survived: every one diverged on a validation jump.", note=True))
         path = figures.selection_figure(rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
