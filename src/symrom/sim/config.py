@@ -51,7 +51,8 @@ class GenerateConfig:
     ``symrom.robots.robot_key``); motion: a name in ``symrom.motions.MOTIONS``;
     n_jumps; seed; proxy: the motion's hardware-like variant; noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
-    max_attempts: tries per jump before generation fails.
+    max_attempts: tries per jump before generation fails; engine: the physics engine
+    (``symrom.sim.engine.ENGINES``).
     """
 
     robot: str
@@ -63,6 +64,7 @@ class GenerateConfig:
     world: WorldConfig = field(default_factory=WorldConfig)
     checks: JumpChecks = field(default_factory=JumpChecks)
     max_attempts: int = 8
+    engine: str = "pybullet"
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -73,5 +75,7 @@ class GenerateConfig:
         """Hash of what makes each jump (not the jump count), to match resumed parts."""
         d = self.to_dict()
         d.pop("n_jumps")
+        if d["engine"] == "pybullet":  # the fingerprints of files made before there was a choice
+            d.pop("engine")
         d["version"] = GENERATOR_VERSION
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]

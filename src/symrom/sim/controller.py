@@ -5,7 +5,7 @@ A motion's registry entry (``symrom.motions``) names its plug-in as
 simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
 
     params = motion.sample_params(rng, robot, proxy)   # a dataclass with max_time (s)
-    world = motion.make_world(robot, world_config, params)
+    world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engine.World
     ctrl = motion.make_controller(robot, params)
     q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
     while not ctrl.done(s := world.state()):
@@ -22,7 +22,8 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from symrom.motions import get_motion
-from symrom.sim.world import RobotState, World, WorldConfig
+from symrom.sim.engine import World, make_world
+from symrom.sim.world import RobotState, WorldConfig
 
 
 @runtime_checkable
@@ -49,8 +50,9 @@ class Motion(Protocol):
     def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> Any:
         """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s."""
 
-    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
-        """The world the jump runs in (e.g. a hardware-like proxy of it)."""
+    def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
+        """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a
+        hardware-like proxy of it)."""
 
     def make_controller(self, robot: str, params: Any) -> Controller:
         """A fresh controller for one jump."""
@@ -66,8 +68,8 @@ class Motion(Protocol):
 class PlainMotion:
     """Defaults for a ``Motion``: the nominal world, source ``sim``, no checks of its own."""
 
-    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
-        return World(robot, config)
+    def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
+        return make_world(engine, robot, config)
 
     def source(self, params: Any) -> str:
         return "sim"

@@ -36,7 +36,8 @@ from symrom.robots.stance import nominal_feet, start_pose
 from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
-from symrom.sim.world import RobotState, World
+from symrom.sim.engine import World
+from symrom.sim.world import RobotState
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL

@@ -16,7 +16,7 @@ from symrom.sim.bullet import p
 
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS, N_Q
-from symrom.sim.world import World
+from symrom.sim.world import BulletWorld
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ def frame_rows(n_rows: int, n_frames: int) -> np.ndarray:
     return np.unique(np.linspace(0, n_rows - 1, n_frames).round().astype(int))
 
 
-def render_q(world: World, q: np.ndarray, camera: CameraConfig = CameraConfig(),
+def render_q(world: BulletWorld, q: np.ndarray, camera: CameraConfig = CameraConfig(),
              target: np.ndarray | None = None) -> np.ndarray:
     """RGB image (height, width, 3) uint8 of the robot posed at ``q`` (18,)."""
     world.reset(np.asarray(q, dtype=float))
@@ -76,7 +76,7 @@ def render_jump(ds: Dataset, jump: int, out_dir: str | Path, n_frames: int = 8,
     target = q[:, BASE_POS].mean(axis=0)
     target[2] = q[0, BASE_POS][2]
     paths = []
-    with World(ds.robot) as world:
+    with BulletWorld(ds.robot) as world:
         for r in frame_rows(q.shape[0], n_frames):
             img = render_q(world, q[r], camera, target)
             path = out_dir / f"jump_{jump:04d}_t{t[r]:.3f}.png"

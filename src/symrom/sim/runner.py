@@ -56,7 +56,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
     params = motion.sample_params(params_rng, cfg.robot, cfg.proxy)
-    world = motion.make_world(cfg.robot, cfg.world, params)
+    world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
