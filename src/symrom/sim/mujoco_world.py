@@ -41,6 +41,7 @@ from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, matrix_to_rpy, standing_configuration
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
+CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
 HOLD_ERROR = 0.005  # rad: a held joint's servo gives its full torque limit at this error
 HOLD_INERTIA = 0.02  # kg m^2: the inertia the held joints' servo damping is set for
 _ROBOT, _GROUND = 2, 1  # contype / conaffinity bits
@@ -93,8 +94,10 @@ def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[
     for g in spec.geoms:
         g.contype, g.conaffinity = _ROBOT, (_ROBOT if config.self_collision else 0)
         g.condim, g.friction, g.solref = 3, friction, solref
+        g.margin = g.gap = CONTACT_MARGIN
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
-                            contype=_GROUND, conaffinity=_ROBOT, condim=3, friction=friction, solref=solref)
+                            contype=_GROUND, conaffinity=_ROBOT, condim=3, friction=friction, solref=solref,
+                            margin=CONTACT_MARGIN, gap=CONTACT_MARGIN)
     for k, name in enumerate(desc.joint_names):
         j = spec.joint(name)
         if j is None:
@@ -102,7 +105,8 @@ def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[
         j.damping = [effects.damping[k], 0.0, 0.0]  # linear damping (MuJoCo 4 takes a polynomial)
         j.armature, j.frictionloss = effects.armature[k], effects.friction_loss[k]
         spec.add_actuator(name=f"tau_{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT, target=name,
-                          gainprm=[1.0] + [0.0] * 9, biasprm=[0.0] * 10)
+                          gainprm=[1.0] + [0.0] * 9, biasprm=[0.0] * 10,
+                          biastype=mujoco.mjtBias.mjBIAS_AFFINE)  # zero bias until held
     try:
         model = spec.compile()
     except ValueError as e:
@@ -234,6 +238,8 @@ class MujocoWorld:
         f[:] = 0.0
         d = self.data
         for i, k, sign in self._foot_contacts():
+            if d.contact[i].efc_address < 0:  # within the margin, not touching: no force
+                continue
             mujoco.mj_contactForce(self.model, d, i, self._res)
             f[k] += sign * (d.contact[i].frame.reshape(3, 3).T @ self._res[:3])
 
