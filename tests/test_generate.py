@@ -23,7 +23,7 @@ needs_pronk = pytest.mark.skipif(not have("pronk"), reason="Go1 pronk controller
 
 def _same_file(a, b) -> None:
     da, db = read_dataset(a), read_dataset(b)
-    for key in ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase", "foot_pos"):
+    for key in ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase", "foot_pos", "contact_force"):
         np.testing.assert_array_equal(getattr(da, key), getattr(db, key), err_msg=key)
     assert list(da.split) == list(db.split)
     assert da.generator == db.generator
@@ -95,7 +95,7 @@ def test_bad_requests_fail_clearly(tmp_path):
 def test_part_files_are_plain_npz(tmp_path):
     log = {"t": np.arange(3.0), "q": np.zeros((3, 18)), "dq": np.zeros((3, 18)),
            "tau": np.zeros((3, 12)), "contact": np.ones((3, 4), np.uint8),
-           "foot_pos": np.zeros((3, 4, 3))}
+           "foot_pos": np.zeros((3, 4, 3)), "contact_force": np.zeros((3, 4, 3))}
     p = tmp_path / "jump_00000.npz"
     write_part(p, log, {"jump": 0, "params": {"a": 1.0}}, "abc")
     with np.load(p, allow_pickle=False) as z:  # loads without pickle

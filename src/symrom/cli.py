@@ -826,6 +826,27 @@ def show_cmd(
     out_console.print(f"frames: {len(paths)} PNG in {out}", highlight=False)
 
 
+@app.command("forces", cls=_Command)
+@guarded
+def forces_cmd(
+    data: Annotated[list[Path], typer.Argument(help="Simulated dataset files (HDF5) with contact_force.")],
+) -> None:
+    """The torque-derived ground force (the input u's) against the engine's own contact force."""
+    from symrom.data.io import read_dataset
+    from symrom.robots import get_robot
+    from symrom.sim.forces import AXES, force_error
+
+    for path in data:
+        r = force_error(read_dataset(path))
+        out_console.print(f"{path}: {get_robot(r.robot).name}, {r.engine}, {r.samples} samples, "
+                          f"weight {r.weight:.1f} N", highlight=False, soft_wrap=True)
+        for name in AXES:
+            a = r.axes[name]
+            out_console.print(f"  F{name}: RMS error {a.rms:7.2f} N, peak error {a.peak:7.2f} N, "
+                              f"correlation {a.corr:5.3f}, peak torque-derived {a.peak_torque:7.1f} N "
+                              f"vs engine {a.peak_engine:7.1f} N", highlight=False)
+
+
 @app.command("sweep", cls=_Command)
 @guarded
 def sweep_cmd(

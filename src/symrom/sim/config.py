@@ -14,7 +14,9 @@ from typing import Any
 from symrom.sim.checks import JumpChecks
 from symrom.sim.world import WorldConfig
 
-GENERATOR_VERSION = 2  # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise)
+# 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise); 3: the engine is a
+# choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2)
+GENERATOR_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -75,7 +77,5 @@ class GenerateConfig:
         """Hash of what makes each jump (not the jump count), to match resumed parts."""
         d = self.to_dict()
         d.pop("n_jumps")
-        if d["engine"] == "pybullet":  # the fingerprints of files made before there was a choice
-            d.pop("engine")
         d["version"] = GENERATOR_VERSION
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]

@@ -107,7 +107,7 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
                     t=cat["t"], q=cat["q"], dq=cat["dq"], tau=cat["tau"], contact=cat["contact"],
-                    foot_pos=cat["foot_pos"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy),
+                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy),
                     dt=dt, generator=generator)
 
 

@@ -2,7 +2,8 @@
 
 The model is the description's URDF compiled by MuJoCo (``MjSpec.from_file``), with
 a free joint added to the base link and its fixed links kept as bodies (the feet
-must stay bodies of their own); visual meshes are dropped, and collision meshes
+must stay bodies of their own); an inertia that breaks the triangle inequality is
+balanced (MuJoCo's ``balanceinertia``; PyBullet zeroes it); visual meshes are dropped, and collision meshes
 whose files are missing too (the primitives remain; the feet are the URDF's
 spheres). A description may name an MJCF model of the same robot instead
 (``mjcf = "..."``, e.g. a MuJoCo Menagerie model): its joint, foot and base names
@@ -61,6 +62,7 @@ def _spec(desc: RobotDescription) -> mujoco.MjSpec:
         src = desc.urdf_path
         spec.compiler.fusestatic = False  # the foot links must stay bodies
         spec.compiler.discardvisual = True
+        spec.compiler.balanceinertia = True  # URDFs with impossible inertias exist (Bullet zeroes them)
     base = spec.body(desc.base_link)
     if base is None:
         raise ModelError(f"robot {desc.name!r}: {src} has no body {desc.base_link!r} (base_link)")

@@ -49,7 +49,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """Simulate one jump; return its log and a JSON-ready info dict.
 
     Log arrays (n rows at log_hz): t (n,) s, q, dq (n, 18), tau (n, 12) N m
-    applied, contact (n, 4) uint8, foot_pos (n, 4, 3) m. info: params, source,
+    applied, contact (n, 4) uint8, foot_pos (n, 4, 3) m, contact_force (n, 4, 3) N. info: params, source,
     push force, whether the controller finished (``done``) in time, and the
     controller's diagnostics (not stored in the file).
     """
@@ -96,6 +96,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
                 log["tau"].append(applied)
                 log["contact"].append(s.contact)
                 log["foot_pos"].append(s.foot_pos)
+                log["contact_force"].append(world.contact_forces())  # the engine's, during this tick
                 if watch.update(s.contact):  # the attempt fails whatever follows: stop here
                     info["stopped"] = f"{BRIEF_FLIGHT} (stopped at {tick * cfg.world.dt:.3f} s)"
                     break
@@ -107,7 +108,8 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
               "dq": np.asarray(log["dq"], float).reshape(-1, N_Q),
               "tau": np.asarray(log["tau"], float).reshape(-1, N_JOINTS),
               "contact": np.asarray(log["contact"], np.uint8).reshape(-1, 4),
-              "foot_pos": np.asarray(log["foot_pos"], float).reshape(-1, 4, 3)}
+              "foot_pos": np.asarray(log["foot_pos"], float).reshape(-1, 4, 3),
+              "contact_force": np.asarray(log["contact_force"], float).reshape(-1, 4, 3)}
     return arrays, info
 
 
