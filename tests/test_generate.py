@@ -222,7 +222,8 @@ def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
 
 def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
     """The runner stops an attempt once FlightWatch fails: only when the whole log would."""
-    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
+    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, one_main_flight
+    from symrom.sim.pronk import MOTION as PRONK
 
     rng = np.random.default_rng(0)
     for _ in range(2000):
@@ -233,4 +234,6 @@ def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
         seen = [watch.update(c) for c in contact]
         assert seen == sorted(seen)  # once failed, failed for good
         log = {"q": np.zeros((n, 18)), "tau": np.zeros((n, 12)), "contact": contact}
-        assert watch.failed == (BRIEF_FLIGHT in check_jump(log, "go1", 0.002))
+        assert watch.failed == (BRIEF_FLIGHT in one_main_flight(log))
+        assert one_main_flight(log) == PRONK.check(log, 0.002, None)  # pronk's own check
+        assert isinstance(PRONK.watch(), FlightWatch) and isinstance(FROGGY.watch(), FlightWatch)

@@ -406,8 +406,8 @@ class PronkController:
 class PronkMotion(PlainMotion):
     """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> PronkParams:
-        return sample_params(rng, proxy=proxy, robot=robot)
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> PronkParams:
+        return sample_params(rng, proxy=variant == "proxy", robot=robot)
 
     def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
         world = make_world(engine, robot, config)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
-from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
+from symrom.sim.checks import check_jump
 from symrom.sim.config import GenerateConfig, NoiseConfig
 from symrom.sim.controller import load_motion
 from symrom.sim.parts import LOG_KEYS, jsonable
@@ -55,7 +55,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
-    params = motion.sample_params(params_rng, cfg.robot, cfg.proxy)
+    params = motion.sample_params(params_rng, cfg.robot, "proxy" if cfg.proxy else None)
     world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
@@ -74,7 +74,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     log: dict[str, list] = {k: [] for k in LOG_KEYS}
     every = cfg.world.log_every
     finished = False
-    watch = FlightWatch()
+    watch = motion.watch() if hasattr(motion, "watch") else None  # the motion's own watcher
     try:
         world.reset(q0)
         for tick in range(int(round(params.max_time * cfg.world.physics_hz)) + 1):
@@ -97,8 +97,8 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
                 log["contact"].append(s.contact)
                 log["foot_pos"].append(s.foot_pos)
                 log["contact_force"].append(world.contact_forces())  # the engine's, during this tick
-                if watch.update(s.contact):  # the attempt fails whatever follows: stop here
-                    info["stopped"] = f"{BRIEF_FLIGHT} (stopped at {tick * cfg.world.dt:.3f} s)"
+                if watch is not None and watch.update(s.contact):  # fails whatever follows: stop
+                    info["stopped"] = f"{watch.reason} (stopped at {tick * cfg.world.dt:.3f} s)"
                     break
     finally:
         world.close()
