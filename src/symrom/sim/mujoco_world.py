@@ -39,13 +39,15 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
-from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, matrix_to_rpy, standing_configuration
+from symrom.sim.compiled import base_state
+from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, standing_configuration
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
 HOLD_ERROR = 0.005  # rad: a held joint's servo gives its full torque limit at this error
 HOLD_INERTIA = 0.02  # kg m^2: the inertia the held joints' servo damping is set for
 _ROBOT, _GROUND = 2, 1  # contype / conaffinity bits
+_ZERO3, _IDENTITY = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])  # no offset from the link frame
 
 
 class ModelError(ValueError):
@@ -151,7 +153,11 @@ class MujocoWorld:
         self._base, self._feet = ids["base"], ids["feet"]
         self._qadr, self._vadr = ids["qadr"], ids["vadr"]
         self._ground = ids["ground"]
-        self._leg_of_body = {b: k for k, b in enumerate(self._feet)}
+        self._leg_of_geom = np.full(self.model.ngeom, -1)  # geom -> leg of its foot body, or -1
+        for k, b in enumerate(self._feet):
+            self._leg_of_geom[self.model.geom_bodyid == b] = k
+        self._leg_list = self._leg_of_geom.tolist()
+        self._quat = np.empty(4)
         self.foot_radius = ids["foot_radius"]
         self.mass = float(self.model.body_subtreemass[self._base])  # kg
         self.held: np.ndarray = np.zeros(0, dtype=int)
@@ -192,39 +198,35 @@ class MujocoWorld:
     def state(self) -> RobotState:
         """The current state of the robot (see ``RobotState``)."""
         m, d = self.model, self.data
-        R = d.xmat[self._base].reshape(3, 3).copy()
-        omega = R @ d.qvel[3:6]
-        q, dq = np.empty(N_Q), np.empty(N_Q)
-        q[BASE_POS] = d.qpos[0:3]
-        q[BASE_RPY] = matrix_to_rpy(R)
-        dq[BASE_POS] = d.qvel[0:3]
-        dq[BASE_RPY] = np.linalg.solve(euler_rate_matrix(q[BASE_RPY]), omega)
-        q[JOINTS] = d.qpos[self._qadr] * self.signs
-        dq[JOINTS] = d.qvel[self._vadr] * self.signs
+        q, dq, R = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3))
+        qp, qv = d.qpos, d.qvel
+        self._quat[:3], self._quat[3] = qp[4:7], qp[3]  # MuJoCo's (w, x, y, z) as (x, y, z, w)
+        omega = d.xmat[self._base].reshape(3, 3) @ qv[3:6]  # qvel holds it in the body frame
+        # the free joint sits at the base link frame: the pose and rates are the link frame's
+        base_state(qp[0:3], self._quat, qv[0:3], omega, _ZERO3, _IDENTITY, q, dq, R)
+        np.multiply(qp[self._qadr], self.signs, out=q[JOINTS])
+        np.multiply(qv[self._vadr], self.signs, out=dq[JOINTS])
         foot_vel = np.empty((N_LEGS, 3))
         for k, b in enumerate(self._feet):
             mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, self._vel, 0)
             foot_vel[k] = self._vel[3:]
         return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=self.contact_flags(),
-                          foot_pos=d.xpos[self._feet].copy(), foot_vel=foot_vel)
+                          foot_pos=d.xpos[self._feet], foot_vel=foot_vel)
 
-    def _foot_contacts(self):
-        """(contact index, leg, sign) of every foot/ground contact: sign +1 when the foot is geom2."""
-        m, d = self.model, self.data
-        for i in range(d.ncon):
-            c = d.contact[i]
-            g1, g2 = c.geom1, c.geom2
-            if g1 == self._ground:
-                k = self._leg_of_body.get(int(m.geom_bodyid[g2]))
-                if k is not None:
-                    yield i, k, 1.0
-            elif g2 == self._ground:
-                k = self._leg_of_body.get(int(m.geom_bodyid[g1]))
-                if k is not None:
-                    yield i, k, -1.0
+    def _foot_contacts(self) -> list[tuple[int, int, float]]:
+        """(contact index, leg, sign) of every foot/ground contact; sign +1 where the foot is
+        geom2 (MuJoCo's force acts from geom1 on geom2). A plain loop: there are a dozen."""
+        ground, leg = self._ground, self._leg_list
+        out = []
+        for i, (g1, g2) in enumerate(self.data.contact.geom.tolist()):
+            if g1 == ground and leg[g2] >= 0:
+                out.append((i, leg[g2], 1.0))
+            elif g2 == ground and leg[g1] >= 0:
+                out.append((i, leg[g1], -1.0))
+        return out
 
     def contact_flags(self) -> np.ndarray:
-        """(4,) uint8: 1 where a foot body touches the ground."""
+        """(4,) uint8: 1 where a foot body touches the ground (within ``CONTACT_MARGIN``)."""
         flags = np.zeros(N_LEGS, dtype=np.uint8)
         for _, k, _ in self._foot_contacts():
             flags[k] = 1
@@ -235,15 +237,16 @@ class MujocoWorld:
         return self._forces.copy()
 
     def _solve_forces(self) -> None:
-        # MuJoCo's contact force acts from geom1 on geom2, in the contact frame (normal first).
         f = self._forces
         f[:] = 0.0
         d = self.data
+        con = d.contact
+        frames, efc = con.frame, con.efc_address
         for i, k, sign in self._foot_contacts():
-            if d.contact[i].efc_address < 0:  # within the margin, not touching: no force
+            if efc[i] < 0:  # within the margin, not touching: no force
                 continue
-            mujoco.mj_contactForce(self.model, d, i, self._res)
-            f[k] += sign * (d.contact[i].frame.reshape(3, 3).T @ self._res[:3])
+            mujoco.mj_contactForce(self.model, d, i, self._res)  # contact frame, normal first
+            f[k] += sign * (frames[i].reshape(3, 3).T @ self._res[:3])
 
     def joint_velocities(self) -> np.ndarray:
         """(12,) rad/s in symrom's signs."""
