@@ -18,7 +18,10 @@ from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.stance import start_pose
 from symrom.sim.engine import ENGINES, UnknownEngineError, World, make_world
 from symrom.sim.generate import GenerateConfig, GenerationError, generate, run_record_path
+from symrom.sim.forces import NoContactForceError, force_error
 from symrom.sim.world import euler_rate_matrix
+from symrom.cli import app
+from typer.testing import CliRunner
 
 STAND = np.tile([0.0, 0.8, -1.6], 4)
 
@@ -151,6 +154,16 @@ def test_mujoco_generates_jumps_that_pass_the_checks(robot, motion):
     assert np.all(np.abs(ds.tau) <= np.asarray(get_robot(robot).torque_limit) + 1e-9)
     with h5py.File(out) as f:
         assert "engine" in f.attrs["generator"]
+    # the engine's contact forces, logged beside the torque-derived wrench
+    assert ds.contact_force.shape == (ds.n_samples, 4, 3)
+    assert not ds.contact_force[ds.contact.sum(axis=1) == 0].any()  # none in flight
+    r = force_error(ds)
+    assert r.engine == "mujoco" and r.axes["z"].corr > 0.9  # the same loading, roughly
+    assert r.axes["z"].rms < 0.5 * r.weight
+    res = CliRunner().invoke(app, ["forces", str(out)])
+    assert res.exit_code == 0 and "Fz: RMS error" in res.output and "mujoco" in res.output
+    with pytest.raises(NoContactForceError, match="contact_force"):
+        force_error(replace(ds, contact_force=None))
 
 
 def test_the_engine_is_part_of_the_fingerprint():
@@ -159,3 +172,32 @@ def test_the_engine_is_part_of_the_fingerprint():
     assert cfg.fingerprint() != "da2ee9fbcbe958d6"  # the same options' fingerprint in version 2
     assert cfg.fingerprint() != replace(cfg, engine="mujoco").fingerprint()
     assert cfg.to_dict()["engine"] == "pybullet"
+
+
+ROBOTS_DIR = __import__("pathlib").Path(__file__).parent / "robots"
+
+
+@pytest.mark.parametrize("engine", list(ENGINES))
+@pytest.mark.parametrize("robot", ["aliengo", "mini_cheetah"])
+def test_pronk_on_user_written_descriptions(robot, engine):
+    """Pronk scales itself to robots it was not tuned on, in both engines (one jump each)."""
+    path = ROBOTS_DIR / f"{robot}.toml"
+    ds = generate(GenerateConfig(str(path), "pronk", 1, seed=2, engine=engine, max_attempts=3),
+                  tmp_path(f"{robot}_{engine}.h5"))
+    assert ds.robot == str(path.resolve()) and ds.n_jumps == 1
+    assert ds.q[:, 14].max() - ds.q[0, 14] > 0.05 and ds.q[-1, 12] - ds.q[0, 12] > 0.1
+
+
+def test_froggy_scales_to_the_aliengo():
+    """Unscaled, the A1's froggy thrust barely lifts the Aliengo (no flight); scaled, it jumps."""
+    from symrom.sim.froggy import FroggyParams, sample_params, scales
+
+    path = str(ROBOTS_DIR / "aliengo.toml")
+    m, l = scales(path)
+    p = sample_params(np.random.default_rng(0), path)
+    a1 = sample_params(np.random.default_rng(0), "a1")
+    assert p.stand_height == pytest.approx(FroggyParams.stand_height * l)
+    assert a1.force_all * m * 0.75 < p.force_all < a1.force_all * m  # torque capacity lowers it
+    assert sample_params(np.random.default_rng(0)) == a1  # the A1's own: unchanged
+    ds = generate(GenerateConfig(path, "froggy", 1, seed=0, max_attempts=6), tmp_path("aliengo_froggy.h5"))
+    assert (ds.contact.sum(axis=1) == 0).sum() * ds.dt >= 0.12
