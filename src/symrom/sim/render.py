@@ -10,8 +10,12 @@ base. Frames are written as PNG with matplotlib.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
+
+# MuJoCo picks its OpenGL platform when it is imported: headless EGL unless told otherwise
+os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
 from symrom.sim.bullet import p
@@ -59,9 +63,6 @@ class _MujocoPainter:
     """Draws a ``MujocoWorld`` posed at q with ``mujoco.Renderer`` (one per jump)."""
 
     def __init__(self, world, camera: CameraConfig):
-        import os
-
-        os.environ.setdefault("MUJOCO_GL", "egl")
         import mujoco
 
         self.mj, self.world, self.camera = mujoco, world, camera
