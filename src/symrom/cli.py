@@ -757,7 +757,7 @@ def report_cmd(
 @guarded
 def generate_cmd(
     robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
-    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC, any robot) or froggy (Cartesian PD, tuned on the a1).")],
+    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC) or froggy (Cartesian PD); both scale to any robot.")],
     jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
