@@ -22,7 +22,7 @@ from symrom.sim.parts import read_part, write_part
 
 def _same_file(a, b) -> None:
     da, db = read_dataset(a), read_dataset(b)
-    for key in ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase", "foot_pos"):
+    for key in ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase", "foot_pos", "contact_force"):
         np.testing.assert_array_equal(getattr(da, key), getattr(db, key), err_msg=key)
     assert list(da.split) == list(db.split)
     assert da.generator == db.generator
@@ -94,7 +94,7 @@ def test_bad_requests_fail_clearly(tmp_path):
 def test_part_files_are_plain_npz(tmp_path):
     log = {"t": np.arange(3.0), "q": np.zeros((3, 18)), "dq": np.zeros((3, 18)),
            "tau": np.zeros((3, 12)), "contact": np.ones((3, 4), np.uint8),
-           "foot_pos": np.zeros((3, 4, 3))}
+           "foot_pos": np.zeros((3, 4, 3)), "contact_force": np.zeros((3, 4, 3))}
     p = tmp_path / "jump_00000.npz"
     write_part(p, log, {"jump": 0, "params": {"a": 1.0}}, "abc")
     with np.load(p, allow_pickle=False) as z:  # loads without pickle
@@ -220,7 +220,8 @@ def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
 
 def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
     """The runner stops an attempt once FlightWatch fails: only when the whole log would."""
-    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
+    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, one_main_flight
+    from symrom.sim.pronk import MOTION as PRONK
 
     rng = np.random.default_rng(0)
     for _ in range(2000):
@@ -231,4 +232,6 @@ def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
         seen = [watch.update(c) for c in contact]
         assert seen == sorted(seen)  # once failed, failed for good
         log = {"q": np.zeros((n, 18)), "tau": np.zeros((n, 12)), "contact": contact}
-        assert watch.failed == (BRIEF_FLIGHT in check_jump(log, "go1", 0.002))
+        assert watch.failed == (BRIEF_FLIGHT in one_main_flight(log))
+        assert one_main_flight(log) == PRONK.check(log, 0.002, None)  # pronk's own check
+        assert isinstance(PRONK.watch(), FlightWatch) and isinstance(FROGGY.watch(), FlightWatch)

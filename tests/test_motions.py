@@ -11,7 +11,7 @@ from symrom.motions import MOTIONS, MotionEntry, UnknownMotionError, contact_fli
 from symrom.sim.controller import Controller, load_motion
 from symrom.sim.generate import GenerateConfig, split_counts
 from symrom.sim.runner import jump_seed, run_checked_jump, run_jump
-from symrom.sim.world import World
+from symrom.sim.world import BulletWorld as World
 
 # Two jumps: 4 feet, rear only (1), none, staggered touch-down (2), 4 feet | 4, none, 3, 4.
 CONTACT = np.array([[1, 1, 1, 1], [0, 0, 1, 1], [0, 0, 0, 0], [1, 0, 1, 0], [1, 1, 1, 1],

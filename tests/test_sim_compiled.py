@@ -13,7 +13,7 @@ from symrom.robots.stance import start_pose
 from symrom.sim import bullet, compiled
 from symrom.sim.froggy import FroggyController, distribute, sample_params
 from symrom.sim.mpc import ConvexMPC, continuous_dynamics, discretize
-from symrom.sim.world import World, euler_rate_matrix, matrix_to_rpy
+from symrom.sim.world import BulletWorld as World, euler_rate_matrix, matrix_to_rpy
 
 
 @pytest.mark.parametrize("robot", ["go1", "a1", "laikago"])

@@ -13,7 +13,7 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS
 from symrom.robots import get_robot
 from symrom.robots.stance import FOOT_PRELOAD, start_pose
 from symrom.sim import pronk, proxy
-from symrom.sim.world import World, WorldConfig
+from symrom.sim.world import BulletWorld as World, WorldConfig
 
 SPEC = get_robot("go1")
 LIMIT = np.asarray(SPEC.torque_limit)

@@ -53,6 +53,7 @@ Address = Annotated[Optional[str], typer.Option(
     "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
                       "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
                       "instance on this machine.")]
+ENGINE_HELP = "Physics engine: pybullet or mujoco (docs/engines.md)."
 WORKERS_HELP = ("Worker processes (local back end; default {local}), or the most tasks at once on Ray "
                 "(default: the cluster's CPUs).")
 
@@ -638,6 +639,7 @@ def reproduce_cmd(
     no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML/Markdown report.")] = False,
     backend: BackendName = "local",
     address: Address = None,
+    engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     import shlex
@@ -648,8 +650,10 @@ def reproduce_cmd(
 
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
+    from symrom.sim.engine import check_engine
+
     cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=runner.workers, seed=seed,
-                  backend=backend, address=getattr(runner, "address", None))
+                  backend=backend, address=getattr(runner, "address", None), engine=check_engine(engine))
     command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with console.status("reproduce") as status:
         def say(msg: str, transient: bool = False) -> None:
@@ -861,11 +865,12 @@ def report_cmd(
 @guarded
 def generate_cmd(
     robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
-    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC, any robot) or froggy (Cartesian PD, tuned on the a1).")],
+    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC) or froggy (Cartesian PD); both scale to any robot.")],
     jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
     proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
+    engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
@@ -873,7 +878,7 @@ def generate_cmd(
     address: Address = None,
     force: Force = False,
 ) -> None:
-    """Simulate jumps in PyBullet, check them and write a dataset file."""
+    """Simulate jumps (PyBullet or MuJoCo), check them and write a dataset file."""
     from symrom.atomic import check_writable
     from symrom.robots import get_robot
     from symrom.sim.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
@@ -883,9 +888,9 @@ def generate_cmd(
     check_writable(out)
     _check_workers(workers)
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
-                                         noise=NoiseConfig() if noise else None))
+                                         noise=NoiseConfig() if noise else None, engine=engine))
     runner = _start_backend(backend, workers, address)
-    label = f"{get_robot(config.robot).name} {motion}"
+    label = f"{get_robot(config.robot).name} {motion} ({engine})"
     with progress_bar() as bar:
         task = bar.add_task(label, total=jumps)
         retries, lost = [0], [0]
@@ -915,20 +920,44 @@ def show_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory for the PNG frames.")],
     jump: Annotated[int, typer.Option("--jump", help="Jump index.")] = 0,
     frames: Annotated[int, typer.Option("--frames", help="Number of frames.")] = 8,
+    engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP + " MuJoCo needs OpenGL (EGL).")] = "pybullet",
     force: Force = False,
 ) -> None:
-    """Render frames of one logged jump (replayed in PyBullet) as PNG files."""
+    """Render frames of one logged jump (replayed in PyBullet or MuJoCo) as PNG files."""
     from symrom.atomic import check_writable
     from symrom.data.io import read_dataset
+    from symrom.sim.engine import check_engine
     from symrom.sim.render import render_jump
 
+    check_engine(engine)
     if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:
         raise FileExistsError(f"{out} already holds frames of jump {jump}; use --force to overwrite them")
     check_writable(out, inside=True)
     ds = read_dataset(data)
     with console.status(f"rendering jump {jump}"):
-        paths = render_jump(ds, jump, out, n_frames=frames)
+        paths = render_jump(ds, jump, out, n_frames=frames, engine=engine)
     out_console.print(f"frames: {len(paths)} PNG in {out}", highlight=False)
+
+
+@app.command("forces", cls=_Command)
+@guarded
+def forces_cmd(
+    data: Annotated[list[Path], typer.Argument(help="Simulated dataset files (HDF5) with contact_force.")],
+) -> None:
+    """The torque-derived ground force (the input u's) against the engine's own contact force."""
+    from symrom.data.io import read_dataset
+    from symrom.robots import get_robot
+    from symrom.sim.forces import AXES, force_error
+
+    for path in data:
+        r = force_error(read_dataset(path))
+        out_console.print(f"{path}: {get_robot(r.robot).name}, {r.engine}, {r.samples} samples, "
+                          f"weight {r.weight:.1f} N", highlight=False, soft_wrap=True)
+        for name in AXES:
+            a = r.axes[name]
+            out_console.print(f"  F{name}: RMS error {a.rms:7.2f} N, peak error {a.peak:7.2f} N, "
+                              f"correlation {a.corr:5.3f}, peak torque-derived {a.peak_torque:7.1f} N "
+                              f"vs engine {a.peak_engine:7.1f} N", highlight=False)
 
 
 @app.command("sweep", cls=_Command)

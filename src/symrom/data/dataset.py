@@ -38,7 +38,9 @@ class Dataset:
     sample, ``q``/``dq``/``ddq`` (N, 18), ``tau`` (N, 12) N m, ``contact``
     (N, 4) in {0, 1}, ``u`` (N, 18) ``[tau, wrench]``, ``phase`` (N,) index
     into ``phase_names``, ``split`` (J,) in {train, val, test}, and optional
-    ``foot_pos`` (N, 4, 3) m in the world frame.
+    ``foot_pos`` (N, 4, 3) m in the world frame and ``contact_force`` (N, 4, 3) N,
+    the engine's ground force on each foot in the world frame (a simulator's
+    diagnostic, never a model input).
     """
 
     robot: str
@@ -56,6 +58,7 @@ class Dataset:
     phase: np.ndarray
     split: np.ndarray
     foot_pos: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
     dt: float = DEFAULT_DT
     generator: dict[str, Any] = field(default_factory=dict)
 
@@ -116,8 +119,9 @@ ROW_KEYS: dict[str, tuple[tuple[int, ...], str]] = {
     "u": ((N_Q,), "f"),
     "phase": ((), "i"),
     "foot_pos": ((N_LEGS, 3), "f"),
+    "contact_force": ((N_LEGS, 3), "f"),
 }
-OPTIONAL_KEYS = {"foot_pos"}
+OPTIONAL_KEYS = {"foot_pos", "contact_force"}
 
 
 def _where(jump: np.ndarray | None, row: int) -> str:

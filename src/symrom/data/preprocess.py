@@ -96,12 +96,14 @@ def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.nd
              q: np.ndarray, dq: np.ndarray, tau: np.ndarray, contact: np.ndarray,
              ddq: np.ndarray | None = None, foot_pos: np.ndarray | None = None,
              split: np.ndarray | None = None, dt: float = 0.002,
-             generator: dict[str, Any] | None = None, diff_method: str = "savgol") -> Dataset:
+             generator: dict[str, Any] | None = None, diff_method: str = "savgol",
+             contact_force: np.ndarray | None = None) -> Dataset:
     """Build and validate a dataset from raw logs (arrays as in ``Dataset``).
 
     Missing ``ddq`` is obtained by differentiating ``dq``; phases come from the
     contact flags with the motion's rule; ``u = [tau, wrench]``. Without
-    ``split`` every jump is ``train``.
+    ``split`` every jump is ``train``. ``contact_force`` (N, 4, 3) N: an engine's true
+    ground forces, kept as a diagnostic (not in ``u``).
     """
     jump = np.asarray(jump, dtype=np.int32)
     contact = np.asarray(contact, dtype=np.uint8)
@@ -119,6 +121,6 @@ def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.nd
                  dq=np.asarray(dq, float), ddq=np.asarray(ddq, float), tau=np.asarray(tau, float),
                  contact=contact, u=np.concatenate([tau, wrench], axis=1), phase=phase,
                  split=np.asarray(split, dtype=object), foot_pos=foot_pos, dt=float(dt),
-                 generator=generator)
+                 generator=generator, contact_force=contact_force)
     validate(ds)
     return ds

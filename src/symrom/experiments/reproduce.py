@@ -117,6 +117,7 @@ class ReproduceConfig:
     integrator: str = "lsoda"
     backend: str = "local"
     address: str | None = None
+    engine: str = "pybullet"  # the physics engine of every generated dataset
 
     def execution(self) -> Backend:
         """The back end of the heavy steps (generation, selection, sweep): ``backend`` with
@@ -169,7 +170,7 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
 
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
     gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed, proxy=spec.proxy,
-                        noise=NoiseConfig() if spec.noise else None)
+                        noise=NoiseConfig() if spec.noise else None, engine=cfg.engine)
     generate(gc, path, backend=cfg.execution(), resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))

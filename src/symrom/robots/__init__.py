@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.robots.description import RobotDescription, RobotDescriptionError, load_description
+from symrom.robots.description import ActuatorEffects, RobotDescription, RobotDescriptionError, load_description
 from symrom.robots.kinematics import LegKinematics
 
 _HERE = Path(__file__).resolve().parent
@@ -25,7 +25,7 @@ ROBOTS: dict[str, Path] = {
     "laikago": _HERE / "laikago" / "laikago.toml",
 }
 
-__all__ = ["ROBOTS", "LegKinematics", "RobotDescription", "RobotDescriptionError", "get_robot",
+__all__ = ["ROBOTS", "ActuatorEffects", "LegKinematics", "RobotDescription", "RobotDescriptionError", "get_robot",
            "leg_kinematics", "robot_key", "torque_limits", "total_mass"]
 
 

@@ -29,7 +29,10 @@ _KEYS: dict[str, tuple[str, ...] | None] = {  # top-level key -> allowed sub-key
     "format": None, "name": None, "urdf": None, "base_link": None,
     "legs": LEGS, "joints": LEG_JOINTS, "feet": ("link",), "signs": LEG_JOINTS,
     "stance": ("height", "joints", "knee"), "limits": ("torque",),
+    "mjcf": None, "actuators": ("damping", "armature", "friction_loss"),
 }
+_OPTIONAL = ("mjcf", "actuators")  # keys a format-1 file may leave out
+
 
 
 class RobotDescriptionError(ValueError):
@@ -44,6 +47,38 @@ def pybullet_data_path(rel: str) -> Path:
 
 
 @dataclass(frozen=True)
+class ActuatorEffects:
+    """What sits between a motor's torque and its joint, per joint (12,), symrom order.
+
+    damping N m s/rad: viscous joint damping (typical 0-2 for 10-30 kg quadrupeds);
+    armature kg m^2: reflected rotor inertia, rotor inertia x gear ratio^2 (typical
+    0-0.05); friction_loss N m: Coulomb joint friction (typical 0-1). All zero (the
+    default) is the ideal motor both engines simulate otherwise. ``symrom.sim`` applies
+    them in every engine that can (``symrom.sim.engine``); a description states them in
+    its optional ``[actuators]`` table, per joint kind (3) or per joint (12).
+    """
+
+    damping: tuple[float, ...] = (0.0,) * 12
+    armature: tuple[float, ...] = (0.0,) * 12
+    friction_loss: tuple[float, ...] = (0.0,) * 12
+
+    def __post_init__(self) -> None:
+        for name in ("damping", "armature", "friction_loss"):
+            v = getattr(self, name)
+            if len(v) == 3:
+                object.__setattr__(self, name, tuple(float(x) for x in v) * 4)
+            elif len(v) != 12:
+                raise ValueError(f"actuator effect {name}: expected 3 or 12 values, got {len(v)}")
+            if min(getattr(self, name)) < 0 or not np.all(np.isfinite(getattr(self, name))):
+                raise ValueError(f"actuator effect {name}: values must be finite and >= 0, got {v}")
+
+    @property
+    def ideal(self) -> bool:
+        """Whether every effect is zero (an ideal motor)."""
+        return not any(self.damping) and not any(self.armature) and not any(self.friction_loss)
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """One robot, as read from its description file (arrays in symrom's joint order).
 
@@ -53,7 +88,10 @@ class RobotDescription:
     joint_signs (12): +1 or -1, symrom angle = sign x URDF angle (and the same
     for rates and torques); stance_joints (12) rad: a standing leg posture
     where the leg IK starts; knee_range (2,) rad: the range the leg IK keeps
-    the knees in; start_height m: base height standing; torque_limit (12) N m.
+    the knees in; start_height m: base height standing; torque_limit (12) N m;
+    actuators: joint damping, armature and friction loss (``ActuatorEffects``; all
+    zero without an ``[actuators]`` table); mjcf_path: an MJCF model of the same
+    robot for the MuJoCo engine (optional key ``mjcf``; None: MuJoCo compiles the URDF).
     """
 
     key: str
@@ -68,6 +106,8 @@ class RobotDescription:
     start_height: float
     torque_limit: tuple[float, ...]
     source: Path = field(compare=False)
+    actuators: ActuatorEffects = field(default_factory=ActuatorEffects)
+    mjcf_path: Path | None = None
 
     @cached_property
     def mass(self) -> float:
@@ -166,11 +206,28 @@ def _template(path: Path, key: str, v, leg: str) -> str:
 
 
 def _urdf(path: Path, v) -> Path:
-    v = _text(path, "urdf", v)
-    urdf = pybullet_data_path(v[len(PYBULLET_DATA):]) if v.startswith(PYBULLET_DATA) else path.parent / v
-    if not urdf.is_file():
-        raise _fail(path, "urdf", f"no such file {urdf}")
-    return urdf.resolve()
+    return _path(path, "urdf", v)
+
+
+def _path(path: Path, key: str, v) -> Path:
+    """A file named by key ``key``: ``pybullet_data:REL`` or a path relative to the description."""
+    v = _text(path, key, v)
+    f = pybullet_data_path(v[len(PYBULLET_DATA):]) if v.startswith(PYBULLET_DATA) else path.parent / v
+    if not f.is_file():
+        raise _fail(path, key, f"no such file {f}")
+    return f.resolve()
+
+
+def _actuators(path: Path, table: dict | None) -> ActuatorEffects:
+    if table is None:
+        return ActuatorEffects()
+    vals = {}
+    for k in ("damping", "armature", "friction_loss"):
+        v = _numbers(path, f"actuators.{k}", table.get(k, 0.0), (1, 3, 12))
+        if min(v) < 0:
+            raise _fail(path, f"actuators.{k}", f"must be >= 0, got {v}")
+        vals[k] = tuple(_per_joint(v * 3 if len(v) == 1 else v))
+    return ActuatorEffects(**vals)
 
 
 def _check_keys(path: Path, doc: dict) -> None:
@@ -179,6 +236,8 @@ def _check_keys(path: Path, doc: dict) -> None:
             raise _fail(path, k, f"unknown key; known: {', '.join(_KEYS)}")
     for k, subs in _KEYS.items():
         if k not in doc:
+            if k in _OPTIONAL:
+                continue
             raise _fail(path, k, "missing")
         if subs is None:
             continue
@@ -188,7 +247,7 @@ def _check_keys(path: Path, doc: dict) -> None:
             if s not in subs:
                 raise _fail(path, f"{k}.{s}", f"unknown key; known: {', '.join(subs)}")
         for s in subs:
-            if s not in doc[k]:
+            if s not in doc[k] and k not in _OPTIONAL:
                 raise _fail(path, f"{k}.{s}", "missing")
 
 
@@ -256,4 +315,5 @@ def load_description(path: str | Path, key: str | None = None) -> RobotDescripti
         joint_signs=tuple(signs[k][leg] for leg in range(4) for k in range(3)),
         stance_joints=tuple(_per_joint(_numbers(path, "stance.joints", stance["joints"], (3, 12)))),
         knee_range=(knee[0], knee[1]), start_height=height,
-        torque_limit=tuple(_per_joint(torque)), source=path)
+        torque_limit=tuple(_per_joint(torque)), source=path, actuators=_actuators(path, doc.get("actuators")),
+        mjcf_path=_path(path, "mjcf", doc["mjcf"]) if "mjcf" in doc else None)

@@ -1,10 +1,12 @@
 """What every kept jump must show, checked on its logged samples.
 
 ``check_jump`` applies the checks common to all motions (``JumpChecks``); a
-motion adds its own through its plug-in's ``check`` (e.g. froggy's rear-only
-push). Each failed check is one human-readable reason, recorded with the retry.
-``FlightWatch`` sees, while a jump runs, when one of these checks is already
-certain to fail, so that the runner can stop the attempt there.
+motion adds its own through its plug-in's ``check`` (the one-flight jumps,
+pronk and froggy, ``one_main_flight``; froggy its rear-only push). Each failed
+check is one human-readable reason, recorded with the retry. ``FlightWatch``
+sees, while a jump runs, when ``one_main_flight`` is already certain to fail; a
+motion hands the runner such a watcher (``watch``) so that it can stop the
+attempt there.
 """
 
 from __future__ import annotations
@@ -24,9 +26,9 @@ class JumpChecks:
     max_tilt: |roll|, |pitch| bound, rad; min_final_height: final base height, m;
     min_flight: longest run with no foot down, s; min_apex_gain: max base height
     minus the first, m; min_travel: final minus first base position along the
-    start heading, m; min_rear_only: for froggy, rear-only contact right before
-    the flight, s; torques must be within the robot's limits and the jump must
-    end (controller ``done``) before its time limit.
+    start heading, m; torques must be within the robot's limits and the jump
+    must end (controller ``done``) before its time limit. A motion's own checks
+    (e.g. froggy's rear-only push) are its plug-in's.
     """
 
     max_tilt: float = 0.8
@@ -34,10 +36,9 @@ class JumpChecks:
     min_flight: float = 0.12
     min_apex_gain: float = 0.05
     min_travel: float = 0.1
-    min_rear_only: float = 0.04
 
 
-BRIEF_FLIGHT = "a brief flight before the main one"  # a check_jump reason FlightWatch foresees
+BRIEF_FLIGHT = "a brief flight before the main one"  # the one_main_flight reason FlightWatch foresees
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -77,8 +78,6 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
         a, b = longest_run(airborne)
         if (b - a) * dt < checks.min_flight - 1e-9:
             bad.append(f"flight {(b - a) * dt:.3f} s")
-        if flights[0][0] != a:
-            bad.append(BRIEF_FLIGHT)
     z = q[:, BASE_POS][:, 2]
     if z.max() - z[0] < checks.min_apex_gain:
         bad.append(f"apex gain {z.max() - z[0]:.3f} m")
@@ -89,15 +88,27 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
     return bad
 
 
+def one_main_flight(log: dict[str, np.ndarray]) -> list[str]:
+    """[``BRIEF_FLIGHT``] if the first run of samples with no foot down in ``log["contact"]``
+    (n, 4) is not the longest (the first of equals), else []: a jump with one flight."""
+    airborne = log["contact"].sum(axis=1) == 0
+    flights = runs(airborne)
+    if flights and flights[0][0] != longest_run(airborne)[0]:
+        return [BRIEF_FLIGHT]
+    return []
+
+
 class FlightWatch:
-    """Watches the logged contact flags of a running jump for a certain failure of the
-    check "a brief flight before the main one" (``check_jump``: the first run of samples
-    with no foot down must be the longest, the first of equals).
+    """Watches the logged contact flags of a running jump for a certain failure of
+    ``one_main_flight`` (the first run of samples with no foot down must be the longest,
+    the first of equals).
 
     ``update(contact (4,))`` per logged sample; ``failed`` turns true once a later
     airborne run has grown longer than the first one ended at: the whole log will fail
-    that check whatever follows.
+    that check whatever follows; ``reason`` says which check that is.
     """
+
+    reason = BRIEF_FLIGHT
 
     def __init__(self) -> None:
         self.first: int | None = None  # length of the first airborne run, once it ended

@@ -14,7 +14,9 @@ from typing import Any
 from symrom.sim.checks import JumpChecks
 from symrom.sim.world import WorldConfig
 
-GENERATOR_VERSION = 2  # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise)
+# 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise); 3: the engine is a
+# choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2)
+GENERATOR_VERSION = 3
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ class GenerateConfig:
     ``symrom.robots.robot_key``); motion: a name in ``symrom.motions.MOTIONS``;
     n_jumps; seed; proxy: the motion's hardware-like variant; noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
-    max_attempts: tries per jump before generation fails.
+    max_attempts: tries per jump before generation fails; engine: the physics engine
+    (``symrom.sim.engine.ENGINES``).
     """
 
     robot: str
@@ -63,6 +66,7 @@ class GenerateConfig:
     world: WorldConfig = field(default_factory=WorldConfig)
     checks: JumpChecks = field(default_factory=JumpChecks)
     max_attempts: int = 8
+    engine: str = "pybullet"
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -4,12 +4,14 @@ A motion's registry entry (``symrom.motions``) names its plug-in as
 ``"module:attribute"``; ``load_motion`` imports it only here, in the
 simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
 
-    params = motion.sample_params(rng, robot, proxy)   # a dataclass with max_time (s)
-    world = motion.make_world(robot, world_config, params)
+    params = motion.sample_params(rng, robot, variant) # a dataclass with max_time (s)
+    world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engine.World
     ctrl = motion.make_controller(robot, params)
     q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
+    watch = motion.watch()                             # sees a certain failure while it runs
     while not ctrl.done(s := world.state()):
         world.step(ctrl.torque(s))                     # (12,) N m per physics tick
+        watch.update(s.contact)                        # on logged samples; True: stop
     motion.check(log, dt, checks)                      # the motion's own checks, reasons
 """
 
@@ -22,7 +24,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from symrom.motions import get_motion
-from symrom.sim.world import RobotState, World, WorldConfig
+from symrom.sim.checks import FlightWatch, one_main_flight
+from symrom.sim.engine import World, make_world
+from symrom.sim.world import RobotState, WorldConfig
 
 
 @runtime_checkable
@@ -46,11 +50,13 @@ class Controller(Protocol):
 class Motion(Protocol):
     """A kind of jump, as its plug-in module exports it."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> Any:
-        """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s."""
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> Any:
+        """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s.
+        variant: one of the motion's registered variants (e.g. ``proxy``) or None."""
 
-    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
-        """The world the jump runs in (e.g. a hardware-like proxy of it)."""
+    def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
+        """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a
+        hardware-like proxy of it)."""
 
     def make_controller(self, robot: str, params: Any) -> Controller:
         """A fresh controller for one jump."""
@@ -61,19 +67,34 @@ class Motion(Protocol):
     def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
         """Reasons the logged jump fails this motion's own checks (beyond ``JumpChecks``)."""
 
+    def watch(self) -> Any:
+        """A fresh watcher of one attempt: ``update(contact (4,)) -> bool`` per logged sample,
+        True once the attempt has certainly failed; ``reason`` names the check."""
+
+
+class _NoWatch:
+    reason = ""
+
+    def update(self, contact: np.ndarray) -> bool:
+        return False
+
 
 @dataclass(frozen=True)
 class PlainMotion:
-    """Defaults for a ``Motion``: the nominal world, source ``sim``, no checks of its own."""
+    """Defaults for a ``Motion`` of one main flight: the nominal world, source ``sim``, the
+    one-flight check (``checks.one_main_flight``) and its watcher (``checks.FlightWatch``)."""
 
-    def make_world(self, robot: str, config: WorldConfig, params: Any) -> World:
-        return World(robot, config)
+    def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
+        return make_world(engine, robot, config)
 
     def source(self, params: Any) -> str:
         return "sim"
 
     def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
-        return []
+        return one_main_flight(log)
+
+    def watch(self) -> Any:
+        return FlightWatch()
 
 
 def load_motion(name: str) -> Motion:

@@ -20,23 +20,25 @@ the robot's limits (``World.step`` clips as well).
 The hip abduction (hx) joints are held at their standing angle by the world
 (``World.hold_joints``), as the paper's froggy jumps held them (its A1 hx
 errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
-Cartesian PD like the other joints. The parameters are the A1's and are not
-scaled to other robots.
+Cartesian PD like the other joints. The parameters were tuned on the A1; for
+another robot they are scaled by its mass and leg length (``scaled``), as pronk
+scales its own.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
-from symrom.robots.stance import nominal_feet, start_pose
+from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
-from symrom.sim.world import RobotState, World
+from symrom.sim.engine import World
+from symrom.sim.world import RobotState
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
@@ -91,10 +93,54 @@ class FroggyParams:
     hold_hx: bool = True
 
 
-def sample_params(rng: np.random.Generator) -> FroggyParams:
-    """A random froggy jump: varied crouch, take-off speed and angle, push timing and thrust."""
+REFERENCE_ROBOT = "a1"  # the robot the parameters were tuned on
+
+# How each parameter scales with the robot (``scaled``): m mass ratio, l leg-length ratio.
+_LENGTHS = ("stand_height", "crouch_height", "crouch_shift", "push_rise")
+_TIMES = ("t_settle", "t_crouch", "t_hold", "t_push_all", "t_push_rear", "t_after_land", "max_time", "raibert")
+_STIFF = ("kp_stance", "kp_push", "kp_swing", "kp_land")  # N/m
+_DAMP = ("kd_stance", "kd_push", "kd_swing", "kd_land")  # N s/m
+
+
+def scales(robot: str) -> tuple[float, float]:
+    """(mass, leg length) of ``robot`` as ratios to the A1's; exactly (1, 1) for the A1."""
+    ref = REFERENCE_ROBOT
+    return (get_robot(robot).mass / get_robot(ref).mass, leg_length(robot) / leg_length(ref))
+
+
+def torque_capacity(robot: str) -> float:
+    """Mean torque limit per unit mass and leg length, N m / (kg m): how hard the legs can push."""
+    d = get_robot(robot)
+    return float(np.mean(d.torque_limit)) / (d.mass * leg_length(robot))
+
+
+def scaled(params: FroggyParams, robot: str) -> FroggyParams:
+    """``params`` (the A1's) for ``robot``, dynamically similar: lengths with the leg length l,
+    times and speeds with sqrt(l) (equal Froude number), forces with the mass m, Cartesian
+    stiffness with m / l and damping with m / sqrt(l), the levelling moment's stiffness with
+    m l and damping with m l^1.5. Angles stay. A robot whose legs are weaker for its size
+    than the A1's (``torque_capacity``, ratio c < 1) gets its thrust times sqrt(c): the
+    push then stays within what its motors give for longer (the controller scales each
+    leg's torques into the limits). The A1's are returned unchanged."""
+    m, l = scales(robot)
+    if (m, l) == (1.0, 1.0):
+        return params
+    root = float(np.sqrt(l))
+    m_thrust = m * float(np.sqrt(min(1.0, torque_capacity(robot) / torque_capacity(REFERENCE_ROBOT))))
+    f = {n: getattr(params, n) * l for n in _LENGTHS}
+    f |= {n: getattr(params, n) * root for n in _TIMES}
+    f |= {n: getattr(params, n) * m / l for n in _STIFF}
+    f |= {n: getattr(params, n) * m / root for n in _DAMP}
+    f |= {"push_speed": params.push_speed * root, "force_all": params.force_all * m_thrust,
+          "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l, "d_att": params.d_att * m * l * root}
+    return replace(params, **f)
+
+
+def sample_params(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> FroggyParams:
+    """A random froggy jump: varied crouch, take-off speed and angle, push timing and thrust;
+    drawn for the A1 and scaled to ``robot`` (``scaled``)."""
     force_all = float(rng.uniform(240.0, 320.0))
-    return FroggyParams(
+    return scaled(FroggyParams(
         crouch_height=float(rng.uniform(0.18, 0.195)),
         push_speed=float(rng.uniform(1.2, 1.4)),
         angle=float(rng.uniform(0.3, 0.45)),
@@ -103,7 +149,7 @@ def sample_params(rng: np.random.Generator) -> FroggyParams:
         force_all=force_all,
         force_rear=float(0.6 * force_all * rng.uniform(0.9, 1.1)),
         t_after_land=float(rng.uniform(1.0, 1.2)),
-    )
+    ), robot)
 
 
 def smooth(s: float) -> float:
@@ -302,29 +348,41 @@ class FroggyController:
         return self.t_land is not None and s.t - self.t_land >= self.params.t_after_land
 
 
+@dataclass(frozen=True)
+class FroggyChecks:
+    """Froggy's own check: min_rear_only s on the rear feet alone right before the flight."""
+
+    min_rear_only: float = 0.04
+
+
+@dataclass(frozen=True)
 class FroggyMotion(PlainMotion):
     """The froggy plug-in (registry entry ``froggy``): rear-only push right before the flight."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> FroggyParams:
-        return sample_params(rng)
+    checks: FroggyChecks = FroggyChecks()
+
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> FroggyParams:
+        return sample_params(rng, robot)
 
     def make_controller(self, robot: str, params: FroggyParams) -> FroggyController:
         return FroggyController(robot, params)
 
     def check(self, log: dict[str, np.ndarray], dt: float, checks) -> list[str]:
-        """At least ``checks.min_rear_only`` s on the rear feet alone right before the flight."""
+        """One main flight (``PlainMotion``) and at least ``self.checks.min_rear_only`` s on
+        the rear feet alone right before it."""
+        bad = super().check(log, dt, checks)
         contact = log["contact"]
         airborne = contact.sum(axis=1) == 0
         if not airborne.any():
-            return []  # the common checks report the missing flight
+            return bad  # the common checks report the missing flight
         a = longest_run(airborne)[0]
         rear_only = (contact[:, 0] == 0) & (contact[:, 1] == 0) & (contact[:, 2:].sum(axis=1) > 0)
         n = 0
         while a - n - 1 >= 0 and rear_only[a - n - 1]:
             n += 1
-        if n * dt < checks.min_rear_only - 1e-9:
-            return [f"rear-only contact {n * dt:.3f} s before flight"]
-        return []
+        if n * dt < self.checks.min_rear_only - 1e-9:
+            bad.append(f"rear-only contact {n * dt:.3f} s before flight")
+        return bad
 
 
 MOTION = FroggyMotion()

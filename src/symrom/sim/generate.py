@@ -34,6 +34,7 @@ from symrom.execution import Backend, LocalBackend
 from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
+from symrom.sim.engine import ENGINES, UnknownEngineError, check_engine
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
 from symrom.sim.runner import GenerationError, jump_seed, run_checked_jump
@@ -95,7 +96,7 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
     dt = cfg.world.dt * cfg.world.log_every
     counts = split_counts(cfg.n_jumps, cfg.motion, cfg.proxy)
     generator = {
-        "generator": "symrom.sim.generate", "version": GENERATOR_VERSION,
+        "generator": "symrom.sim.generate", "version": GENERATOR_VERSION, "engine": cfg.engine,
         "config": jsonable(cfg.to_dict()), "fingerprint": cfg.fingerprint(),
         "seeds": {"seed": cfg.seed, "rule": "SeedSequence(seed, spawn_key=(jump, attempt))"},
         "splits": dict(zip(SPLITS, counts)),
@@ -106,14 +107,16 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
                     t=cat["t"], q=cat["q"], dq=cat["dq"], tau=cat["tau"], contact=cat["contact"],
-                    foot_pos=cat["foot_pos"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy),
+                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy),
                     dt=dt, generator=generator)
 
 
 def _preload(cfg: GenerateConfig) -> list[str]:
     """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet and
     the compiled simulation routines (``symrom.sim.warm``)."""
-    return ["symrom.sim.runner", get_motion(cfg.motion).plugin.partition(":")[0], "pybullet", "symrom.sim.warm"]
+    engine = ENGINES[cfg.engine].partition(":")[0]
+    return ["symrom.sim.runner", get_motion(cfg.motion).plugin.partition(":")[0], "pybullet", engine,
+            "symrom.sim.warm"]
 
 
 def run_record_path(out: str | os.PathLike) -> Path:
@@ -127,7 +130,8 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         entry = get_motion(cfg.motion)
         robot = robot_key(cfg.robot)
         get_robot(robot)
-    except (UnknownMotionError, RobotDescriptionError) as e:
+        check_engine(cfg.engine)
+    except (UnknownMotionError, RobotDescriptionError, UnknownEngineError) as e:
         raise GenerationError(str(e)) from None
     if cfg.proxy and "proxy" not in entry.variants:
         offered = [m for m, e in MOTIONS.items() if "proxy" in e.variants]
@@ -224,7 +228,7 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     ds = build_dataset(cfg, logs, records)
     write_dataset(ds, out)
     write_text_atomic(run_record_path(out), json.dumps(
-        {"version": RUN_RECORD_VERSION, "dataset": out.name, "fingerprint": fingerprint,
+        {"version": RUN_RECORD_VERSION, "dataset": out.name, "fingerprint": fingerprint, "engine": cfg.engine,
          "execution": backend.describe(), "jumps": total, "resumed": len(have),
          "wall_time_s": round(time.perf_counter() - t0, 3),
          "worker_retries": sum(len(r.get("retries", [])) for r in runs), "tasks": runs}, indent=1) + "\n")

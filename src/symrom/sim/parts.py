@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-LOG_KEYS = ("t", "q", "dq", "tau", "contact", "foot_pos")
+LOG_KEYS = ("t", "q", "dq", "tau", "contact", "foot_pos", "contact_force")
 
 
 def jsonable(x: Any) -> Any:

@@ -63,7 +63,8 @@ from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
 from symrom.sim.proxy import ProxyConfig, ProxyWorld, sample_proxy
-from symrom.sim.world import World, WorldConfig
+from symrom.sim.engine import World, make_world
+from symrom.sim.world import WorldConfig
 
 REFERENCE_ROBOT = "go1"  # the robot the gains and heights were tuned on
 
@@ -405,11 +406,11 @@ class PronkController:
 class PronkMotion(PlainMotion):
     """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, proxy: bool) -> PronkParams:
-        return sample_params(rng, proxy=proxy, robot=robot)
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> PronkParams:
+        return sample_params(rng, proxy=variant == "proxy", robot=robot)
 
-    def make_world(self, robot: str, config: WorldConfig, params: PronkParams) -> World:
-        world = World(robot, config)
+    def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
+        world = make_world(engine, robot, config)
         return world if params.proxy is None else ProxyWorld(world, params.proxy)
 
     def make_controller(self, robot: str, params: PronkParams) -> PronkController:

@@ -17,7 +17,7 @@ data (``dataclasses.asdict(cfg)`` is JSON-ready):
 Use, in this order (what a runner does)::
 
     cfg = sample_proxy(rng)                      # or PronkParams.proxy
-    world = ProxyWorld(World("go1", config), cfg)  # same API as World
+    world = ProxyWorld(make_world(engine, "go1", config), cfg)  # a World too
     world.reset(q0); s = world.state()           # corrupted readings (what is logged)
     applied = world.step(tau_cmd)                # delayed, saturated torque actually applied
     world.true_state()                           # the simulator's exact state
@@ -90,18 +90,10 @@ def sample_proxy(rng: np.random.Generator) -> ProxyConfig:
 def apply_to_world(world, cfg: ProxyConfig) -> None:
     """Scale the robot's link masses and inertias and set the ground friction, in place.
 
-    world: a ``symrom.sim.world.World`` (uses its ``client``, ``robot``, ``plane``).
+    world: any engine's world (``symrom.sim.engine.World``).
     """
-    from symrom.sim.bullet import p
-
-    c, rob = world.client, world.robot
-    for link in range(-1, p.getNumJoints(rob, physicsClientId=c)):
-        mass, _, inertia = p.getDynamicsInfo(rob, link, physicsClientId=c)[:3]
-        s = cfg.trunk_mass_scale if link == -1 else cfg.leg_mass_scale
-        p.changeDynamics(rob, link, mass=mass * s,
-                         localInertiaDiagonal=[v * s * cfg.inertia_scale for v in inertia],
-                         physicsClientId=c)
-    p.changeDynamics(world.plane, -1, lateralFriction=cfg.friction, physicsClientId=c)
+    world.scale_inertia(cfg.trunk_mass_scale, cfg.leg_mass_scale, cfg.inertia_scale)
+    world.set_ground_friction(cfg.friction)
 
 
 class TorqueChannel:
@@ -161,7 +153,8 @@ class SensorModel:
 
 
 class ProxyWorld:
-    """A ``World`` seen through the proxy's motors and sensors; same methods as ``World``.
+    """A world seen through the proxy's motors and sensors; the same methods (a
+    ``symrom.sim.engine.World`` of any engine).
 
     Construction applies the mass, inertia and friction perturbations to ``world``.
     Other attributes (``spec``, ``config``, ``client`` ...) are the wrapped world's.
@@ -191,12 +184,7 @@ class ProxyWorld:
     def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
         """Send ``tau`` (12,) N m; returns the torque (12,) actually applied this tick (None
         with ``report=False``, as ``World.step``)."""
-        from symrom.sim.bullet import p
-
-        w = self.world
-        jv = np.array([js[1] for js in p.getJointStates(w.robot, w.joint_ids, physicsClientId=w.client)])
-        jv = jv * w.signs  # symrom's joint signs, as the torques
-        return self.world.step(self.motors.apply(tau, jv), report)
+        return self.world.step(self.motors.apply(tau, self.world.joint_velocities()), report)
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         self.world.apply_base_force(force_world)

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
-from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, check_jump
+from symrom.sim.checks import check_jump
 from symrom.sim.config import GenerateConfig, NoiseConfig
 from symrom.sim.controller import load_motion
 from symrom.sim.parts import LOG_KEYS, jsonable
@@ -49,14 +49,14 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """Simulate one jump; return its log and a JSON-ready info dict.
 
     Log arrays (n rows at log_hz): t (n,) s, q, dq (n, 18), tau (n, 12) N m
-    applied, contact (n, 4) uint8, foot_pos (n, 4, 3) m. info: params, source,
+    applied, contact (n, 4) uint8, foot_pos (n, 4, 3) m, contact_force (n, 4, 3) N. info: params, source,
     push force, whether the controller finished (``done``) in time, and the
     controller's diagnostics (not stored in the file).
     """
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
-    params = motion.sample_params(params_rng, cfg.robot, cfg.proxy)
-    world = motion.make_world(cfg.robot, cfg.world, params)
+    params = motion.sample_params(params_rng, cfg.robot, "proxy" if cfg.proxy else None)
+    world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
@@ -74,7 +74,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     log: dict[str, list] = {k: [] for k in LOG_KEYS}
     every = cfg.world.log_every
     finished = False
-    watch = FlightWatch()
+    watch = motion.watch() if hasattr(motion, "watch") else None  # the motion's own watcher
     try:
         world.reset(q0)
         for tick in range(int(round(params.max_time * cfg.world.physics_hz)) + 1):
@@ -96,8 +96,9 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
                 log["tau"].append(applied)
                 log["contact"].append(s.contact)
                 log["foot_pos"].append(s.foot_pos)
-                if watch.update(s.contact):  # the attempt fails whatever follows: stop here
-                    info["stopped"] = f"{BRIEF_FLIGHT} (stopped at {tick * cfg.world.dt:.3f} s)"
+                log["contact_force"].append(world.contact_forces())  # the engine's, during this tick
+                if watch is not None and watch.update(s.contact):  # fails whatever follows: stop
+                    info["stopped"] = f"{watch.reason} (stopped at {tick * cfg.world.dt:.3f} s)"
                     break
     finally:
         world.close()
@@ -107,7 +108,8 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
               "dq": np.asarray(log["dq"], float).reshape(-1, N_Q),
               "tau": np.asarray(log["tau"], float).reshape(-1, N_JOINTS),
               "contact": np.asarray(log["contact"], np.uint8).reshape(-1, 4),
-              "foot_pos": np.asarray(log["foot_pos"], float).reshape(-1, 4, 3)}
+              "foot_pos": np.asarray(log["foot_pos"], float).reshape(-1, 4, 3),
+              "contact_force": np.asarray(log["contact_force"], float).reshape(-1, 4, 3)}
     return arrays, info
 
 

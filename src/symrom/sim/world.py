@@ -1,6 +1,8 @@
-"""A PyBullet world holding one quadruped on a flat plane, in symrom's coordinates.
+"""The PyBullet world (``BulletWorld``) and what every engine's world shares: settings
+(``WorldConfig``), the state a controller sees (``RobotState``), angle helpers.
 
-Each ``World`` owns its own PyBullet client in DIRECT mode (no GUI), so several
+The ``World`` protocol and the engine registry are in ``symrom.sim.engine``. Each
+``BulletWorld`` owns its own PyBullet client in DIRECT mode (no GUI), so several
 worlds can live in one process and worker processes never share state. A closed
 world's client is emptied and kept for the next one (``symrom.sim.bullet.client``). The
 robot's base pose is reported for the URDF base link frame (the frame the leg
@@ -24,7 +26,7 @@ from symrom.sim.bullet import client, p, release
 import pybullet_data
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
-from symrom.robots import RobotDescription, get_robot
+from symrom.robots import ActuatorEffects, RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.compiled import base_state
 
@@ -108,17 +110,44 @@ def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
     return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
 
 
-class World:
-    """One robot on a plane in its own DIRECT PyBullet client.
+def standing_configuration(spec: RobotDescription, foot_radius: float, q_joints: np.ndarray,
+                           xy: tuple[float, float] = (0.0, 0.0),
+                           rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                           penetration: float = 5e-4) -> np.ndarray:
+    """Configuration (18,) with joints ``q_joints`` (12,) rad whose lowest foot (a sphere of
+    ``foot_radius`` m) touches the ground, lowered ``penetration`` m further so the contacts
+    exist from the first tick."""
+    q = np.zeros(N_Q)
+    q[JOINTS] = q_joints
+    q[BASE_RPY] = rpy
+    q[BASE_POS] = (*xy, 0.0)
+    from symrom.data.preprocess import foot_positions_world  # the one kinematics source
+
+    lowest = foot_positions_world(spec.key, q[None])[0, :, 2].min()
+    q[BASE_POS.start + 2] = foot_radius - lowest - penetration
+    return q
+
+
+class BulletWorld:
+    """One robot on a plane in its own DIRECT PyBullet client (a ``symrom.sim.engine.World``).
 
     robot: a built-in name or a description file (``symrom.robots.get_robot``).
     The joints' default velocity motors are disabled, so ``step`` drives the
     robot purely by torque; ``hold_joints`` locks chosen joints instead.
+    effects (default: the description's): joint damping is Bullet's joint damping,
+    friction loss a velocity motor towards rest with that much torque; Bullet has no
+    armature, so a non-zero one is refused.
     """
 
-    def __init__(self, robot: str, config: WorldConfig = WorldConfig()):
+    engine = "pybullet"
+
+    def __init__(self, robot: str, config: WorldConfig = WorldConfig(), effects: ActuatorEffects | None = None):
         self.spec: RobotDescription = get_robot(robot)
         self.config = config
+        self.effects = self.spec.actuators if effects is None else effects
+        if any(self.effects.armature):
+            raise ValueError(f"robot {self.spec.name!r}: the pybullet engine has no armature "
+                             f"(actuator effect armature {self.effects.armature[:3]}); use --engine mujoco")
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
         self._neg_limit = -self.torque_limit
         self._dt = config.dt  # s, physics tick
@@ -162,9 +191,13 @@ class World:
             raise ValueError(f"robot {self.spec.name!r}: URDF {urdf} has no joint/link {e}") from None
         self._foot_leg = {fid: k for k, fid in enumerate(self.foot_ids)}
         self._driven_ids = list(self.joint_ids)
-        # Default velocity motors would fight the torques: switch them off.
+        # Default velocity motors would fight the torques: switch them off (or, with friction
+        # loss, leave them as much torque as the friction towards rest).
         p.setJointMotorControlArray(self.robot, self.joint_ids, p.VELOCITY_CONTROL,
-                                    forces=[0.0] * N_JOINTS, physicsClientId=c)
+                                    forces=list(self.effects.friction_loss), physicsClientId=c)
+        if any(self.effects.damping):
+            for jid, d in zip(self.joint_ids, self.effects.damping):
+                p.changeDynamics(self.robot, jid, jointDamping=d, physicsClientId=c)
         ground = dict(lateralFriction=cfg.lateral_friction, spinningFriction=cfg.spinning_friction,
                       rollingFriction=cfg.rolling_friction, restitution=cfg.restitution)
         if cfg.contact_stiffness is not None:
@@ -223,15 +256,7 @@ class World:
 
         The base is lowered ``penetration`` m further so the contacts exist from the first tick.
         """
-        q = np.zeros(N_Q)
-        q[JOINTS] = q_joints
-        q[BASE_RPY] = rpy
-        q[BASE_POS] = (*xy, 0.0)
-        from symrom.data.preprocess import foot_positions_world  # the one kinematics source
-
-        lowest = foot_positions_world(self.spec.key, q[None])[0, :, 2].min()
-        q[BASE_POS.start + 2] = self.foot_radius - lowest - penetration
-        return q
+        return standing_configuration(self.spec, self.foot_radius, q_joints, xy, rpy, penetration)
 
     def state(self) -> RobotState:
         """The current state of the robot (see ``RobotState``)."""
@@ -262,6 +287,43 @@ class World:
             if k is not None:
                 flags[k] = 1
         return flags
+
+    def contact_forces(self) -> np.ndarray:
+        """(4, 3) N: the ground's force on each foot (world) at the last tick: the solver's
+        normal and friction impulses of every foot/plane contact point, per foot summed."""
+        f = np.zeros((N_LEGS, 3))
+        rob, leg = self.robot, self._foot_leg
+        for cp in p.getContactPoints(rob, self.plane, physicsClientId=self.client):
+            on_a = cp[1] == rob
+            k = leg.get(cp[3] if on_a else cp[4])
+            if k is None:
+                continue
+            # the normal force cp[9] along cp[7] (B to A) acts on A; the friction forces cp[10],
+            # cp[12] along cp[11], cp[13] act on B (checked by a steady push on the base)
+            force = (cp[9] * np.asarray(cp[7]) - cp[10] * np.asarray(cp[11])
+                     - cp[12] * np.asarray(cp[13]))
+            f[k] += force if on_a else -force
+        return f
+
+    def joint_velocities(self) -> np.ndarray:
+        """(12,) rad/s in symrom's signs."""
+        js = p.getJointStates(self.robot, self.joint_ids, physicsClientId=self.client)
+        return np.array([s[1] for s in js]) * self.signs
+
+    def scale_inertia(self, trunk_mass: float, leg_mass: float, inertia: float) -> None:
+        """Scale the base link's mass by ``trunk_mass``, every other link's by ``leg_mass``, and
+        each link's inertia with its mass and by ``inertia``. ``mass`` stays the nominal one
+        (what a controller may know of the robot)."""
+        c, rob = self.client, self.robot
+        for link in range(-1, p.getNumJoints(rob, physicsClientId=c)):
+            mass, _, diag = p.getDynamicsInfo(rob, link, physicsClientId=c)[:3]
+            s = trunk_mass if link == -1 else leg_mass
+            p.changeDynamics(rob, link, mass=mass * s, localInertiaDiagonal=[v * s * inertia for v in diag],
+                             physicsClientId=c)
+
+    def set_ground_friction(self, mu: float) -> None:
+        """Lateral friction of the ground (the feet carry 1; Bullet multiplies the two)."""
+        p.changeDynamics(self.plane, -1, lateralFriction=mu, physicsClientId=self.client)
 
     # ---------------------------------------------------------------- driving
     def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
@@ -320,7 +382,7 @@ class World:
                 pass
             self.client = -1
 
-    def __enter__(self) -> World:
+    def __enter__(self) -> BulletWorld:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -1,0 +1,326 @@
+"""The MuJoCo world: one quadruped on a plane, compiled by MuJoCo from the robot's description.
+
+The model is the description's URDF compiled by MuJoCo (``MjSpec.from_file``), with
+a free joint added to the base link and its fixed links kept as bodies (the feet
+must stay bodies of their own); an inertia that breaks the triangle inequality is
+balanced (MuJoCo's ``balanceinertia``; PyBullet zeroes it); visual meshes are dropped, and collision meshes
+whose files are missing too (the primitives remain; the feet are the URDF's
+spheres). A description may name an MJCF model of the same robot instead
+(``mjcf = "..."``, e.g. a MuJoCo Menagerie model): its joint, foot and base names
+must be the description's. Then:
+
+- every joint gets a torque actuator (a general actuator of gain 1); ``step``
+  saturates the request at the description's torque limits;
+- ``hold_joints`` turns chosen actuators into position servos (stiffness
+  ``limit / HOLD_ERROR``, critically damped for ``HOLD_INERTIA``, force limited to
+  the torque limit), as PyBullet's position motors hold them;
+- joint damping, armature and friction loss come from ``ActuatorEffects`` (the
+  description's ``[actuators]`` unless given), MuJoCo's own joint properties;
+- robot geoms collide with the ground only (``WorldConfig.self_collision`` adds
+  robot-robot contacts); foot/ground friction is ``lateral_friction`` (MuJoCo takes
+  the larger of two geoms' values, so every geom carries it); contacts have three
+  dimensions (no spinning or rolling friction); ``contact_stiffness`` /
+  ``contact_damping`` become MuJoCo's direct ``solref = (-k, -d)``, else
+  ``SOLREF`` (time constant s, damping ratio);
+- the integrator is ``implicitfast`` (damping terms implicit) at ``WorldConfig.dt``.
+
+The compiled model is kept per (robot, settings) in the process; each world works
+on its own copy. Units and coordinates as in ``symrom.sim.world``.
+"""
+
+from __future__ import annotations
+
+import copy
+from functools import cache
+
+import mujoco
+import numpy as np
+
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
+from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
+from symrom.robots.kinematics import rpy_to_matrix
+from symrom.sim.compiled import base_state
+from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, standing_configuration
+
+SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
+CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
+HOLD_ERROR = 0.005  # rad: a held joint's servo gives its full torque limit at this error
+HOLD_INERTIA = 0.02  # kg m^2: the inertia the held joints' servo damping is set for
+_ROBOT, _GROUND = 2, 1  # contype / conaffinity bits
+_ZERO3, _IDENTITY = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])  # no offset from the link frame
+
+
+class ModelError(ValueError):
+    """A robot description MuJoCo cannot compile; the message names the file."""
+
+
+def _spec(desc: RobotDescription) -> mujoco.MjSpec:
+    """The robot's spec: the MJCF named by the description, else its URDF with a free base."""
+    if desc.mjcf_path is not None:
+        spec = mujoco.MjSpec.from_file(str(desc.mjcf_path))
+        src = desc.mjcf_path
+    else:
+        spec = mujoco.MjSpec.from_file(str(desc.urdf_path))
+        src = desc.urdf_path
+        spec.compiler.fusestatic = False  # the foot links must stay bodies
+        spec.compiler.discardvisual = True
+        spec.compiler.balanceinertia = True  # URDFs with impossible inertias exist (Bullet zeroes them)
+    base = spec.body(desc.base_link)
+    if base is None:
+        raise ModelError(f"robot {desc.name!r}: {src} has no body {desc.base_link!r} (base_link)")
+    if not any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in base.joints):
+        base.add_freejoint()
+    # collision meshes whose files are missing: keep the primitives
+    root = (desc.mjcf_path or desc.urdf_path).parent
+    missing = {m.name for m in spec.meshes
+               if m.file and not (root / spec.meshdir / m.file).is_file() and not (root / m.file).is_file()}
+    for g in list(spec.geoms):
+        if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname in missing:
+            spec.delete(g)
+    for m in list(spec.meshes):
+        if m.name in missing:
+            spec.delete(m)
+    return spec
+
+
+@cache
+def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[mujoco.MjModel, dict]:
+    """The compiled model of robot ``key`` and the ids a world needs (shared; worlds copy it)."""
+    desc = get_robot(key)
+    spec = _spec(desc)
+    opt = spec.option
+    opt.timestep = config.dt
+    opt.gravity = [0.0, 0.0, -config.gravity]
+    opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    friction = [config.lateral_friction, config.spinning_friction, config.rolling_friction]
+    solref = ([-config.contact_stiffness, -config.contact_damping] if config.contact_stiffness is not None
+              else list(SOLREF))
+    for g in spec.geoms:
+        g.contype, g.conaffinity = _ROBOT, (_ROBOT if config.self_collision else 0)
+        g.condim, g.friction, g.solref = 3, friction, solref
+        g.margin = g.gap = CONTACT_MARGIN
+    spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
+                            contype=_GROUND, conaffinity=_ROBOT, condim=3, friction=friction, solref=solref,
+                            margin=CONTACT_MARGIN, gap=CONTACT_MARGIN)
+    for k, name in enumerate(desc.joint_names):
+        j = spec.joint(name)
+        if j is None:
+            raise ModelError(f"robot {desc.name!r}: the model has no joint {name!r}")
+        j.damping = [effects.damping[k], 0.0, 0.0]  # linear damping (MuJoCo 4 takes a polynomial)
+        j.armature, j.frictionloss = effects.armature[k], effects.friction_loss[k]
+        spec.add_actuator(name=f"tau_{name}", trntype=mujoco.mjtTrn.mjTRN_JOINT, target=name,
+                          gainprm=[1.0] + [0.0] * 9, biasprm=[0.0] * 10,
+                          biastype=mujoco.mjtBias.mjBIAS_AFFINE)  # zero bias until held
+    try:
+        model = spec.compile()
+    except ValueError as e:
+        raise ModelError(f"robot {desc.name!r}: MuJoCo cannot compile {desc.mjcf_path or desc.urdf_path}: "
+                         f"{e}") from None
+    bid = {n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in (desc.base_link, *desc.foot_links)}
+    for n, i in bid.items():
+        if i < 0:
+            raise ModelError(f"robot {desc.name!r}: the model has no body {n!r}")
+    jids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in desc.joint_names]
+    feet = [bid[n] for n in desc.foot_links]
+    foot_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == feet[0]]
+    radius = next((float(model.geom_size[g, 0]) for g in foot_geoms
+                   if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE), 0.0)
+    ids = {"base": bid[desc.base_link], "feet": feet, "qadr": model.jnt_qposadr[jids].copy(),
+           "vadr": model.jnt_dofadr[jids].copy(), "foot_radius": radius,
+           "ground": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ground")}
+    return model, ids
+
+
+class MujocoWorld:
+    """One robot on a plane in MuJoCo (a ``symrom.sim.engine.World``; see the module docstring).
+
+    robot: a built-in name or a description file; config: physics settings;
+    effects: actuator effects (default: the description's ``[actuators]``).
+    """
+
+    engine = "mujoco"
+
+    def __init__(self, robot: str, config: WorldConfig = WorldConfig(), effects: ActuatorEffects | None = None):
+        self.spec: RobotDescription = get_robot(robot)
+        self.config = config
+        self.effects = self.spec.actuators if effects is None else effects
+        shared, ids = _compiled(robot_key(robot), config, self.effects)
+        self.model = copy.deepcopy(shared)  # scale_inertia and hold_joints edit it
+        self.data = mujoco.MjData(self.model)
+        self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        self._neg_limit = -self.torque_limit
+        self.signs = self.spec.signs
+        self._base, self._feet = ids["base"], ids["feet"]
+        self._qadr, self._vadr = ids["qadr"], ids["vadr"]
+        self._ground = ids["ground"]
+        self._leg_of_geom = np.full(self.model.ngeom, -1)  # geom -> leg of its foot body, or -1
+        for k, b in enumerate(self._feet):
+            self._leg_of_geom[self.model.geom_bodyid == b] = k
+        self._leg_list = self._leg_of_geom.tolist()
+        self._quat = np.empty(4)
+        self.foot_radius = ids["foot_radius"]
+        self.mass = float(self.model.body_subtreemass[self._base])  # kg
+        self.held: np.ndarray = np.zeros(0, dtype=int)
+        self.t = 0.0
+        self._forces = np.zeros((N_LEGS, 3))
+        self._vel = np.zeros(6)
+        self._res = np.zeros(6)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
+        """Place the robot at ``q`` (18,) with velocity ``dq`` (18,) (default rest)."""
+        q = np.asarray(q, dtype=float)
+        dq = np.zeros(N_Q) if dq is None else np.asarray(dq, dtype=float)
+        if q.shape != (N_Q,) or dq.shape != (N_Q,):
+            raise ValueError(f"q and dq must have shape ({N_Q},), got {q.shape} and {dq.shape}")
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        R = rpy_to_matrix(q[BASE_RPY])[0]
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, R.reshape(-1))
+        d.qpos[0:3], d.qpos[3:7] = q[BASE_POS], quat
+        d.qvel[0:3] = dq[BASE_POS]
+        d.qvel[3:6] = R.T @ (euler_rate_matrix(q[BASE_RPY]) @ dq[BASE_RPY])  # body-frame angular velocity
+        d.qpos[self._qadr] = q[JOINTS] * self.signs
+        d.qvel[self._vadr] = dq[JOINTS] * self.signs
+        if self.held.size:
+            d.ctrl[self.held] = q[JOINTS][self.held] * self.signs[self.held]  # servo targets, URDF angles
+        mujoco.mj_forward(m, d)
+        self.t = 0.0
+        self._forces[:] = 0.0
+
+    def standing_q(self, q_joints: np.ndarray, xy: tuple[float, float] = (0.0, 0.0),
+                   rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                   penetration: float = 5e-4) -> np.ndarray:
+        """Configuration (18,) with joints ``q_joints`` (12,) rad whose lowest foot touches the ground."""
+        return standing_configuration(self.spec, self.foot_radius, q_joints, xy, rpy, penetration)
+
+    def state(self) -> RobotState:
+        """The current state of the robot (see ``RobotState``)."""
+        m, d = self.model, self.data
+        q, dq, R = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3))
+        qp, qv = d.qpos, d.qvel
+        self._quat[:3], self._quat[3] = qp[4:7], qp[3]  # MuJoCo's (w, x, y, z) as (x, y, z, w)
+        omega = d.xmat[self._base].reshape(3, 3) @ qv[3:6]  # qvel holds it in the body frame
+        # the free joint sits at the base link frame: the pose and rates are the link frame's
+        base_state(qp[0:3], self._quat, qv[0:3], omega, _ZERO3, _IDENTITY, q, dq, R)
+        np.multiply(qp[self._qadr], self.signs, out=q[JOINTS])
+        np.multiply(qv[self._vadr], self.signs, out=dq[JOINTS])
+        foot_vel = np.empty((N_LEGS, 3))
+        for k, b in enumerate(self._feet):
+            mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, self._vel, 0)
+            foot_vel[k] = self._vel[3:]
+        return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=self.contact_flags(),
+                          foot_pos=d.xpos[self._feet], foot_vel=foot_vel)
+
+    def _foot_contacts(self) -> list[tuple[int, int, float]]:
+        """(contact index, leg, sign) of every foot/ground contact; sign +1 where the foot is
+        geom2 (MuJoCo's force acts from geom1 on geom2). A plain loop: there are a dozen."""
+        ground, leg = self._ground, self._leg_list
+        out = []
+        for i, (g1, g2) in enumerate(self.data.contact.geom.tolist()):
+            if g1 == ground and leg[g2] >= 0:
+                out.append((i, leg[g2], 1.0))
+            elif g2 == ground and leg[g1] >= 0:
+                out.append((i, leg[g1], -1.0))
+        return out
+
+    def contact_flags(self) -> np.ndarray:
+        """(4,) uint8: 1 where a foot body touches the ground (within ``CONTACT_MARGIN``)."""
+        flags = np.zeros(N_LEGS, dtype=np.uint8)
+        for _, k, _ in self._foot_contacts():
+            flags[k] = 1
+        return flags
+
+    def contact_forces(self) -> np.ndarray:
+        """(4, 3) N: the ground's force on each foot (world) in the last tick's solution."""
+        return self._forces.copy()
+
+    def _solve_forces(self) -> None:
+        f = self._forces
+        f[:] = 0.0
+        d = self.data
+        con = d.contact
+        frames, efc = con.frame, con.efc_address
+        for i, k, sign in self._foot_contacts():
+            if efc[i] < 0:  # within the margin, not touching: no force
+                continue
+            mujoco.mj_contactForce(self.model, d, i, self._res)  # contact frame, normal first
+            f[k] += sign * (frames[i].reshape(3, 3).T @ self._res[:3])
+
+    def joint_velocities(self) -> np.ndarray:
+        """(12,) rad/s in symrom's signs."""
+        return self.data.qvel[self._vadr] * self.signs
+
+    # ---------------------------------------------------------------- driving
+    def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
+        """Apply joint torques ``tau`` (12,) N m for one tick; return the applied (12,) (held
+        joints: their servos' torques), or None with ``report=False``."""
+        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), self._neg_limit), self.torque_limit)
+        if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
+            raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
+        m, d = self.model, self.data
+        ctrl = tau * self.signs
+        if self.held.size:
+            ctrl[self.held] = d.ctrl[self.held]  # the servos' targets stay
+        d.ctrl[:] = ctrl
+        # step2 then step1: after a step the positions, contacts and velocities of the new state
+        # are computed, so ``state`` reads them without a second forward pass.
+        mujoco.mj_step2(m, d)
+        if report:
+            self._solve_forces()  # the forces of this tick's contacts, before they are recomputed
+            applied = tau
+            if self.held.size:
+                applied = tau.copy()
+                applied[self.held] = d.actuator_force[self.held] * self.signs[self.held]
+        d.xfrc_applied[self._base, :3] = 0.0
+        mujoco.mj_step1(m, d)
+        self.t += m.opt.timestep
+        return applied if report else None
+
+    def hold_joints(self, joints: list[int]) -> None:
+        """Hold the joints ``joints`` (indices into the 12) at the angles of each ``reset`` by
+        position servos within the torque limits; ``step`` ignores their torques."""
+        self.held = np.asarray(sorted(set(int(k) for k in joints)), dtype=int)
+        m = self.model
+        for k in range(N_JOINTS):
+            if k in set(self.held.tolist()):
+                kp = self.torque_limit[k] / HOLD_ERROR
+                kv = 2.0 * np.sqrt(kp * HOLD_INERTIA)
+                m.actuator_gainprm[k, 0], m.actuator_biasprm[k, :3] = kp, (0.0, -kp, -kv)
+                m.actuator_forcelimited[k] = 1
+                m.actuator_forcerange[k] = (-self.torque_limit[k], self.torque_limit[k])
+            else:
+                m.actuator_gainprm[k, 0], m.actuator_biasprm[k, :3] = 1.0, (0.0, 0.0, 0.0)
+                m.actuator_forcelimited[k] = 0
+
+    def apply_base_force(self, force_world: np.ndarray) -> None:
+        """Push the base's centre of mass with ``force_world`` (3,) N during the next tick only."""
+        f = np.asarray(force_world, dtype=float)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise ValueError(f"force must be 3 finite numbers, got {force_world!r}")
+        self.data.xfrc_applied[self._base, :3] = f
+
+    def scale_inertia(self, trunk_mass: float, leg_mass: float, inertia: float) -> None:
+        """Scale the base's mass by ``trunk_mass``, the other robot bodies' by ``leg_mass``, and
+        inertias with the mass and by ``inertia``; ``mass`` stays the nominal one."""
+        m = self.model
+        for b in range(1, m.nbody):
+            s = trunk_mass if b == self._base else leg_mass
+            m.body_mass[b] *= s
+            m.body_inertia[b] *= s * inertia
+        mujoco.mj_setConst(m, self.data)
+        mujoco.mj_forward(m, self.data)
+
+    def set_ground_friction(self, mu: float) -> None:
+        """Foot/ground sliding friction (every geom carries it: MuJoCo takes the larger)."""
+        self.model.geom_friction[:, 0] = mu
+
+    def close(self) -> None:
+        """Nothing to give back (the model and data are freed with the world)."""
+
+    def __enter__(self) -> MujocoWorld:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
