@@ -397,8 +397,16 @@ def evaluate_cmd(
 
 
 def _divergence_warnings(metrics: dict) -> None:
-    """One warning per horizon with diverged jumps: which, when (s), and what was scored."""
+    """One warning per horizon with diverged jumps: which, when (s), and what was scored; one
+    per horizon with drifted jumps: which, when (s) and the limit passed."""
+    from symrom.evaluate.tables import drift_text
+
     for key, h in metrics["horizons"].items():
+        if h.get("drifted_jumps"):
+            console.print(f"[yellow]warning:[/yellow] {h['drifted_jumps']} of {metrics['n_jumps']} jumps "
+                          f"drifted at horizon {key} ({drift_text(h['drifted'])}): the predicted base left the "
+                          "physically possible (below the ground by more than a leg length, or beyond the "
+                          "jump's range); they are scored", highlight=False, soft_wrap=True)
         if h["diverged_jumps"]:
             when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
             share = f" ({100 * h['scored_samples'] / h['samples']:.1f} % of the split's samples)" \
