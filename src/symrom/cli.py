@@ -508,7 +508,8 @@ def _calibration_lines(record: dict) -> None:
                           f"{fg['data']:.3g})", highlight=False, soft_wrap=True)
         if abs(fg["ratio"] - 1.0) > 0.05:
             console.print(f"[yellow]warning:[/yellow] the fine-tuned flight equations fall at {-fg['model']:.3g} "
-                          "m/s², more than 5 % from g", highlight=False, soft_wrap=True)
+                          f"m/s², more than 5 % from g (the data's flight rows: {-fg['data']:.3g} m/s²)",
+                          highlight=False, soft_wrap=True)
 
 
 @app.command("equations", cls=_Command)
