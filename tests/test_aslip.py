@@ -128,12 +128,13 @@ def test_metrics_layout(slip):
     ds, truth = slip
     m, _ = evaluate(ASlip(truth), ds, "test", resets=(None, 0.1), options=RolloutOptions("rk4"),
                     data_name="d.h5")
-    assert set(m) == {"format_version", "model", "data", "split", "n_jumps", "integrator", "horizons"}
-    assert m["format_version"] == 2
+    assert set(m) == {"format_version", "model", "data", "split", "n_jumps", "integrator", "drift_limits",
+                      "horizons"}
+    assert m["format_version"] == 3
     assert m["split"] == "test" and m["n_jumps"] == len(ds.jumps_in("test")) and m["data"] == "d.h5"
     assert list(m["horizons"]) == ["full", "0.1"]
     for h in m["horizons"].values():
-        assert h["diverged_jumps"] == 0 and h["diverged"] == []
+        assert h["diverged_jumps"] == 0 and h["diverged"] == [] and h["drifted_jumps"] == 0
         assert h["samples"] == h["scored_samples"] == int(ds.rows_of("test").sum())
         assert list(h["components"]) == ["x", "y", "z"]
         for c in h["components"].values():

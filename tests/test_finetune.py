@@ -37,7 +37,7 @@ def _full_rmse(model, ds):
 
 def test_finetuning_moves_towards_the_new_system(source_and_target):
     model, target, truth = source_and_target
-    tuned = finetune(model, target)
+    tuned = finetune(model, target, config=FineTuneConfig(method="acceleration"))
     np.testing.assert_array_equal(tuned.autoencoder.W_e, model.autoencoder.W_e)
     assert _full_rmse(tuned, target) < 0.5 * _full_rmse(model, target)
     names = tuned.library.feature_names
@@ -48,9 +48,9 @@ def test_finetuning_moves_towards_the_new_system(source_and_target):
 
 def test_prior_weight_interpolates(source_and_target):
     model, target, _ = source_and_target
-    stiff = finetune(model, target, config=FineTuneConfig(prior_weight=1e6))
+    stiff = finetune(model, target, config=FineTuneConfig(prior_weight=1e6, method="acceleration"))
     np.testing.assert_allclose(stiff.Xi, model.Xi, atol=1e-3)
-    free = finetune(model, target, config=FineTuneConfig(prior_weight=0.0))
+    free = finetune(model, target, config=FineTuneConfig(prior_weight=0.0, method="acceleration"))
     names = free.library.feature_names
     assert free.Xi[0, names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.05)
     with pytest.raises(ValueError, match="no fine-tuning rows"):

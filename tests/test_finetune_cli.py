@@ -44,7 +44,7 @@ def files(tmp_path_factory):
 def test_finetune_on_a_flight_only_set(files, tmp_path):
     model_path, data = files
     out = tmp_path / "tuned"
-    r = runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(out)])
+    r = runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(out), "--method", "acceleration"])
     assert r.exit_code == 0, r.output
     text = " ".join(r.output.split())
     assert "fine-tuning rows (train): contact none, flight" in text
@@ -143,7 +143,7 @@ def test_a_degenerate_decoder_refit_is_refused(files, tmp_path):
     source = load_model(model_path)
     with pytest.raises(DecoderRefitError):
         finetune(source, replace(ds, q=q))
-    kept = finetune(source, replace(ds, q=q), config=FineTuneConfig(refit_decoder=False))
+    kept = finetune(source, replace(ds, q=q), config=FineTuneConfig(refit_decoder=False, method="acceleration"))
     np.testing.assert_array_equal(kept.autoencoder.W_d, source.autoencoder.W_d)
     r = runner.invoke(app, ["finetune", str(model_path), str(flat), "--out", str(out), "--keep-decoder"])
     assert r.exit_code in (0, 1), r.output  # refit dynamics only: accepted, or refused by the val check
@@ -179,3 +179,26 @@ def test_finetune_refuses_data_it_cannot_check(files, tmp_path):
     one_line_error(runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(data), "--force"]),
                    "is the input")
     assert not out.exists()
+
+
+def test_default_calibration_keeps_gravity_on_a_flight_only_set(files, tmp_path):
+    """The default method on hardware-like flights: the fine-tuned model falls as the data do
+    (within 5 %); the flight equations move only if the flight test says the data contradict
+    them, and the command says which."""
+    model_path, data = files
+    out = tmp_path / "cal"
+    r = runner.invoke(app, ["finetune", str(model_path), str(data), "--out", str(out)])
+    text = " ".join(r.output.split())
+    if r.exit_code != 0:  # the val check may keep the source; then it names the other methods
+        assert "--method acceleration or --method rollout" in text, text
+        return
+    rec = json.loads((out / "finetune.json").read_text())
+    assert rec["check"]["config"]["method"] == "calibrate"
+    fg = rec["flight_gravity"]  # these short rebased flight segments fall at ~10.4 m/s^2 once differentiated
+    assert abs(fg["model"] / fg["data"] - 1.0) < 0.05
+    assert f"flight gravity: {rec['flight_gravity']['model']:.3g} m/s²" in text and "flight test:" in text
+    source, tuned = load_model(model_path), load_model(out / "model.json")
+    f = source.phase_names.index("flight")
+    if not rec["calibration"]["flight_test"]["contradicted"]:
+        np.testing.assert_array_equal(tuned.Xi[f], source.Xi[f])
+        assert "gravity kept" in text

@@ -110,7 +110,7 @@ def test_a_diverged_jump_is_scored_up_to_its_divergence(model_and_data, method):
     lengths = np.diff(ds.jump_bounds(), axis=1)[ro.jumps, 0]
     assert 0 < ro.diverged.sum() < ro.jumps.size
     assert np.all(ro.diverged_at[ro.diverged] > 0.8 * lengths[ro.diverged])  # the late ones of the issue
-    assert metrics["format_version"] == 2 and full["diverged_jumps"] == int(ro.diverged.sum())
+    assert metrics["format_version"] == 3 and full["diverged_jumps"] == int(ro.diverged.sum())
     assert full["diverged"] == [{"jump": int(j), "t": round(int(k) * ds.dt, 6)}
                                 for j, k in zip(ro.jumps[ro.diverged], ro.diverged_at[ro.diverged])]
     # Expected: every sample of the jumps that stayed bounded, and those of each diverged jump
@@ -157,7 +157,7 @@ def test_divergence_is_reported_in_seconds_by_the_command_line(model_and_data, t
     assert f"jump {first['jump']} at {first['t']:.3f} s" in said and "scored up to its divergence" in said
     assert f"jump {first['jump']} at {first['t']:.3f} s" in (out / "table.md").read_text()
     rec = Metrics.read(out / "metrics.json")
-    assert rec.format_version == 2 and rec.horizons["full"].scored_samples == full["scored_samples"]
+    assert rec.format_version == 3 and rec.horizons["full"].scored_samples == full["scored_samples"]
     assert rec.to_dict() == m
 
 

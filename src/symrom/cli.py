@@ -495,8 +495,16 @@ def evaluate_cmd(
 
 
 def _divergence_warnings(metrics: dict) -> None:
-    """One warning per horizon with diverged jumps: which, when (s), and what was scored."""
+    """One warning per horizon with diverged jumps: which, when (s), and what was scored; one
+    per horizon with drifted jumps: which, when (s) and the limit passed."""
+    from symrom.evaluate.tables import drift_text
+
     for key, h in metrics["horizons"].items():
+        if h.get("drifted_jumps"):
+            console.print(f"[yellow]warning:[/yellow] {h['drifted_jumps']} of {metrics['n_jumps']} jumps "
+                          f"drifted at horizon {key} ({drift_text(h['drifted'])}): the predicted base left the "
+                          "physically possible (below the ground by more than a leg length, or beyond the "
+                          "jump's range); they are scored", highlight=False, soft_wrap=True)
         if h["diverged_jumps"]:
             when = ", ".join(f"jump {d['jump']} at {d['t']:.3f} s" for d in h["diverged"])
             share = f" ({100 * h['scored_samples'] / h['samples']:.1f} % of the split's samples)" \
@@ -514,8 +522,10 @@ def finetune_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
     prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
     keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
-    method: Annotated[str, typer.Option("--method", help="acceleration (towards the source, --prior-weight) or rollout "
-                                                         "(the rollout-aware refinement from the source coefficients).")] = "acceleration",
+    method: Annotated[str, typer.Option("--method", help="calibrate (per phase input gains, offsets and damping; flight "
+                                                         "gravity kept unless the data contradict it), acceleration (every "
+                                                         "coefficient, towards the source, --prior-weight) or rollout (the "
+                                                         "rollout-aware refinement from the source coefficients).")] = "calibrate",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
@@ -562,9 +572,35 @@ def finetune_cmd(
                       f"{record['score_before']:.4g} -> {record['score_after']:.4g} (mean RMSE / spread, both "
                       f"horizons; at most +{100 * tolerance:g} % allowed), diverged {record['diverged_before']} -> "
                       f"{record['diverged_after']}{raised}", highlight=False, soft_wrap=True)
+    _calibration_lines(record)
     _divergence_warnings(result.after)
     out_console.print(f"model: {out / 'model.json'}  val before: {out / 'val_before' / 'metrics.json'}  "
                       f"after: {out / 'val_after' / 'metrics.json'}", highlight=False, soft_wrap=True)
+
+
+def _calibration_lines(record: dict) -> None:
+    """The calibrated gains per phase, the flight test and the fine-tuned flight gravity."""
+    cal = record.get("calibration")
+    for name, p in (cal or {}).get("phases", {}).items():
+        if p["calibrated"]:
+            g = ", ".join("-" if x is None else f"{x:.3g}" for x in p["gain"])
+            d = ", ".join("-" if x is None else f"{x:+.3g}" for x in p["damping"])
+            out_console.print(f"calibrated {name}: input gains [{g}], damping [{d}] 1/s", highlight=False,
+                              soft_wrap=True)
+    test = (cal or {}).get("flight_test")
+    if test:
+        out_console.print(f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {test['se']:.2g} m/s² "
+                          f"over {test['jumps']} jumps (contradicts the source above {test['limit']:.2g} and "
+                          f"{test['t_limit']:g} standard errors): gravity "
+                          + ("calibrated" if test["contradicted"] else "kept"), highlight=False, soft_wrap=True)
+    fg = record.get("flight_gravity")
+    if fg:
+        out_console.print(f"flight gravity: {fg['model']:.3g} m/s² ({100 * fg['ratio']:.1f} % of g; the data "
+                          f"{fg['data']:.3g})", highlight=False, soft_wrap=True)
+        if abs(fg["ratio"] - 1.0) > 0.05:
+            console.print(f"[yellow]warning:[/yellow] the fine-tuned flight equations fall at {-fg['model']:.3g} "
+                          f"m/s², more than 5 % from g (the data's flight rows: {-fg['data']:.3g} m/s²)",
+                          highlight=False, soft_wrap=True)
 
 
 @app.command("equations", cls=_Command)

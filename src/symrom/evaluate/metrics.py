@@ -10,17 +10,33 @@ in ``diverged_jumps`` and listed in ``diverged`` with the time (s) at which it
 left its bound. ``samples`` and ``scored_samples`` say how much of the split
 the statistics cover. Files of ``format_version`` 1 (without it) excluded
 diverged jumps entirely.
+
+Drift (``format_version`` 3): a rollout that stays within its latent bound can
+still leave the physically possible. Before its divergence (if any), a jump
+drifts at the first sample where the predicted base is below the ground (z = 0)
+by more than the robot's leg length, or where a predicted base position x, y
+(either way) or z (upwards) lies outside the jump's own logged range widened
+by a margin: the largest
+range of that coordinate over one training jump of the dataset, and at least a
+leg length (``drift_limits``). A drifted jump is still scored (up to its
+divergence, as any other): its errors are real; ``drifted_jumps`` and
+``drifted`` (jump, time in s, the component, its predicted value and the limit
+it passed) report it beside the divergences. A robot without a description
+(planted data) has no leg length: only the travel rule applies, its margin the
+training range alone.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.names import Q_NAMES
+from symrom.names import BASE_POS, Q_NAMES
+from symrom.robots import RobotDescriptionError
+from symrom.robots.stance import leg_length
 from symrom.rollout.integrate import Rollout, RolloutOptions, rollout
 from symrom.rollout.system import Rollable
 
@@ -39,7 +55,65 @@ def component_stats(err: np.ndarray, names: tuple[str, ...] | list[str] = Q_NAME
             for n, e in zip(names, err.T)}
 
 
-METRICS_VERSION = 2
+METRICS_VERSION = 3
+# The base coordinates the drift rules watch, in q's order.
+DRIFT_COMPONENTS = tuple(Q_NAMES[BASE_POS])  # x, y, z
+
+
+@dataclass(frozen=True)
+class DriftLimits:
+    """What a rollout may not do without being flagged as drifted (module docstring).
+
+    leg_length: m (None for a robot without a description: no ground rule); margin:
+    per base coordinate (x, y, z), m beyond a jump's logged range.
+    """
+
+    leg_length: float | None
+    margin: dict[str, float]
+
+    @classmethod
+    def of(cls, ds: Dataset) -> DriftLimits:
+        """The limits for rollouts along ``ds``: its robot's leg length and, per base
+        coordinate, the largest range over one of its training jumps (all jumps if it has
+        none), at least a leg length."""
+        try:
+            leg = leg_length(ds.robot)
+        except RobotDescriptionError:
+            leg = None
+        jumps = ds.jumps_in("train")
+        bounds = ds.jump_bounds()[jumps if jumps.size else np.arange(ds.n_jumps)]
+        ranges = np.max([np.ptp(ds.q[a:b, BASE_POS], axis=0) for a, b in bounds], axis=0)
+        return cls(leg, {c: float(max(r, leg or 0.0)) for c, r in zip(DRIFT_COMPONENTS, ranges)})
+
+    def to_dict(self) -> dict:
+        return {"leg_length": self.leg_length, "margin": dict(self.margin)}
+
+
+def drift_events(ds: Dataset, ro: Rollout, limits: DriftLimits) -> list[dict]:
+    """Per drifted jump of ``ro``: ``{"jump", "t" (s), "component", "value", "limit"}`` at
+    its first sample (before any divergence) that breaks ``limits``; value and limit in m.
+    Components the rollout does not predict are not checked."""
+    comps = ro.components or Q_NAMES
+    watched = [(c, comps.index(c), Q_NAMES.index(c)) for c in DRIFT_COMPONENTS if c in comps]
+    bounds, events = ds.jump_bounds(), []
+    for i, j in enumerate(ro.jumps):
+        a, b = bounds[j]
+        n = b - a if not ro.diverged[i] else int(ro.diverged_at[i])
+        first = None  # (sample, component, value, limit)
+        for c, col, qcol in watched:
+            pred, true = ro.q_pred[i][:n, col], ds.q[a:b, qcol]
+            lo, hi = true.min() - limits.margin[c], true.max() + limits.margin[c]
+            if c == "z" and limits.leg_length is not None:
+                lo = -limits.leg_length  # downwards the ground decides (z = 0), not the data's range
+            for k in np.flatnonzero((pred < lo) | (pred > hi))[:1]:
+                if first is None or k < first[0]:
+                    v = float(pred[k])
+                    first = (int(k), c, v, float(lo if v < lo else hi))
+        if first is not None:
+            k, c, v, lim = first
+            events.append({"jump": int(j), "t": round(k * ro.dt, 6), "component": c,
+                           "value": round(v, 6), "limit": round(lim, 6)})
+    return events
 
 
 def prediction_errors(ds: Dataset, jumps: np.ndarray, predictions: list[np.ndarray],
@@ -77,11 +151,15 @@ def reconstruction_floor(model, ds: Dataset, split: str = "test") -> dict[str, f
     return {n: float(np.sqrt(np.mean(e ** 2))) for n, e in zip(Q_NAMES, err.T)}
 
 
-def horizon_metrics(ds: Dataset, ro: Rollout) -> dict:
+def horizon_metrics(ds: Dataset, ro: Rollout, limits: DriftLimits | None = None) -> dict:
     """One horizon of ``metrics.json``: diverged jumps (count, and each with the time it left
-    its bound, s), the split's samples and how many were scored, the component stats."""
+    its bound, s), drifted jumps (count, and each with the time and the limit it passed;
+    ``limits`` default ``DriftLimits.of(ds)``), the split's samples and how many were
+    scored, the component stats."""
     err = rollout_errors(ds, ro)
+    drifted = drift_events(ds, ro, DriftLimits.of(ds) if limits is None else limits)
     return {"diverged_jumps": int(ro.diverged.sum()), "diverged": ro.divergence_times(),
+            "drifted_jumps": len(drifted), "drifted": drifted,
             "samples": int(sum(p.shape[0] for p in ro.q_pred)), "scored_samples": int(err.shape[0]),
             "components": component_stats(err, ro.components or Q_NAMES)}
 
@@ -98,6 +176,7 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
     if jumps.size == 0:
         raise ValueError(f"the dataset has no {split!r} jumps")
     horizons, rollouts = {}, {}
+    limits = DriftLimits.of(ds)
     total = len(resets) * int(jumps.size)
     for h, reset in enumerate(resets):
         key = horizon_key(reset)
@@ -105,7 +184,8 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
             lambda i, n, before=h * int(jumps.size): progress(before + i, total))
         ro = rollout(model, ds, jumps, replace(options, reset=reset), tick)
         rollouts[key] = ro
-        horizons[key] = horizon_metrics(ds, ro)
+        horizons[key] = horizon_metrics(ds, ro, limits)
     metrics = {"format_version": METRICS_VERSION, "model": model_name, "data": data_name, "split": split,
-               "n_jumps": int(jumps.size), "integrator": options.method, "horizons": horizons}
+               "n_jumps": int(jumps.size), "integrator": options.method, "drift_limits": limits.to_dict(),
+               "horizons": horizons}
     return metrics, rollouts

@@ -8,6 +8,10 @@ diverged rollout left its bound), components that are a subset of the 18 (a
 baseline reports only ``x, y, z``) and, from ``format_version`` 2 on (files
 without it are version 1), ``samples`` and ``scored_samples``: a diverged
 jump's samples up to its divergence are scored (version 1 left it out).
+From version 3 on a horizon also lists the jumps that drifted (``drifted``:
+``{"jump", "t", "component", "value", "limit"}``, the first time a predicted
+base coordinate left the physically possible, see ``evaluate.metrics``);
+files before it did not check (``drifted_jumps`` None).
 
 ``ManifestEntry`` is one experiment of a run: its name, its role (what kind of
 result it is, which decides how the report shows it) and its files.
@@ -22,7 +26,8 @@ from pathlib import Path
 from typing import Any
 
 
-METRICS_VERSIONS = (1, 2)  # metrics.json: 1 without the key (diverged jumps left out), 2 scores them
+# metrics.json: 1 without the key (diverged jumps left out), 2 scores them, 3 adds drift
+METRICS_VERSIONS = (1, 2, 3)
 
 
 class RecordError(ValueError):
@@ -81,19 +86,48 @@ class Divergence:
 
 
 @dataclass(frozen=True)
+class Drift:
+    """A rollout of jump ``jump`` left the physically possible ``t`` s after the jump's first
+    sample: its predicted ``component`` (``x``, ``y`` or ``z``) was ``value`` m, past
+    ``limit`` m (below the ground by more than a leg length, or beyond the jump's range)."""
+
+    jump: int
+    t: float
+    component: str
+    value: float
+    limit: float
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str) -> Drift:
+        return cls(_get(d, "jump", where, int), _get(d, "t", where, float), _get(d, "component", where, str),
+                   _get(d, "value", where, float), _get(d, "limit", where, float))
+
+    def to_dict(self) -> dict:
+        return {"jump": self.jump, "t": self.t, "component": self.component, "value": self.value,
+                "limit": self.limit}
+
+    def text(self) -> str:
+        """e.g. 'jump 4 at 0.512 s (z -0.91 m past -0.43 m)'."""
+        return f"jump {self.jump} at {self.t:.3f} s ({self.component} {self.value:.2f} m past {self.limit:.2f} m)"
+
+
+@dataclass(frozen=True)
 class Horizon:
     """One horizon's results: the jumps that diverged (each scored up to its divergence from
     version 2 on, left out before), the split's samples and how many were scored (None in
-    version 1 files), and the per-component stats (empty when nothing could be scored)."""
+    version 1 files), the per-component stats (empty when nothing could be scored) and
+    the jumps that drifted (still scored; ``drifted_jumps`` None before version 3)."""
 
     diverged_jumps: int
     components: dict[str, ComponentStats]
     diverged: tuple[Divergence, ...] = ()
     samples: int | None = None
     scored_samples: int | None = None
+    drifted_jumps: int | None = None
+    drifted: tuple[Drift, ...] = ()
     extra: dict = field(default_factory=dict)
 
-    _KEYS = ("diverged_jumps", "components", "diverged", "samples", "scored_samples")
+    _KEYS = ("diverged_jumps", "components", "diverged", "samples", "scored_samples", "drifted_jumps", "drifted")
 
     @classmethod
     def from_dict(cls, d: Any, where: str) -> Horizon:
@@ -107,6 +141,9 @@ class Horizon:
                                   for i, x in enumerate(div)),
                    samples=_get(d, "samples", where, (int, type(None)), None),
                    scored_samples=_get(d, "scored_samples", where, (int, type(None)), None),
+                   drifted_jumps=_get(d, "drifted_jumps", where, (int, type(None)), None),
+                   drifted=tuple(Drift.from_dict(x, _key(where, f"drifted[{i}]"))
+                                 for i, x in enumerate(_get(d, "drifted", where, list, []))),
                    extra=_rest(d, cls._KEYS))
 
     def to_dict(self) -> dict:
@@ -116,12 +153,19 @@ class Horizon:
             d["samples"] = self.samples
         if self.scored_samples is not None:
             d["scored_samples"] = self.scored_samples
+        if self.drifted_jumps is not None:
+            d["drifted_jumps"] = self.drifted_jumps
+            d["drifted"] = [x.to_dict() for x in self.drifted]
         d["components"] = {c: s.to_dict() for c, s in self.components.items()}
         return d | self.extra
 
     def divergence_text(self) -> str:
         """When each diverged jump left its bound, e.g. 'jump 4 at 1.438 s' ('' if none)."""
         return ", ".join(f"jump {x.jump} at {x.t:.3f} s" for x in self.diverged)
+
+    def drift_text(self) -> str:
+        """When and how each drifted jump left the physically possible ('' if none)."""
+        return ", ".join(x.text() for x in self.drifted)
 
     @property
     def scored_fraction(self) -> float | None:
@@ -190,6 +234,10 @@ class Metrics:
     @property
     def any_diverged(self) -> bool:
         return any(h.diverged_jumps for h in self.horizons.values())
+
+    @property
+    def any_drifted(self) -> bool:
+        return any(h.drifted_jumps for h in self.horizons.values())
 
     @property
     def scores_diverged(self) -> bool:

@@ -32,9 +32,25 @@ def divergence_note(metrics: dict) -> str:
     return ("Diverged: " + "; ".join(parts) + ".") if parts else ""
 
 
+def drift_text(drifted: list[dict]) -> str:
+    """When and how each drifted jump (a horizon's ``drifted`` list) left the physically
+    possible, e.g. 'jump 4 at 0.512 s (z -0.91 m past -0.43 m)'."""
+    return ", ".join(f"jump {d['jump']} at {d['t']:.3f} s ({d['component']} {d['value']:.2f} m past "
+                     f"{d['limit']:.2f} m)" for d in drifted)
+
+
+def drift_note(metrics: dict) -> str:
+    """One sentence on the drifted jumps of a metrics dict ('' if none or not checked)."""
+    parts = [f"{'Full' if key == 'full' else f'{key} s'}: {drift_text(h['drifted'])}"
+             for key, h in metrics["horizons"].items() if h.get("drifted_jumps")]
+    return ("Drifted (left the physically possible: below the ground by more than a leg length, or "
+            "beyond the jump's range; still scored): " + "; ".join(parts) + ".") if parts else ""
+
+
 def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title: str = "") -> str:
-    """Signed mean ± std per component and horizon, then MAE and RMSE rows; a line under the
-    table says when each diverged jump left its bound and how it was scored."""
+    """Signed mean ± std per component and horizon, then MAE and RMSE rows; lines under the
+    table say when each diverged jump left its bound and how it was scored, and when each
+    drifted jump left the physically possible."""
     head = "| horizon | stat | " + " | ".join(f"{c} [{Q_UNITS.get(c, '')}]" for c in components) + " |"
     lines = ([f"**{title}**", ""] if title else []) + [head, "|" + "---|" * (len(components) + 2)]
     for key, h in metrics["horizons"].items():
@@ -44,11 +60,13 @@ def table2(metrics: dict, components: tuple[str, ...] = TABLE2_COMPONENTS, title
             lines.append(f"| {label} | all jumps diverged ({h['diverged_jumps']}) |"
                          + " |" * len(components))
             continue
-        div = f" ({h['diverged_jumps']} diverged)" if h["diverged_jumps"] else ""
+        marks = [f"{h['diverged_jumps']} diverged"] if h["diverged_jumps"] else []
+        marks += [f"{h['drifted_jumps']} drifted"] if h.get("drifted_jumps") else []
+        div = f" ({', '.join(marks)})" if marks else ""
         lines.append(f"| {label}{div} | mean±std | " + " | ".join(
             f"{fmt_value(comps[c]['mean'])}±{fmt_value(comps[c]['std'])}" for c in components) + " |")
         for stat in ("mae", "rmse"):
             lines.append(f"| {label} | {stat.upper()} | "
                          + " | ".join(fmt_value(comps[c][stat]) for c in components) + " |")
-    note = divergence_note(metrics)
-    return "\n".join(lines + (["", note] if note else [])) + "\n"
+    notes = [n for n in (divergence_note(metrics), drift_note(metrics)) if n]
+    return "\n".join(lines + [x for n in notes for x in ("", n)]) + "\n"

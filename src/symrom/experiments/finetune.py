@@ -6,10 +6,13 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    data's ``train`` and ``val`` splits must hold jumps. The ``train`` rows may
    hold only some of the model's phases (a flight-only set): those phases are
    refit, the others keep the source coefficients, and the result says which.
-2. ``model.finetune.finetune`` refits the decoder (guarded: a ridge towards
+2. ``learn.finetune.finetune`` refits the decoder (guarded: a ridge towards
    the source decoder, and a refusal when the rows cannot determine it) and
-   each phase the rows hold (``FineTune``: pulled towards the source
-   coefficients), at the configured ``prior_weight``.
+   adapts each phase the rows hold at the configured ``prior_weight``: by
+   default (``calibrate``) only its input gains, offsets and damping, the
+   flight phase's gravity kept unless the rows contradict it
+   (``learn.calibrate``); with ``acceleration`` every coefficient
+   (``FineTune``: pulled towards the source coefficients).
 3. The source and the fine-tuned model are rolled out on the ``val`` jumps at
    both horizons (the full jump, 0.1 s resets). Score: the mean over the 18
    components of RMSE / spread (the component's standard deviation on the val
@@ -19,7 +22,8 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    the source and its score is at most ``tolerance`` (5 %) above the source's.
    Otherwise the prior weight is raised tenfold, towards the source model, and
    steps 2-4 repeat, up to ``max_raises`` times; if none is accepted the
-   fine-tuning is refused (the source model stays the better one). With
+   fine-tuning is refused (the source model stays the better one; the message
+   names the other methods). With
    ``method="rollout"`` (the rollout-aware refinement started from the source
    coefficients) the prior weight pulls only the decoder, not the coefficients:
    one attempt.
@@ -96,6 +100,8 @@ class FineTuneResult:
                 "score_after": a["score"], "diverged_before": self.attempts[0]["diverged_before"],
                 "diverged_after": a["diverged"], "phases_refit": self.record["phases_refit"],
                 "phases_kept": self.record["phases_kept"], "decoder": self.record["decoder"],
+                "flight_gravity": self.record.get("flight_gravity"),
+                **({"calibration": self.record["calibration"]} if "calibration" in self.record else {}),
                 "rule": RULE}
 
 
@@ -163,7 +169,7 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     raise FineTuneRefused(f"fine-tuning makes the val error worse at every prior weight tried ({tried}): "
                           f"score {score0:.4g} before, at best {min(a['score'] for a in attempts):.4g} after "
                           f"(tolerance +{100 * check.tolerance:g} %), diverged val jumps {div0} before; the source "
-                          "model stays the better one")
+                          f"model stays the better one{_others(check.config.method)}")
 
 
 def write_finetune(folder: str | Path, result: FineTuneResult) -> list[Path]:
@@ -177,3 +183,10 @@ def write_finetune(folder: str | Path, result: FineTuneResult) -> list[Path]:
         (folder / name).mkdir(exist_ok=True)
         written += write_metrics(folder / name, metrics, title=f"{name.replace('_', ' ')} fine-tuning")
     return written
+
+
+def _others(method: str) -> str:
+    """What else could be tried after ``method`` was refused."""
+    from symrom.learn.finetune import FINETUNE_METHODS
+
+    return "; " + " or ".join(f"--method {m}" for m in FINETUNE_METHODS if m != method) + " fit otherwise"

@@ -309,9 +309,9 @@ def selected_config(model: HybridModel, **changes) -> TrainConfig:
 
 # Sim-to-real candidates: the source trained on the noisy variant with the selected
 # settings, with and without its refinement, each kept as it is or fine-tuned on the
-# proxy's train jumps by acceleration (FineTune) or by rollout (Refine).
+# proxy's train jumps by calibration (learn.calibrate), acceleration (FineTune) or rollout (Refine).
 PROXY_SOURCES = ("refined", "exact")
-PROXY_METHODS = ("none", "acceleration", "rollout")
+PROXY_METHODS = ("none", "calibrate", "acceleration", "rollout")
 
 
 def proxy_selection(cfg: ReproduceConfig) -> SelectionConfig:

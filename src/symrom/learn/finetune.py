@@ -26,6 +26,10 @@ Both are closed form. ``prior_weight`` sets r relative to the data: 0 refits
 from the new rows alone, large values keep the source model. Phases are
 matched by name. ``experiments.finetune`` adds the check on validation jumps.
 
+``method="calibrate"`` (the default) keeps every coefficient and fits only per
+phase input gains, offsets and damping, and keeps the flight phase's gravity
+unless the new rows contradict it (``learn.calibrate``): what a dozen jumps can
+determine. ``method="acceleration"`` refits every coefficient as above.
 ``method="rollout"`` adapts the coefficients instead by the rollout-aware
 refinement (``Refine``) started from the source coefficients, on the new
 jumps: for a source model that was itself refined, whose coefficients an
@@ -48,10 +52,11 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.learn.calibrate import calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
 
 
-FINETUNE_METHODS = ("acceleration", "rollout")
+FINETUNE_METHODS = ("calibrate", "acceleration", "rollout")
 
 
 class DecoderRefitError(ModelDataError):
@@ -65,13 +70,14 @@ class FineTuneConfig:
     the new rows; threshold: as in training, in the source's sparsity measure (None:
     the source's own threshold); refit_decoder: False keeps the source decoder;
     decoder_min_spread: the least spread, as a fraction of the source's, the new rows
-    must have along every latent direction for the decoder to be refit."""
+    must have along every latent direction for the decoder to be refit; method:
+    ``calibrate``, ``acceleration`` or ``rollout`` (module docstring)."""
 
     prior_weight: float = 0.01
     threshold: float | None = None
     refit_decoder: bool = True
     decoder_min_spread: float = 0.05
-    method: str = "acceleration"
+    method: str = "calibrate"
 
     def __post_init__(self) -> None:
         if not self.prior_weight >= 0:
@@ -82,6 +88,9 @@ class FineTuneConfig:
             raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
         if self.method == "rollout" and self.threshold is not None:
             raise ValueError("threshold applies to method 'acceleration'; method 'rollout' refines the "
+                             "source's active terms and thresholds nothing")
+        if self.method == "calibrate" and self.threshold is not None:
+            raise ValueError("threshold applies to method 'acceleration'; method 'calibrate' keeps the "
                              "source's active terms and thresholds nothing")
 
 
@@ -181,6 +190,12 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     phases = phase_data(ds, rows, ae, model.library, weight, model.phase_names)
     if all(p is None for p in phases):
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
+    calibration = None
+    if config.method == "calibrate":
+        Xi, calibration = calibrate(model, ae, ds, rows, config.prior_weight)
+        if not calibration["parameters"] and not config.refit_decoder:
+            raise nothing_to_adapt()
+        return _finetuned(model, ds, rows, config, ae, Xi, model.mask.copy(), phases, decoder, calibration)
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
     if config.method == "rollout":  # Refine rolls the new jumps out, in the model's phase numbering
         index = np.zeros(ds.n_samples, dtype=int)
@@ -198,13 +213,27 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor
         if p is None:
             Xi[k], mask[k] = model.Xi[k], model.mask[k]
-    refit = [n for n, p in zip(model.phase_names, phases) if p is not None]
+    return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, regressor=regressor.to_dict())
+
+
+def _finetuned(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTuneConfig,
+               ae: LinearAutoencoder, Xi: np.ndarray, mask: np.ndarray, phases: list, decoder: dict,
+               calibration: dict | None = None, regressor: dict | None = None) -> HybridModel:
+    """The fine-tuned model and its ``info.finetune`` record (with the regressor's record, the
+    calibration's, and the decoded flight acceleration on the rows' flight rows,
+    ``flight_gravity``)."""
+    held = [n for n, p in zip(model.phase_names, phases) if p is not None]
+    refit = held if calibration is None else [n for n in held if calibration["phases"][n]["calibrated"]]
     n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
     info = dict(model.info)
-    info["finetune"] = {"config": asdict(config), "regressor": regressor.to_dict(), "data_sha256": data_hash(ds),
+    info["finetune"] = {"config": asdict(config), "regressor": regressor, "data_sha256": data_hash(ds),
                         "source": ds.source, "n_rows": int(rows.sum()),
                         "base_data_sha256": model.info.get("data_sha256"),
                         "phases_refit": refit, "rows_per_phase": n_rows,
-                        "phases_kept": [n for n in model.phase_names if n not in refit],
+                        "phases_kept": [n for n in model.phase_names if n not in held],
                         "decoder": decoder}
-    return replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)
+    if calibration is not None:
+        info["finetune"]["calibration"] = calibration
+    tuned = replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)
+    info["finetune"]["flight_gravity"] = flight_gravity(tuned, ds, rows)
+    return tuned

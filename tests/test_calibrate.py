@@ -1,0 +1,108 @@
+"""Fine-tuning that calibrates (the default method): on a planted target domain whose contact
+dynamics have a known input-gain error and extra damping, 12 jumps recover the gain and
+leave the flight equations, gravity included, untouched."""
+
+import copy
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from symrom.experiments.finetune import FineTuneCheck, run_finetune
+from symrom.learn.calibrate import STANDARD_GRAVITY, CalibrationError
+from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.training import TrainConfig, train
+from symrom.names import Q_NAMES
+from symrom.testing import PLANTED_2D, embedding_matrix, make_planted_dataset
+
+SEED = 11
+GAIN = 0.85  # the target's actuation relative to the source's
+DAMPING = 0.3  # 1/s of extra damping on both latents in contact (joint damping)
+Z = Q_NAMES.index("z")
+
+
+def _equations(flight_g: float = STANDARD_GRAVITY, gain: float = 1.0, damping: float = 0.0) -> dict:
+    """The planted equations with a ballistic flight: the latent that carries the base height
+    falls at ``flight_g`` m/s^2 once decoded; contact's input terms scaled by ``gain`` and its
+    velocity terms lowered by ``damping``."""
+    E, _ = embedding_matrix("block", 2, np.random.default_rng(SEED))
+    owner = int(np.flatnonzero(E[Z])[0])
+    eqs = copy.deepcopy(PLANTED_2D)
+    eqs["flight"][owner] = {"1": -flight_g / E[Z, owner]}
+    for j, eq in enumerate(eqs["contact"]):
+        for term in [t for t in eq if t.startswith("nu")]:
+            eq[term] *= gain
+        eq[f"dxi{j + 1}"] -= damping
+    return eqs
+
+
+def _target(**kw):
+    # 17 jumps: 12 train, 3 val, 2 test; the source's embedding
+    return make_planted_dataset(17, 400, embedding="block", seed=SEED + 1, equations=_equations(**kw),
+                                embedding_seed=SEED)[0]
+
+
+@pytest.fixture(scope="module")
+def source():
+    ds, _ = make_planted_dataset(24, 400, embedding="block", seed=SEED, equations=_equations())
+    return train(ds, TrainConfig())
+
+
+@pytest.fixture(scope="module")
+def target():
+    return _target(gain=GAIN, damping=DAMPING)
+
+
+def test_calibration_recovers_the_input_gain_and_keeps_flight(source, target):
+    assert target.jumps_in("train").size == 12
+    assert FineTuneConfig().method == "calibrate"
+    tuned = finetune(source, target)
+    rec = tuned.info["finetune"]
+    contact = rec["calibration"]["phases"]["contact"]
+    np.testing.assert_allclose(contact["gain"], GAIN, rtol=0.02)
+    np.testing.assert_allclose(contact["damping"], -DAMPING, rtol=0.1)
+    f = source.phase_names.index("flight")
+    np.testing.assert_array_equal(tuned.Xi[f], source.Xi[f])  # bit for bit
+    np.testing.assert_array_equal(tuned.mask, source.mask)  # every support kept
+    np.testing.assert_array_equal(tuned.autoencoder.W_e, source.autoencoder.W_e)
+    assert not rec["calibration"]["flight_test"]["contradicted"]
+    assert rec["phases_refit"] == ["contact"]
+    fg = rec["flight_gravity"]
+    assert abs(fg["model"] / -STANDARD_GRAVITY - 1) < 0.05 and fg["ratio"] == pytest.approx(1.0, abs=0.05)
+    # The calibrated contact equations are the source's with the inputs scaled and damping added.
+    k = source.phase_names.index("contact")
+    names = source.library.feature_names
+    inputs = np.array(["nu" in n for n in names])
+    for j in range(source.latent_dim):
+        np.testing.assert_allclose(tuned.Xi[k, inputs, j], contact["gain"][j] * source.Xi[k, inputs, j])
+
+
+def test_calibration_follows_data_that_contradict_the_flight_gravity(source):
+    low = _target(flight_g=0.8 * STANDARD_GRAVITY)  # the data fall at 7.8 m/s^2, clearly not g
+    tuned = finetune(source, low)
+    rec = tuned.info["finetune"]
+    test = rec["calibration"]["flight_test"]
+    assert test["contradicted"] and test["mean"] == pytest.approx(0.2 * STANDARD_GRAVITY, rel=0.05)
+    assert rec["calibration"]["phases"]["flight"]["calibrated"]
+    assert rec["flight_gravity"]["model"] == pytest.approx(-0.8 * STANDARD_GRAVITY, rel=0.02)
+
+
+def test_the_val_check_applies_to_calibration(source, target):
+    res = run_finetune(source, target, FineTuneCheck())
+    a = res.attempts[-1]
+    assert a["accepted"] and a["score"] < a["score_before"]  # the gain error made the source worse
+    record = res.to_dict()
+    assert record["flight_gravity"]["ratio"] == pytest.approx(1.0, abs=0.05)
+    assert record["calibration"]["phases"]["contact"]["calibrated"]
+
+
+def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):
+    names = source.library.feature_names
+    drop = np.array([n == "1" or "nu" in n or n.startswith("dxi") for n in names])
+    mask = source.mask.copy()
+    mask[:, drop] = False
+    bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
+    with pytest.raises(CalibrationError, match="--method acceleration"):
+        finetune(bare, target, config=FineTuneConfig(refit_decoder=False))
+    with pytest.raises(ValueError, match="calibrate"):
+        FineTuneConfig(threshold=0.1)
