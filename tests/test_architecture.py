@@ -30,7 +30,7 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
               "kernel": 1, "codegen": 1, "shooting": 1,
               "hybrid": 2, "persistence": 3, "export": 4},
     # learning: the problem and its regressors, the encoders, the estimator, then what drives it
-    "learn": {"audit": 0, "regressors": 1, "adam": 2, "encoders": 2, "plugins": 3, "estimator": 4,
+    "learn": {"audit": 0, "calibrate": 0, "regressors": 1, "adam": 2, "encoders": 2, "plugins": 3, "estimator": 4,
               "finetune": 5, "training": 5},
 }
 # Known upward imports, each with the change that removes it (none today).

@@ -92,7 +92,8 @@ def test_a_model_fitted_by_the_estimator_is_finetuned_with_its_own_sparsity(sour
     rom = symrom.SymbolicROM(regressor=symrom.STLSQ(threshold=0.05, measure="explained")).fit(source_data)
     trained = train(source_data, TrainConfig(threshold=0.05, measure="explained"))
     np.testing.assert_array_equal(rom.model.Xi, trained.Xi)  # the same source, fitted two ways
-    a, b = finetune(rom.model, target), finetune(trained, target)
+    acc = FineTuneConfig(method="acceleration")
+    a, b = finetune(rom.model, target, config=acc), finetune(trained, target, config=acc)
     np.testing.assert_array_equal(a.mask, b.mask)
     np.testing.assert_allclose(a.Xi, b.Xi, atol=1e-12)
     used = a.info["finetune"]["regressor"]
@@ -107,4 +108,4 @@ def test_a_model_without_a_recorded_regressor_is_refused(source_and_target):
     model, target, _ = source_and_target
     bare = replace(model, estimator={})
     with pytest.raises(ModelDataError, match="estimator.regressor: the model records no regressor"):
-        finetune(bare, target)
+        finetune(bare, target, config=FineTuneConfig(method="acceleration"))
