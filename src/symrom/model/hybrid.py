@@ -246,8 +246,36 @@ class HybridModel:
         significant digits."""
         return dict(zip(self.phase_names, latent_expressions(self.library, self.Xi, digits)))
 
+    def latent_loadings(self, share: float = 0.1, most: int = 4) -> list[tuple[list[tuple[str, float]], int]]:
+        """What each latent reads: per xi_i, the configuration components (``Q_NAMES``) of its
+        encoder row W_e[i] whose |weight| is at least ``share`` of the row's largest, largest
+        first, at most ``most`` of them (name, weight per unit of the component: 1/rad or
+        1/m), and how many more pass ``share``."""
+        out = []
+        for row in self.autoencoder.W_e:
+            big = np.abs(row)
+            keep = [int(k) for k in np.argsort(-big, kind="stable") if big[k] >= share * big.max() > 0]
+            out.append(([(Q_NAMES[k], float(row[k])) for k in keep[:most]], max(len(keep) - most, 0)))
+        return out
+
+    def latent_legend(self, latex: bool = False) -> list[str]:
+        """One line per latent naming it by its largest encoder loadings (``latent_loadings``):
+        ``xi1 ~ 1.00 x`` (LaTeX: ``% \\xi_{1} \\approx 1.00 x``, a comment)."""
+        lines = []
+        for i, (terms, more) in enumerate(self.latent_loadings(), start=1):
+            text = " ".join(f"{w:.2f} {name}" if k == 0 else f"{'-' if w < 0 else '+'} {abs(w):.2f} {name}"
+                            for k, (name, w) in enumerate(terms))
+            tail = f" + ... ({more} more)" if more else ""
+            if latex:
+                tex = text.replace("_", "\\_")
+                lines.append(rf"% \xi_{{{i}}} \approx {tex}{tail}")
+            else:
+                lines.append(f"xi{i} ~ {text}{tail}")
+        return lines
+
     def equations_text(self, latex: bool = False, digits: int = 3) -> str:
-        """All phases' equations as plain text (or LaTeX)."""
+        """All phases' equations as plain text (or LaTeX), then what each latent reads: its
+        largest encoder loadings (``latent_legend``)."""
         lines = []
         l = self.latent_dim
         names = {sympy.Symbol(f"{v}{i}"): tex for i in range(1, l + 1) for v, tex in
@@ -259,4 +287,7 @@ class HybridModel:
                     lines.append(rf"\ddot{{\xi}}_{{{j}}} = {sympy.latex(e, symbol_names=names)}")
                 else:
                     lines.append(f"ddxi{j} = {sympy.sstr(e)}")
+        lines.append("% latents, by their largest encoder loadings (per rad or m):" if latex
+                     else "latents, by their largest encoder loadings (per rad or m):")
+        lines += self.latent_legend(latex)
         return "\n".join(lines)

@@ -203,6 +203,8 @@ def equations_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
         text = "\n".join(f"[{phase}]\n" + "\n".join(textwrap.indent(wrap_equation(f"ddxi{j}", str(rhs)), "  ")
                                                      for j, rhs in enumerate(eqs, 1))
                          for phase, eqs in model.equations(3).items())
+        text += "\nlatents, by their largest encoder loadings (per rad or m):\n" + "\n".join(
+            "  " + line for line in model.latent_legend())
         blocks.append(Pre(text, caption=f"{e.name}: l = {model.latent_dim}, p = {model.library.poly_order}, "
                                         f"library terms: {model.library.n_features}; active terms: {terms}"))
         blocks += stability_blocks(e.name, model)
