@@ -92,3 +92,48 @@ def test_a_diverging_path_is_reported(fitted):
     u = ds.u[a:b] * 1e6
     p = model.predict_path(ds.q[a], ds.dq[a], u, ds.dt, phases=model.phase_index(ds)[a:b])
     assert p.diverged and np.isnan(p.q[p.diverged_at:]).all() and np.isfinite(p.q[:p.diverged_at]).all()
+
+
+def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from symrom.cli import app
+    from symrom.data.io import write_dataset
+    from symrom.evaluate.metrics import evaluate
+    from symrom.evaluate.switching import predicted_rollout
+    from symrom.model.persistence import model_to_dict, save_model
+    from conftest import one_line_error
+
+    model, ds, j = fitted
+    jumps = ds.jumps_in("test")
+    # a guard that never fires keeps the first phase: every logged switch is missed
+    never = type(model)(**{**model.__dict__, "guards": [type(g)(**{**g.__dict__, "bias": -1e9})
+                                                         for g in model.guards]})
+    m, _ = evaluate(never, ds, "test", (None,), RolloutOptions(method="rk4"), phases="predicted")
+    sw = m["switching"]["contact->flight"]
+    assert sw["matched"] == 0 and sw["missed"] == sw["logged"] == len(jumps)
+    # resets put the logged phase back, held until the next reset when no guard fires
+    ro, ph = predicted_rollout(never, ds, jumps, RolloutOptions(method="rk4", reset=0.1))
+    logged = model.phase_index(ds)
+    a, b = ds.jump_bounds()[jumps[0]]
+    every = round(0.1 / ds.dt)
+    np.testing.assert_array_equal(ph[0], np.repeat(logged[a:b:every], every)[:b - a])
+    save_model(model, tmp_path / "m.json")
+    write_dataset(ds, tmp_path / "d.h5")
+    r = CliRunner().invoke(app, ["evaluate", str(tmp_path / "m.json"), str(tmp_path / "d.h5"), "--out",
+                                 str(tmp_path / "ev"), "--integrator", "rk4", "--phases", "predicted"])
+    assert r.exit_code == 0, r.output
+    metrics = json.loads((tmp_path / "ev" / "metrics.json").read_text())
+    assert metrics["phases"] == "predicted" and set(metrics["switching"]) >= {"contact->flight"}
+    assert "Switching times" in (tmp_path / "ev" / "table.md").read_text()
+    one_line_error(CliRunner().invoke(app, ["evaluate", str(tmp_path / "m.json"), str(tmp_path / "d.h5"),
+                                            "--out", str(tmp_path / "e2"), "--phases", "predicted"]),
+                   "--integrator rk4")
+    d = model_to_dict(model)
+    d["guards"] = None
+    (tmp_path / "old.json").write_text(json.dumps(d))
+    one_line_error(CliRunner().invoke(app, ["evaluate", str(tmp_path / "old.json"), str(tmp_path / "d.h5"),
+                                            "--out", str(tmp_path / "e3"), "--integrator", "rk4",
+                                            "--phases", "predicted"]), "no contact guards")

@@ -257,13 +257,25 @@ class HybridModel:
                              lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated)
 
     # ------------------------------------------------------------ free prediction
+    def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
+                            foot_pos: np.ndarray | None = None) -> np.ndarray:
+        """u (N, 18) from q (N, 18), torques (N, 12) N m, contact flags (N, 4) and optional feet
+        (N, 4, 3) m world, for the model's robot: ``symrom.data.preprocess.input_from_torques``."""
+        from symrom.data.preprocess import input_from_torques
+
+        robot = self.info.get("robot")
+        if robot is None:
+            raise ModelDataError("the model records no robot (info.robot), whose legs map torques to u")
+        return input_from_torques(robot, q, tau, contact, foot_pos)
+
     def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None,
-                     n: int | None = None, phase0: str | None = None, options=None):
+                     n: int | None = None, phase0: str | None = None, options=None, dwell0: float = 0.0):
         """Roll out from a chosen state with one's own inputs; ``symrom.model.path.predict_path``
         (its docstring gives the arguments and shapes)."""
         from symrom.model.path import predict_path
 
-        return predict_path(self, q0, dq0, inputs, dt, phases=phases, n=n, phase0=phase0, options=options)
+        return predict_path(self, q0, dq0, inputs, dt, phases=phases, n=n, phase0=phase0, options=options,
+                            dwell0=dwell0)
 
     # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:

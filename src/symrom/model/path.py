@@ -105,14 +105,15 @@ def schedule_indices(model, phases, n: int) -> np.ndarray:
 
 
 def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Callable, dt: float,
-                 phases=None, n: int | None = None, phase0: str | None = None, options=None) -> PathPrediction:
+                 phases=None, n: int | None = None, phase0: str | None = None, options=None,
+                 dwell0: float = 0.0) -> PathPrediction:
     """Predict the path of ``model`` (a ``HybridModel``) from q0, dq0 (18,) (rad, m, /s).
 
     inputs: u (n, 18) (N m, N, N m), held over each sample, or a callable
     ``inputs(t, PathState) -> u (18,)`` (then ``n`` samples are predicted);
     dt: sample period, s; phases: a schedule (n,) of phase names or model phase
     indices, or None to let the guards decide, starting in ``phase0`` (default: the
-    model's first phase) entered at sample 0; options: ``RolloutOptions`` (method
+    model's first phase) entered ``dwell0`` s before sample 0; options: ``RolloutOptions`` (method
     ``rk4``; its substeps, bound and backend). Returns a ``PathPrediction``; a
     diverging path ends in NaN with its ``diverged_at``. ``NoGuardsError`` when the
     guards are asked of a model without them.
@@ -140,6 +141,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
             raise ValueError(f"phase0: {start!r} is not a trained phase of the model "
                              f"({', '.join(model.trained_phases())})")
         p0 = names.index(start)
+    k_enter0 = -int(round(dwell0 / dt))  # the sample at which phase0 was entered
     x0, v0 = ae.encode(q0[None])[0], ae.encode_derivative(dq0[None])[0]
     limit = options.bound * (model.latent_scale + 1e-3)
     if callable(inputs):
@@ -147,7 +149,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
             raise ValueError("n: the number of samples to predict is needed with an input callable")
         sched = None if phases is None else schedule_indices(model, phases, int(n))
         return _step_callable(model, x0, v0, inputs, dt, int(n), sched, None if phases is not None else p0,
-                              options, limit)
+                              options, limit, k_enter0)
     u = np.asarray(inputs, dtype=float)
     if u.ndim != 2 or u.shape[1] != N_Q or u.shape[0] < 1:
         raise ValueError(f"inputs: shape {u.shape}, expected (n, {N_Q}) with n >= 1")
@@ -170,7 +172,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
     else:
         ph = np.full(n, p0, dtype=np.int64)
         X, V = np.full((n, l), np.nan), np.full((n, l), np.nan)
-        k0, k_enter, search, x, v, div = 0, 0, 0, x0, v0, -1
+        k0, k_enter, search, x, v, div = 0, k_enter0, 0, x0, v0, -1
         while True:
             Xs, Vs, d = run(x, v, ph[k0:])
             X[k0:], V[k0:] = Xs, Vs
@@ -197,12 +199,12 @@ def _prediction(model, X, V, u, ph, dt, div) -> PathPrediction:
 
 
 def _step_callable(model, x, v, inputs: Callable, dt: float, n: int, sched: np.ndarray | None,
-                   p0: int | None, options, limit: np.ndarray) -> PathPrediction:
+                   p0: int | None, options, limit: np.ndarray, k_enter0: int = 0) -> PathPrediction:
     """Sample-by-sample RK4 (``substeps`` per sample) asking ``inputs`` for each sample's u."""
     ae, l, names = model.autoencoder, model.latent_dim, list(model.phase_names)
     X, V, U = np.full((n, l), np.nan), np.full((n, l), np.nan), np.full((n, N_Q), np.nan)
     ph = np.zeros(n, dtype=np.int64) if sched is None else sched.copy()
-    phase, k_enter, div = (p0 if sched is None else int(sched[0])), 0, -1
+    phase, k_enter, div = (p0 if sched is None else int(sched[0])), k_enter0, -1
     h = dt / options.substeps
 
     def acc(xs, vs, nu, p):
