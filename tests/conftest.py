@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import tempfile
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ from symrom.testing import make_planted_dataset
 # instance on the loopback interface (Ray's single-machine mode).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+# The generated code's disk cache of the test session, not the user's (symrom.model.codegen).
+os.environ.setdefault("SYMROM_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-tests-cache-"))
 
 
 @pytest.fixture(scope="session")
