@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import tempfile
 
 import numpy as np
@@ -16,7 +18,9 @@ from symrom.testing import make_planted_dataset
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 # The generated code's disk cache of the test session, not the user's (symrom.model.codegen).
-os.environ.setdefault("SYMROM_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-tests-cache-"))
+if "SYMROM_CACHE_DIR" not in os.environ:
+    os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")
+    atexit.register(shutil.rmtree, os.environ["SYMROM_CACHE_DIR"], True)
 
 
 @pytest.fixture(scope="session")

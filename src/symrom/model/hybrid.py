@@ -226,7 +226,7 @@ class HybridModel:
         phase = self.phase_index(ds)
         ae, bounds = self.autoencoder, ds.jump_bounds()
         x, v, nu, ph = [], [], [], []
-        for j in jumps:
+        for j in jumps:  # jump by jump: small products stay off BLAS's threads
             a, b = bounds[j]
             x.append(ae.encode(ds.q[a:b]))
             v.append(ae.encode_derivative(ds.dq[a:b]))

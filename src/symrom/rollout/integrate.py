@@ -123,8 +123,13 @@ def reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
 def pad_edge(arrays: list[np.ndarray]) -> np.ndarray:
     """Stack per-jump arrays (n_j, ...) into (J, n_max, ...), repeating each last sample."""
     n_max = max(a.shape[0] for a in arrays)
-    return np.stack([np.pad(a, ((0, n_max - a.shape[0]),) + ((0, 0),) * (a.ndim - 1), mode="edge")
-                     for a in arrays])
+    first = np.asarray(arrays[0])
+    out = np.empty((len(arrays), n_max) + first.shape[1:], dtype=np.result_type(*arrays))
+    for j, a in enumerate(arrays):
+        n = a.shape[0]
+        out[j, :n] = a
+        out[j, n:] = a[n - 1]
+    return out
 
 
 # Acceleration of a second-order system with the inputs of sample k held:
