@@ -19,7 +19,8 @@ Each process times, side by side, the whole ``rollout()`` call with ``auto``, ``
 and ``generated`` (medians of ``--runs``; the first call of each apart), and the
 integration alone (``integrate_system`` on the system set up once, as
 ``bench_rollout.py`` times it), each as samples per second (the 96,000 samples over
-the median wall time). Prints a Markdown table and writes JSON.
+the median wall time; for the integration also per CPU second of the process, which other
+jobs on the machine disturb least). Prints a Markdown table and writes JSON.
 
     python benchmarks/bench_auto.py --out benchmarks/results/auto.json
 """
@@ -66,14 +67,17 @@ def child(args: argparse.Namespace) -> dict:
         q = np.concatenate(ro.q_pred)
         ref = q if ref is None else ref
         med = statistics.median(runs)
-        sysm, integ = model.rollout_system(ds, np.arange(ds.n_jumps)), []
+        sysm, integ, cpu = model.rollout_system(ds, np.arange(ds.n_jumps)), [], []
         for _ in range(args.runs):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             integrate_system(sysm, RolloutOptions("rk4", backend=backend), ds.dt)
             integ.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
         out["paths"][name] = {"first_s": first, "median_s": med, "runs": runs, "samples_per_s": samples / med,
                               "integration_median_s": statistics.median(integ), "integration_runs": integ,
                               "integration_samples_per_s": samples / statistics.median(integ),
+                              "integration_cpu_median_s": statistics.median(cpu), "integration_cpu_runs": cpu,
+                              "integration_samples_per_cpu_s": samples / statistics.median(cpu),
                               "max_diff_vs_first_path": float(np.abs(q - ref).max()),
                               "diverged": int(ro.diverged.sum())}
     out["has_build_at_end"] = codegen.has_build(model)
@@ -110,13 +114,14 @@ def main() -> None:
                                                          "load_average": list(os.getloadavg())},
            "processes": procs, "wall_time_s": time.perf_counter() - t_start}
     print("| process | backend | first call | median `rollout()` | samples/s | median integration | "
-          "samples/s | max diff vs auto |")
-    print("|---|---|---|---|---|---|---|---|")
+          "samples/s | samples/CPU-s | max diff vs auto |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name, p in procs.items():
         for b, r in p["paths"].items():
             print(f"| {name} | {b} | {r['first_s'] * 1e3:.1f} ms | {r['median_s'] * 1e3:.1f} ms | "
                   f"{r['samples_per_s']:.3g} | {r['integration_median_s'] * 1e3:.1f} ms | "
-                  f"{r['integration_samples_per_s']:.3g} | {r['max_diff_vs_first_path']:.1e} |")
+                  f"{r['integration_samples_per_s']:.3g} | {r['integration_samples_per_cpu_s']:.3g} | "
+                  f"{r['max_diff_vs_first_path']:.1e} |")
     print(f"\nwall time {res['wall_time_s']:.0f} s")
     if args.out:
         args.out.write_text(json.dumps(res, indent=1) + "\n")
