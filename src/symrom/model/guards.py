@@ -116,8 +116,9 @@ class Guard:
     def text(self, latex: bool = False, digits: int = 3) -> str:
         """One line: the transition, its condition and dwell."""
         if latex:
-            return (rf"% guard {self.source} -> {self.target}: ${self.condition(True, digits)}$ "
-                    rf"after {self.min_dwell_s:.3g} s in {self.source}")
+            src, tgt = (n.replace("_", r"\_") for n in (self.source, self.target))
+            return (rf"\mathrm{{{src}}} \to \mathrm{{{tgt}}}:\ {self.condition(True, digits)} "
+                    rf"\quad (t_{{\mathrm{{{src}}}}} \geq {self.min_dwell_s:.3g}\,\mathrm{{s}})")
         return (f"{self.source} -> {self.target}: when {self.condition(False, digits)} "
                 f"(after {self.min_dwell_s:.3g} s in {self.source})")
 
