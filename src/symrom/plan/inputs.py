@@ -1,0 +1,47 @@
+"""From a planned ground force to a learned model's input, as the data define it.
+
+A model's input is nu = pinv(W_e^T) u with u = [tau, wrench] (``names.U_NAMES``),
+the wrench being derived from the joint torques through the massless-leg
+Jacobians (``data.preprocess.com_wrench``). A planned summed force F = (F_x,
+F_z) N is executed as per-foot forces F / 4 (``plan.execute`` adds only a
+moment-free redistribution) and joint torques tau = -J^T R^T f; ``u(F)`` is
+built from those torques exactly as a logged sample's u is, so nu = B F with
+
+    B (l, 2) = [nu(e_x), nu(e_z)]
+
+at the configuration the push starts from (u is linear in F at a fixed
+configuration). The leg Jacobians change during the push; the wrench part of u
+does not depend on them (it is F itself), only the torque part does, which a
+model whose latents read the base alone does not use.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from symrom.data.preprocess import com_wrench
+from symrom.model.hybrid import HybridModel
+from symrom.names import BASE_RPY, JOINTS, N_LEGS, N_Q
+from symrom.robots import leg_kinematics
+from symrom.robots.kinematics import rpy_to_matrix
+
+
+def stance_input(robot: str, q: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """u (18,) = [tau (12) N m, wrench (6)] of the summed world force F (3,) N shared equally by
+    the four feet at configuration q (18,): tau_k = -J_k^T R^T F / 4, the wrench from tau as the
+    data derive it."""
+    q = np.asarray(q, dtype=float).reshape(N_Q)
+    J = leg_kinematics(robot).jacobians(q[None, JOINTS])[0]  # (4, 3, 3), base frame
+    R = rpy_to_matrix(q[None, BASE_RPY])[0]
+    f_base = R.T @ (np.asarray(F, dtype=float) / N_LEGS)
+    tau = np.concatenate([-J[k].T @ f_base for k in range(N_LEGS)])
+    wrench = com_wrench(robot, q[None], tau[None], np.ones((1, N_LEGS)))[0]
+    return np.concatenate([tau, wrench])
+
+
+def force_input_map(model: HybridModel, robot: str, q: np.ndarray) -> np.ndarray:
+    """B (l, 2): the model's input nu = B (F_x, F_z) for a summed ground force at configuration
+    q (18,) (module docstring)."""
+    cols = [model.autoencoder.encode_input(stance_input(robot, q, e)[None])[0]
+            for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
+    return np.stack(cols, axis=1)
