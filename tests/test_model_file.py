@@ -14,7 +14,7 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     text = path.read_text()
-    assert "pickle" not in text and json.loads(text)["format_version"] == 3
+    assert "pickle" not in text and json.loads(text)["format_version"] == 4
     back = load_model(path)
     for a, b in [(model.autoencoder.W_e, back.autoencoder.W_e), (model.autoencoder.W_d, back.autoencoder.W_d),
                  (model.Xi, back.Xi), (model.mask, back.mask)]:

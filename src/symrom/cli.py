@@ -452,6 +452,7 @@ def evaluate_cmd(
     reset: Annotated[Optional[list[float]], typer.Option("--reset", help="Reset period(s) in s (repeatable).")] = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda (the paper's) or rk4 (batch).")] = "lsoda",
     plot_jump: Annotated[Optional[list[int]], typer.Option("--plot-jump", help="K-th jump of the evaluated split to plot, from 0 (repeatable; default 0).")] = None,
+    phases: Annotated[str, typer.Option("--phases", help="logged (the data's phase sequence) or predicted (the model's contact guards; rk4; adds the switching-time errors).")] = "logged",
     force: Force = False,
 ) -> None:
     """Roll the model out on a split (full horizon and periodic resets); write metrics, table, plots."""
@@ -465,8 +466,15 @@ def evaluate_cmd(
 
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator(split, integrator)
+    if phases not in ("logged", "predicted"):
+        raise ValueError(f"--phases must be logged or predicted, got {phases!r}")
+    if phases == "predicted" and integrator != "rk4":
+        raise ValueError("--phases predicted rolls out with rk4: add --integrator rk4")
     resets = _parse_resets(reset)
     model = load_model(model_path)
+    if phases == "predicted" and model.guards is None:
+        raise ValueError(f"{model_path}: this model has no contact guards (model file format "
+                         "3 or older): train it again with this symrom, or use --phases logged")
     ds = read_dataset(data)
     if ds.jumps_in(split).size == 0:
         raise ValueError(f"{data} has no {split!r} jumps")
@@ -483,10 +491,15 @@ def evaluate_cmd(
         tick = _ticker(bar, task)
 
         metrics, rollouts = evaluate(model, ds, split, resets, RolloutOptions(method=integrator),
-                                     model_name=str(model_path), data_name=str(data), progress=tick)
+                                     model_name=str(model_path), data_name=str(data), progress=tick,
+                                     phases=phases)
     with atomic_dir(out, force) as tmp:
         written = write_evaluation(tmp, metrics, rollouts, ds, plots, title=f"{ds.robot} {ds.motion} ({split})")
     typer.echo(table2(metrics))
+    if phases == "predicted":
+        from symrom.evaluate.switching import switching_table
+
+        typer.echo("switching times, predicted phases (full horizon):\n" + switching_table(metrics["switching"]))
     _divergence_warnings(metrics)
     out_console.print(f"metrics: {out / 'metrics.json'}", highlight=False, soft_wrap=True)
     for k, (j, p) in enumerate(zip(plots, written[2:])):

@@ -92,6 +92,16 @@ def com_wrench(robot: str, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
     return np.concatenate([F.sum(axis=1), np.cross(lever, F).sum(axis=1)], axis=1)
 
 
+def input_from_torques(robot: str, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
+                       foot_pos: np.ndarray | None = None) -> np.ndarray:
+    """The input map: u (N, 18) = [tau, CoM wrench] from q (N, 18), joint torques tau (N, 12)
+    N m, contact flags (N, 4) and, if known, the feet (N, 4, 3) m world (else from the
+    kinematics). The one definition of a model's input ``u``: datasets are built with it, and
+    the exports carry it (``symrom.model.export``)."""
+    q, tau = np.atleast_2d(np.asarray(q, dtype=float)), np.atleast_2d(np.asarray(tau, dtype=float))
+    return np.concatenate([tau, com_wrench(robot, q, tau, np.atleast_2d(contact), foot_pos)], axis=1)
+
+
 def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.ndarray,
              q: np.ndarray, dq: np.ndarray, tau: np.ndarray, contact: np.ndarray,
              ddq: np.ndarray | None = None, foot_pos: np.ndarray | None = None,
@@ -115,11 +125,10 @@ def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.nd
     n_jumps = int(jump.max()) + 1 if jump.size else 0
     if split is None:
         split = np.array(["train"] * n_jumps, dtype=object)
-    wrench = com_wrench(robot, q, tau, contact, foot_pos)
     ds = Dataset(robot=robot, motion=motion, source=source, phase_names=phase_names,
                  jump=jump, t=np.asarray(t, float), q=np.asarray(q, float),
                  dq=np.asarray(dq, float), ddq=np.asarray(ddq, float), tau=np.asarray(tau, float),
-                 contact=contact, u=np.concatenate([tau, wrench], axis=1), phase=phase,
+                 contact=contact, u=input_from_torques(robot, q, tau, contact, foot_pos), phase=phase,
                  split=np.asarray(split, dtype=object), foot_pos=foot_pos, dt=float(dt),
                  generator=generator, contact_force=contact_force)
     validate(ds)

@@ -166,12 +166,27 @@ def horizon_metrics(ds: Dataset, ro: Rollout, limits: DriftLimits | None = None)
 
 def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
              options: RolloutOptions = RolloutOptions(), model_name: str = "", data_name: str = "",
-             progress: Callable[[int, int], None] | None = None) -> tuple[dict, dict[str, Rollout]]:
+             progress: Callable[[int, int], None] | None = None,
+             phases: str = "logged") -> tuple[dict, dict[str, Rollout]]:
     """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts.
 
     ``progress(done, total)`` counts rolled-out jumps over all horizons (total: jumps x
-    horizons), whichever integrator reports them.
+    horizons), whichever integrator reports them. ``phases``: ``logged`` (the logged phase
+    sequence) or ``predicted`` (the learned model's guards, ``symrom.evaluate.switching``,
+    rk4 only; the metrics then hold ``switching``: the switching-time errors per transition
+    over the full horizon).
     """
+    from symrom.evaluate.switching import PHASE_SOURCES, predicted_rollout, switching_errors
+
+    if phases not in PHASE_SOURCES:
+        raise ValueError(f"phases must be one of {PHASE_SOURCES}, got {phases!r}")
+    if phases == "predicted":
+        if getattr(model, "guards", None) is None:
+            raise ValueError("predicted phases need a model with contact guards (model file format 4, "
+                             "trained with this symrom); this model has none")
+        if options.method != "rk4":
+            raise ValueError(f"predicted phases are rolled out with rk4, not {options.method!r} "
+                             "(--integrator rk4)")
     jumps = ds.jumps_in(split)
     if jumps.size == 0:
         raise ValueError(f"the dataset has no {split!r} jumps")
@@ -182,10 +197,20 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
         key = horizon_key(reset)
         tick = None if progress is None else (
             lambda i, n, before=h * int(jumps.size): progress(before + i, total))
-        ro = rollout(model, ds, jumps, replace(options, reset=reset), tick)
+        if phases == "predicted":
+            ro, predicted = predicted_rollout(model, ds, jumps, replace(options, reset=reset), tick)
+            if reset is None:
+                switching = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
+        else:
+            ro = rollout(model, ds, jumps, replace(options, reset=reset), tick)
         rollouts[key] = ro
         horizons[key] = horizon_metrics(ds, ro, limits)
     metrics = {"format_version": METRICS_VERSION, "model": model_name, "data": data_name, "split": split,
                "n_jumps": int(jumps.size), "integrator": options.method, "drift_limits": limits.to_dict(),
-               "horizons": horizons}
+               "phases": phases, "horizons": horizons}
+    if phases == "predicted":
+        if None not in resets:
+            ro, predicted = predicted_rollout(model, ds, jumps, replace(options, reset=None))
+            switching = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
+        metrics["switching"] = switching
     return metrics, rollouts

@@ -43,6 +43,10 @@ def write_metrics(folder: str | Path, metrics: dict, title: str = "",
     existing directory ``folder``; the paths written."""
     folder = Path(folder)
     table = table2(metrics, components=components, title=title)
+    if metrics.get("switching") is not None:
+        from symrom.evaluate.switching import switching_table
+
+        table += "\nSwitching times, predicted phases (full horizon):\n\n" + switching_table(metrics["switching"])
     write_text_atomic(folder / "table.md", table)
     return [write_json(folder / "metrics.json", metrics), folder / "table.md"]
 

@@ -43,6 +43,7 @@ from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor
 from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.guards import Guard, fit_guards
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
 from symrom.names import Q_NAMES
@@ -94,6 +95,18 @@ def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder,
             out.append(Trajectory(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]),
                                   ae.encode_input(ds.u[r]), phase[r].astype(int)))
     return out
+
+
+def learn_guards(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder) -> list[Guard]:
+    """The contact guards (``symrom.model.guards``) of the phases of ``ds``, fitted on the jumps of
+    ``rows`` (N,) bool and chosen on those of ``val_rows``, in the latent coordinates of ``ae``."""
+    idx = np.flatnonzero(rows | val_rows)
+    Z = np.c_[ae.encode(ds.q[idx]), ae.encode_derivative(ds.dq[idx]), ae.encode_input(ds.u[idx])]
+    bounds = jump_bounds(ds.jump[idx])
+    is_train = rows[idx[bounds[:, 0]]]
+    trained = [n for k, n in enumerate(ds.phase_names) if (rows & (ds.phase == k)).any()]
+    return fit_guards(Z, np.asarray(ds.phase[idx], dtype=int), bounds[is_train], bounds[~is_train],
+                      list(ds.phase_names), ds.dt, trained)
 
 
 def _median_stay(ds: Dataset, rows: np.ndarray, k: int) -> float | None:
@@ -187,7 +200,9 @@ class SymbolicROM:
                   "encoder_rows": (f"the {self.contact_phase!r} phase" if has_contact
                                    else f"all training rows (they hold no {self.contact_phase!r} row)"),
                   "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist()}
-        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record,
+        say("contact guards", 0.8)
+        guards = learn_guards(ds, rows, val_rows, ae)
+        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record, "guards": guards,
                 "phase_names": list(ds.phase_names),
                 "scale": np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)}
 
@@ -211,7 +226,8 @@ class SymbolicROM:
                   "untrained_phases": [n for n, p in phase_info.items() if not p.trained], **(info or {})}
         say("done", 1.0)
         return HybridModel(prep["ae"], prep["lib"], list(prep["phase_names"]), coefs.Xi, coefs.mask,
-                           prep["scale"].copy(), record, phase_info, self.to_dict(regressor))
+                           prep["scale"].copy(), record, phase_info, self.to_dict(regressor),
+                           [replace(g) for g in prep["guards"]])
 
     # ------------------------------------------------------------------ configuration
     def to_dict(self, regressor: Regressor | None = None) -> dict:
@@ -246,6 +262,10 @@ class SymbolicROM:
 
     def equations(self, latex: bool = False, digits: int = 3) -> str:
         return self.model.equations_text(latex=latex, digits=digits)
+
+    def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None, **kwargs):
+        """Free prediction from (q0, dq0) with one's own inputs: ``HybridModel.predict_path``."""
+        return self.model.predict_path(q0, dq0, inputs, dt, phases=phases, **kwargs)
 
     def stability(self) -> list[PhaseStability]:
         return self.model.stability()

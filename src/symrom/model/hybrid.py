@@ -23,6 +23,7 @@ from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
 from symrom.model.expressions import latent_expressions
+from symrom.model.guards import Guard
 from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
@@ -106,7 +107,9 @@ class HybridModel:
     data hash; phase_info: per phase name, what training saw of it; estimator: the
     configuration of the learner that fitted it (its plug-ins, ``{"encoder": {"kind":
     ...}, "regressor": {"kind": ...}, "decoded_weight", "contact_phase",
-    "path_thresholds"}``), JSON-ready: kept here, read by ``symrom.learn``."""
+    "path_thresholds"}``), JSON-ready: kept here, read by ``symrom.learn``; guards: the
+    learned contact switches (``symrom.model.guards``), None for a model fitted without
+    them (files of format 3 and older)."""
 
     autoencoder: LinearAutoencoder
     library: Library
@@ -117,6 +120,7 @@ class HybridModel:
     info: dict[str, Any] = field(default_factory=dict)
     phase_info: dict[str, PhaseInfo] = field(default_factory=dict)
     estimator: dict[str, Any] = field(default_factory=dict)
+    guards: list[Guard] | None = None
 
     components: ClassVar[tuple[str, ...]] = Q_NAMES
 
@@ -131,6 +135,12 @@ class HybridModel:
             raise ValueError(f"latent_scale: shape {np.shape(self.latent_scale)}, expected {(2 * l,)}")
         if len(set(self.phase_names)) != P:
             raise ValueError(f"phase names repeat: {self.phase_names}")
+        for g in self.guards or []:
+            for name in (g.source, g.target):
+                if name not in self.phase_names:
+                    raise ValueError(f"guard {g.source}->{g.target}: phase {name!r} is not one of "
+                                     f"{self.phase_names}")
+            g.indices(l)
 
     @property
     def latent_dim(self) -> int:
@@ -222,7 +232,14 @@ class HybridModel:
             v.append(ae.encode_derivative(ds.dq[a:b]))
             nu.append(ae.encode_input(ds.u[a:b]))
             ph.append(phase[a:b])
-        lib, Xi = self.library, self.Xi
+        scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
+        return self.latent_system(x, v, nu, ph, scale)
+
+    def latent_system(self, x: list[np.ndarray], v: list[np.ndarray], nu: list[np.ndarray],
+                      ph: list[np.ndarray], scale: np.ndarray) -> RolloutSystem:
+        """The latent ``RolloutSystem`` of given paths: per path, start/reset states x, v
+        (n, l), held inputs nu (n, l) and model phase indices (n,); scale (J, 2l)."""
+        lib, Xi, ae = self.library, self.Xi, self.autoencoder
 
         def c_params(drive: dict[str, np.ndarray]) -> np.ndarray:
             """(n, 1 + l): the C right-hand side's data per sample, [phase index, nu]."""
@@ -236,9 +253,29 @@ class HybridModel:
                                  rhs_args=lambda drive, k: (int(drive["phase"][k]), drive["nu"][k]),
                                  c_rhs=lambda: generated_c_rhs(self), c_params=c_params)
 
-        scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
                              lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated)
+
+    # ------------------------------------------------------------ free prediction
+    def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
+                            foot_pos: np.ndarray | None = None) -> np.ndarray:
+        """u (N, 18) from q (N, 18), torques (N, 12) N m, contact flags (N, 4) and optional feet
+        (N, 4, 3) m world, for the model's robot: ``symrom.data.preprocess.input_from_torques``."""
+        from symrom.data.preprocess import input_from_torques
+
+        robot = self.info.get("robot")
+        if robot is None:
+            raise ModelDataError("the model records no robot (info.robot), whose legs map torques to u")
+        return input_from_torques(robot, q, tau, contact, foot_pos)
+
+    def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None,
+                     n: int | None = None, phase0: str | None = None, options=None, dwell0: float = 0.0):
+        """Roll out from a chosen state with one's own inputs; ``symrom.model.path.predict_path``
+        (its docstring gives the arguments and shapes)."""
+        from symrom.model.path import predict_path
+
+        return predict_path(self, q0, dq0, inputs, dt, phases=phases, n=n, phase0=phase0, options=options,
+                            dwell0=dwell0)
 
     # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:
@@ -287,6 +324,9 @@ class HybridModel:
                     lines.append(rf"\ddot{{\xi}}_{{{j}}} = {sympy.latex(e, symbol_names=names)}")
                 else:
                     lines.append(f"ddxi{j} = {sympy.sstr(e)}")
+        if self.guards:
+            lines.append("% contact switches (guards):" if latex else "contact switches (guards):")
+            lines += [g.text(latex, digits) for g in self.guards]
         lines.append("% latents, by their largest encoder loadings (per rad or m):" if latex
                      else "latents, by their largest encoder loadings (per rad or m):")
         lines += self.latent_legend(latex)

@@ -1,5 +1,9 @@
 """The model file: versioned JSON, human-readable, no pickle (``docs/design.md``).
 
+format_version 4 adds ``guards``: the learned contact switches
+(``symrom.model.guards``), one record per transition; a model fitted without
+them writes null. Files of format 3, 2 and 1 are still read, without guards.
+
 format_version 3 adds ``estimator``: the configuration of the learner that
 fitted the model, each plug-in a ``{"kind": ...}`` record (the encoder and
 regressor settings that format 2 kept in ``info``). Files of format 2 and 1
@@ -22,11 +26,12 @@ import numpy as np
 
 from symrom.atomic import write_text_atomic
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.guards import Guard
 from symrom.model.hybrid import HybridModel, PhaseInfo
 from symrom.model.library import Library
 
-FORMAT_VERSION = 3
-READABLE_VERSIONS = (1, 2, 3)
+FORMAT_VERSION = 4
+READABLE_VERSIONS = (1, 2, 3, 4)
 # what format 2 kept in ``info`` and format 3 keeps in ``estimator``
 LEGACY_ESTIMATOR_KEYS = ("encoder", "regressor", "decoded_weight")
 
@@ -52,6 +57,7 @@ def model_to_dict(model: HybridModel) -> dict:
                    for k, name in enumerate(model.phase_names)},
         "phase_names": list(model.phase_names),
         "estimator": model.estimator,
+        "guards": None if model.guards is None else [g.to_dict() for g in model.guards],
         "info": model.info,
     }
 
@@ -157,6 +163,17 @@ def model_from_dict(d: dict) -> HybridModel:
         for key, name in (("contact_phase", "contact_phase"), ("path_thresholds", "path")):
             if name in training:
                 estimator[key] = training[name]
+    guards = None
+    if d["format_version"] >= 4:
+        if "guards" not in d:
+            raise ModelFileError("guards: missing (format 4 records the contact guards, or null)")
+        if d["guards"] is not None:
+            if not isinstance(d["guards"], list):
+                raise ModelFileError(f"guards: expected a list, got {type(d['guards']).__name__}")
+            try:
+                guards = [Guard.from_dict(g, f"guards[{i}]") for i, g in enumerate(d["guards"])]
+            except (ValueError, AttributeError) as e:
+                raise ModelFileError(str(e)) from None
     for n in names:
         if n not in phases:
             raise ModelFileError(f"phases.{n}: missing")
@@ -166,7 +183,7 @@ def model_from_dict(d: dict) -> HybridModel:
             info[n] = _phase_info(phases[n], f"phases.{n}", l)
     try:
         return HybridModel(ae, lib, names, np.array(Xi), np.array(mask),
-                           _array(d, "latent_scale", "model", (2 * l,)), record, info, dict(estimator))
+                           _array(d, "latent_scale", "model", (2 * l,)), record, info, dict(estimator), guards)
     except ValueError as e:
         raise ModelFileError(f"model: {e}") from None
 

@@ -1,0 +1,114 @@
+"""Learned contact switching: a planted switching rule is recovered; guards round-trip and print."""
+
+import json
+
+import numpy as np
+import pytest
+
+from symrom.learn.training import TrainConfig, train
+from symrom.model.guards import Guard, feature_names, fit_guards, first_switch, switch
+from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
+
+DT = 0.002
+
+
+def _planted_hops(n_jumps: int, seed: int):
+    """Hops of a 1-latent ball (l = 1): z = [xi, dxi, nu]. Contact -> flight once the height
+    reaches 0.30 m rising (after 20 ms in contact); flight -> contact when it falls to 0.25 m."""
+    rng = np.random.default_rng(seed)
+    Z, phase, bounds, start = [], [], [], 0
+    for _ in range(n_jumps):
+        push = rng.uniform(14.0, 20.0)
+        x, v, p, k_in, rows = 0.2, 0.0, 0, 0, []
+        for k in range(400):
+            nu = push if p == 0 else 0.0
+            if p == 0 and k_in * DT >= 0.02 and x >= 0.30:
+                p, k_in = 1, 0
+            elif p == 1 and x <= 0.25:
+                p, k_in = 0, 0
+            nu = push if p == 0 else 0.0
+            rows.append((x, v, nu, p))
+            a = nu - 9.81 - (8.0 * v if p == 0 else 0.0)
+            x, v, k_in = x + DT * v, v + DT * a, k_in + 1
+        rows = np.array(rows)
+        Z.append(rows[:, :3])
+        phase.append(rows[:, 3].astype(int))
+        bounds.append((start, start + len(rows)))
+        start += len(rows)
+    return np.concatenate(Z), np.concatenate(phase), np.array(bounds)
+
+
+def test_a_planted_switching_rule_is_recovered():
+    Z, phase, bounds = _planted_hops(12, seed=0)
+    assert len(np.unique(phase)) == 2 and (np.diff(phase) != 0).sum() >= 12
+    guards = {(g.source, g.target): g for g in fit_guards(Z, phase, bounds[:8], bounds[8:],
+                                                          ["contact", "flight"], DT)}
+    lift, touch = guards[("contact", "flight")], guards[("flight", "contact")]
+    assert lift.terms == ["xi1"] and touch.terms == ["xi1"]
+    assert lift.weights[0] > 0 and abs(-lift.bias / lift.weights[0] - 0.30) < 0.01
+    assert touch.weights[0] < 0 and abs(-touch.bias / touch.weights[0] - 0.25) < 0.01
+    # timing on the validation jumps within a sample or two
+    assert lift.report["val_loss_s"] <= 2 * DT and touch.report["val_loss_s"] <= 2 * DT
+    assert "xi1 >= 0.3" in lift.text() and r"\xi_{1} \geq" in lift.text(latex=True)
+
+
+def test_inputs_are_left_out_unless_asked():
+    Z, phase, bounds = _planted_hops(8, seed=1)
+    for g in fit_guards(Z, phase, bounds[:6], bounds[6:], ["contact", "flight"], DT):
+        assert all(not t.startswith("nu") for t in g.terms)
+
+
+def test_switching_respects_the_dwell_and_picks_the_largest_guard():
+    names = ["contact", "partial", "flight"]
+    a = Guard("contact", "partial", ["xi1"], [1.0], -1.0, min_dwell_s=0.01)
+    b = Guard("contact", "flight", ["dxi1"], [1.0], -1.0, min_dwell_s=0.0)
+    z = np.array([3.0, 2.0, 0.0])  # a: g = 2, b: g = 1
+    assert switch([a, b], names, 0, 4, DT, z) == 2  # a still dwelling
+    assert switch([a, b], names, 0, 5, DT, z) == 1  # both fire: the larger g
+    Z = np.array([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    assert first_switch([a], names, 0, -10, DT, Z, 0) == (2, 1)
+    assert first_switch([a], names, 0, 0, DT, Z, 0) is None  # dwell not over by sample 2
+    with pytest.raises(ValueError, match="term 'nu3'"):
+        Guard("contact", "flight", ["nu3"], [1.0], 0.0, 0.0).value(np.zeros(3))
+    assert feature_names(2) == ["xi1", "xi2", "dxi1", "dxi2", "nu1", "nu2"]
+
+
+@pytest.fixture(scope="module")
+def model(planted_block):
+    ds, _ = planted_block
+    return train(ds, TrainConfig(latent_dim=2))
+
+
+def test_fit_learns_guards_that_round_trip_and_print(model, tmp_path):
+    assert {(g.source, g.target) for g in model.guards} == {("contact", "flight"), ("flight", "contact")}
+    path = tmp_path / "model.json"
+    save_model(model, path)
+    d = json.loads(path.read_text())
+    assert d["format_version"] == 4 and len(d["guards"]) == 2
+    back = load_model(path)
+    for g, h in zip(model.guards, back.guards):
+        assert (g.source, g.target, g.terms, g.bias, g.min_dwell_s) == (h.source, h.target, h.terms, h.bias,
+                                                                         h.min_dwell_s)
+        np.testing.assert_array_equal(g.weights, h.weights)
+    text = back.equations_text()
+    assert "contact switches (guards):" in text and "contact -> flight: when" in text
+    assert "% guard contact -> flight:" in back.equations_text(latex=True)
+
+
+def test_older_files_load_without_guards_and_bad_guards_are_named(model, tmp_path):
+    d = model_to_dict(model)
+    d["format_version"] = 3
+    del d["guards"]
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(d))
+    assert load_model(path).guards is None
+    d = model_to_dict(model)
+    d["guards"][1]["terms"] = ["speed"]
+    path.write_text(json.dumps(d))
+    with pytest.raises(ModelFileError, match="term 'speed'"):
+        load_model(path)
+    d = model_to_dict(model)
+    del d["guards"][0]["bias"]
+    path.write_text(json.dumps(d))
+    with pytest.raises(ModelFileError, match=r"guards\[0\]: 'bias'"):
+        load_model(path)
