@@ -85,6 +85,29 @@ def test_learned_nlp_lands_a_planted_model_on_its_target(target):
     assert x2 - 0.5 == pytest.approx(target, abs=2e-3) and apex2 == pytest.approx(0.47, abs=2e-3)
 
 
+def test_learned_guards_set_lift_off_and_touchdown():
+    """The model's own switches: lift-off when xi2 >= 0.32, touchdown when xi2 <= 0.35."""
+    from dataclasses import replace
+
+    from symrom.model.guards import Guard
+    from symrom.plan.guards import LearnedGuards
+
+    model = replace(PLANTED, guards=[Guard("contact", "flight", ["xi2"], np.array([1.0]), -0.32, 0.1),
+                                     Guard("flight", "contact", ["xi2"], np.array([-1.0]), 0.35, 0.1)])
+    dyn = LearnedDynamics(model, np.eye(2))
+    nlp = JumpPlanner(dyn, mass=13.0, guards=LearnedGuards.of(model))
+    q0 = np.zeros(18)
+    q0[Z] = 0.21
+    plan = nlp.solve(dyn.initial_state(q0, np.zeros(18)), 0.3, z_liftoff=0.33, min_apex=0.43)
+    assert plan.success, plan.status
+    n = len(plan.forces)
+    assert plan.nodes[n, 1] == pytest.approx(0.32, abs=1e-6)  # lift-off node
+    assert plan.nodes[-1, 1] == pytest.approx(0.35, abs=1e-6)  # touchdown node
+    assert plan.landing_x == pytest.approx(0.3, abs=1e-5)
+    with pytest.raises(ValueError, match="no learned"):
+        LearnedGuards.of(PLANTED)
+
+
 def test_point_mass_plan_matches_the_closed_form():
     m = 13.1
     nlp = JumpPlanner(PointMass(m), mass=m)

@@ -896,6 +896,8 @@ def jump_cmd(
     target_x: Annotated[float, typer.Option("--target-x", help="Forward landing distance from the start of the push, m.")] = 0.3,
     target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the pronk's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
+    guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown at the take-off height) "
+                                        "or learned (the model's own contact switches; learned planner).")] = "height",
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     out: Annotated[Path, typer.Option("--out", help="Output directory (landing.json, trajectory.json).")] = Path("jump"),
     trajectory: Annotated[bool, typer.Option("--trajectory/--no-trajectory", help="Also write trajectory.json.")] = True,
@@ -903,13 +905,15 @@ def jump_cmd(
 ) -> None:
     """Plan a pronk to a target with a model (CasADi/IPOPT) and execute it in simulation."""
     from symrom.atomic import check_output_file
-    from symrom.plan.jump import PLANNERS, jump, make_planner, read_aslip_params, write_landing
+    from symrom.plan.jump import GUARDS, PLANNERS, jump, make_planner, read_aslip_params, write_landing
     from symrom.sim.engine import ENGINES
 
     if planner not in PLANNERS:
         raise ValueError(f"--planner must be one of {', '.join(PLANNERS)}, got {planner!r}")
     if engine not in ENGINES:
         raise ValueError(f"--engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if guards not in GUARDS or (guards == "learned" and planner != "learned"):
+        raise ValueError(f"--guards must be height or (with --planner learned) learned, got {guards!r}")
     if planner != "point-mass" and model_path is None:
         raise ValueError(f"the {planner} planner needs its model: "
                          + ("model.json" if planner == "learned" else "an aSLIP params.json (symrom aslip)"))
@@ -922,7 +926,7 @@ def jump_cmd(
     elif planner == "aslip":
         aslip = read_aslip_params(model_path)
     with console.status(f"building the {planner} planner"):
-        built = make_planner(planner, robot, model=model, aslip=aslip)
+        built = make_planner(planner, robot, model=model, aslip=aslip, guards=guards)
     with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
         result = jump(built, target_x, target_z, engine=engine)
     write_landing(out, result, trajectory=trajectory, force=force)

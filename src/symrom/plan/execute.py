@@ -70,8 +70,9 @@ def distribute(F: np.ndarray, M: np.ndarray, r: np.ndarray) -> np.ndarray:
 class PlannedPronk(PronkController):
     """The pronk with a planned push (module docstring); ``plan_fn(state) -> Plan`` is called once,
     when the push is due. After the jump: ``result`` (the ``Plan``), ``push_start`` (t s and base
-    position (3,) m when the push began), ``touchdown`` (t s and base position at the first
-    touchdown) or None."""
+    position (3,) m when the push began), ``liftoff`` (base position (3,) m and velocity (3,) m/s
+    when the planned push ended), ``touchdown`` (t s and base position at the first touchdown);
+    each None until it happened."""
 
     def __init__(self, robot: str, params: PronkParams, plan_fn: Callable[[RobotState], Plan],
                  attitude: AttitudeGains | None = None):
@@ -85,6 +86,7 @@ class PlannedPronk(PronkController):
         self.result: Plan | None = None
         self.push_start: tuple[float, np.ndarray] | None = None
         self.touchdown: tuple[float, np.ndarray] | None = None
+        self.liftoff: tuple[np.ndarray, np.ndarray] | None = None
         self._tau_g0 = np.zeros(N_JOINTS)
 
     def _start_push(self, state: RobotState) -> None:
@@ -101,6 +103,8 @@ class PlannedPronk(PronkController):
             self._start_push(state)
         was_flight = self.phase == "flight"
         if self.phase != "push" or state.t >= self.plan.t_push + self.plan.push_time:
+            if self.phase == "push" and self.liftoff is None:  # the push ends at this tick
+                self.liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
             tau = super().torque(state)
             if was_flight and self.phase == "land" and self.touchdown is None:
                 self.touchdown = (state.t, state.q[BASE_POS].copy())
@@ -135,6 +139,7 @@ class PlannedPronk(PronkController):
 class Execution:
     """An executed jump: landing_x m (module docstring), apex_z m, rest_x m (base x at the end,
     from the push start), t_push / t_touchdown s, finished (settled before max_time), the plan,
+    liftoff (4,): the base's x (from the push start), z (m), vx, vz (m/s) when the push ended,
     and the trajectory at log_hz: t (n,) s, base (n, 6) x, y, z, roll, pitch, yaw, contact (n, 4),
     phase (n,) names."""
 
@@ -145,6 +150,7 @@ class Execution:
     t_touchdown: float
     finished: bool
     plan: Plan
+    liftoff: np.ndarray
     trajectory: dict = field(default_factory=dict)
 
 
@@ -190,9 +196,14 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
     apex = float(base[air, 2].max()) if air.any() else float(p_td[2])
     return Execution(landing_x=float((p_td - p0) @ e), apex_z=apex,
                      rest_x=float((end.q[BASE_POS] - p0) @ e), t_push=float(t0), t_touchdown=float(t_td),
-                     finished=finished, plan=ctrl.result,
+                     finished=finished, plan=ctrl.result, liftoff=_liftoff(ctrl, p0, e),
                      trajectory={"t": t, "base": base, "contact": np.asarray(log["contact"], int),
                                  "phase": log["phase"]})
+
+
+def _liftoff(ctrl: PlannedPronk, p0: np.ndarray, e: np.ndarray) -> np.ndarray:
+    p, v = ctrl.liftoff
+    return np.array([(p - p0) @ e, p[2], v @ e, v[2]])
 
 
 __all__ = ["AttitudeGains", "Execution", "ExecutionError", "PlannedPronk", "distribute", "execute"]

@@ -1,11 +1,12 @@
 """From a planned ground force to a learned model's input, as the data define it.
 
 A model's input is nu = pinv(W_e^T) u with u = [tau, wrench] (``names.U_NAMES``),
-the wrench being derived from the joint torques through the massless-leg
-Jacobians (``data.preprocess.com_wrench``). A planned summed force F = (F_x,
-F_z) N is executed as per-foot forces F / 4 (``plan.execute`` adds only a
-moment-free redistribution) and joint torques tau = -J^T R^T f; ``u(F)`` is
-built from those torques exactly as a logged sample's u is, so nu = B F with
+the wrench derived from the joint torques through the massless-leg Jacobians
+(``data.preprocess.input_from_torques``, the one definition of u). A planned
+summed force F = (F_x, F_z) N is executed as per-foot forces (F / 4 when the
+trunk is level; ``plan.execute`` adds only a moment-free redistribution) and
+joint torques tau = -J^T R^T f; ``u(F)`` is built from those torques by the
+same map as a logged sample's u, so nu = B F with
 
     B (l, 2) = [nu(e_x), nu(e_z)]
 
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from symrom.data.preprocess import com_wrench
+from symrom.data.preprocess import input_from_torques
 from symrom.model.hybrid import HybridModel
 from symrom.names import BASE_RPY, JOINTS, N_LEGS, N_Q
 from symrom.robots import leg_kinematics
@@ -35,8 +36,7 @@ def stance_input(robot: str, q: np.ndarray, F: np.ndarray) -> np.ndarray:
     R = rpy_to_matrix(q[None, BASE_RPY])[0]
     f_base = R.T @ (np.asarray(F, dtype=float) / N_LEGS)
     tau = np.concatenate([-J[k].T @ f_base for k in range(N_LEGS)])
-    wrench = com_wrench(robot, q[None], tau[None], np.ones((1, N_LEGS)))[0]
-    return np.concatenate([tau, wrench])
+    return input_from_torques(robot, q[None], tau[None], np.ones((1, N_LEGS)))[0]
 
 
 def force_input_map(model: HybridModel, robot: str, q: np.ndarray) -> np.ndarray:

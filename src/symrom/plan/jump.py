@@ -25,6 +25,7 @@ from symrom.model.hybrid import HybridModel
 from symrom.names import BASE_POS, JOINTS
 from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PointMass
 from symrom.plan.execute import Execution, execute
+from symrom.plan.guards import HeightGuards, LearnedGuards
 from symrom.plan.inputs import force_input_map
 from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError
 from symrom.robots import get_robot, leg_kinematics, robot_key
@@ -33,16 +34,18 @@ from symrom.sim.pronk import PronkParams, scales
 from symrom.sim.world import RobotState
 
 PLANNERS = ("learned", "point-mass", "aslip")
+GUARDS = ("height", "learned")
 LANDING_FORMAT = 1
 
 
 @dataclass
 class RobotPlanner:
-    """A built planner for ``robot``: kind (``PLANNERS``), the NLP, and the motion's heights: the
+    """A built planner for ``robot``: kind (``PLANNERS``), its guards (``GUARDS``), the NLP, and the motion's heights: the
     crouch (m), lift-off (the pronk's take-off height, m) and nominal apex (m)."""
 
     kind: str
     robot: str
+    guards: str
     nlp: JumpPlanner
     crouch_height: float
     liftoff_height: float
@@ -73,11 +76,16 @@ def pronk_params(robot: str) -> PronkParams:
 
 
 def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip: ASlipParams | None = None,
-                 config: PlanConfig | None = None) -> RobotPlanner:
+                 config: PlanConfig | None = None, guards: str = "height") -> RobotPlanner:
     """Build the NLP of planner ``kind`` for ``robot`` once; ``model`` for ``learned``,
-    ``aslip`` for ``aslip``."""
+    ``aslip`` for ``aslip``; ``guards`` (``GUARDS``): ``height`` (``HeightGuards``) or, for the
+    learned planner, ``learned`` (the model's own switches, ``LearnedGuards``)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
+    if guards not in GUARDS:
+        raise ValueError(f"unknown guards {guards!r}; choose from {', '.join(GUARDS)}")
+    if guards == "learned" and kind != "learned":
+        raise ValueError(f"learned guards belong to a learned model; the {kind} planner uses height guards")
     desc, params = get_robot(robot), pronk_params(robot)
     mass = desc.mass
     q_crouch = start_pose(robot, params.crouch_height)
@@ -97,7 +105,8 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         pivot = feet.mean(axis=0)
         dyn = ASlipDynamics(aslip.m, params=aslip, pivot=(float(pivot[0]), float(pivot[2] + q_crouch[BASE_POS][2])))
     cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
-    return RobotPlanner(kind, robot, JumpPlanner(dyn, mass, cfg), params.crouch_height, params.takeoff_height,
+    rule = LearnedGuards.of(model) if guards == "learned" else HeightGuards()
+    return RobotPlanner(kind, robot, guards, JumpPlanner(dyn, mass, cfg, rule), params.crouch_height, params.takeoff_height,
                         params.apex_height)
 
 
@@ -123,6 +132,7 @@ class JumpResult:
     planner: str
     robot: str
     engine: str
+    guards: str
     target_x: float
     target_z: float | None
     execution: Execution
@@ -134,10 +144,11 @@ class JumpResult:
     def landing(self) -> dict:
         """landing.json's content (``LANDING_FORMAT``)."""
         ex, plan = self.execution, self.execution.plan
-        return {"format_version": LANDING_FORMAT, "planner": self.planner, "robot": self.robot,
-                "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
+        return {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
+                "robot": self.robot, "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
                 "landing_x": ex.landing_x, "error_x": self.error_x, "apex_z": ex.apex_z,
-                "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x, "t_push_s": ex.t_push,
+                "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
+                "liftoff": dict(zip(("x", "z", "vx", "vz"), ex.liftoff.tolist())), "t_push_s": ex.t_push,
                 "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,
                 "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
                               "start of the push (m); apex_z: largest base height between lift-off and "
@@ -163,7 +174,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     params = pronk_params(planner.robot)
     params.distance = target_x
     ex = execute(planner.robot, plan_fn, engine, params)
-    return JumpResult(planner.kind, planner.robot, engine, float(target_x), target_z, ex)
+    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex)
 
 
 def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool = True, force: bool = False) -> None:

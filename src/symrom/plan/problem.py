@@ -157,7 +157,7 @@ class JumpPlanner:
             prev = S[:, k]
             add([(dyn.velocity(prev)[1], 0.0, ca.inf)])  # the base rises all through the push
             add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
-        add(self.guards.liftoff(dyn, prev, z_lo))
+        add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[1]), (1, T[2])):  # rise, then fall
             h = dur / (K * M)
             for k in range(K):
