@@ -314,7 +314,7 @@ def main() -> None:
 
     labels = {"lsoda_numpy": "LSODA, NumPy right-hand side", "lsoda_generated": "LSODA, compiled right-hand side",
               "lsoda_compiled": "LSODA compiled (numbalsoda)",
-              "rk4_numpy": "RK4, NumPy", "rk4_table": "RK4, compiled term table (`auto`)",
+              "rk4_numpy": "RK4, NumPy", "rk4_table": "RK4, compiled term table (`table`)",
               "rk4_generated": "RK4, generated code", "rk4_c": "RK4, exported C", "peer": "PySINDy `simulate` (peer)"}
 
     def measure(sel: np.ndarray, reset: float | None, runs: int, slow_runs: int, n_peer: int) -> dict:

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
+import tempfile
 
 import numpy as np
 import pytest
@@ -14,6 +17,10 @@ from symrom.testing import make_planted_dataset
 # instance on the loopback interface (Ray's single-machine mode).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+# The generated code's disk cache of the test session, not the user's (symrom.model.codegen).
+if "SYMROM_CACHE_DIR" not in os.environ:
+    os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")
+    atexit.register(shutil.rmtree, os.environ["SYMROM_CACHE_DIR"], True)
 
 
 @pytest.fixture(scope="session")

@@ -96,8 +96,7 @@ def test_casadi_export_matches_and_has_jacobians(model_and_jump, tmp_path):
     l = model.latent_dim
 
     def encode(q, dq):
-        xi, dxi = f["encode"](q, dq)
-        return np.r_[np.array(xi).ravel(), np.array(dxi).ravel()]
+        return np.array(f["encode"](q, dq)).ravel()
 
     def step(phase, s, nu, h):
         return np.array(f[f"rk4_step_{model.phase_names[phase]}"](s, nu, h)).ravel()
@@ -108,13 +107,20 @@ def test_casadi_export_matches_and_has_jacobians(model_and_jump, tmp_path):
     np.testing.assert_allclose(path[:, l:], dxi, atol=1e-9)
     # The Jacobian of the contact dynamics is the model's linearisation.
     x0, v0, n0 = np.array([0.1, -0.2]), np.array([0.3, 0.05]), np.array([0.5, -1.0])
-    d_state, d_nu = f["jac_contact"](x0, v0, n0)
+    d_state, d_nu = f["jac_contact"](np.r_[x0, v0], n0)
     A = model.linearisation(model.phase_names.index("contact"), x0, v0, n0)
     np.testing.assert_allclose(np.array(d_state), A[l:], atol=1e-9)
-    dd = np.array(f["dynamics"](x0, v0, n0, 1)).ravel()
+    dd = np.array(f["dynamics"](np.r_[x0, v0], n0, 1)).ravel()
     np.testing.assert_allclose(dd, model.latent_acceleration(x0[None], v0[None], n0[None], np.array([1]))[0],
                                atol=1e-12)
     assert np.array(d_nu).shape == (l, l)
+    # one shape everywhere: the state s = [xi, dxi], the inputs nu
+    s0 = np.r_[x0, v0]
+    np.testing.assert_array_equal(np.array(f["accel_flight"](s0, n0)).ravel(), dd)
+    np.testing.assert_allclose(np.array(f["rk4_step"](s0, n0, 1, 0.001)).ravel(),
+                               np.array(f["rk4_step_flight"](s0, n0, 0.001)).ravel(), atol=1e-15)
+    np.testing.assert_allclose(np.array(f["decode"](s0)).ravel(), model.autoencoder.decode(x0[None])[0],
+                               atol=1e-12)
 
 
 def test_python_export_matches(model_and_jump, tmp_path):

@@ -8,7 +8,14 @@ model's equations themselves as straight-line code (sympy's Python printer,
 common subexpressions shared, only the active terms, each phase its own
 branch, the latent state held in scalar variables), so a step costs a few dozen
 floating-point operations. Compiling takes about a second per model; the
-result is cached per model (its library and coefficients) in this process.
+result is cached per model (its library and coefficients) in this process
+and on disk (``cache_dir``): the source is written as a module there and
+compiled by numba with its own disk cache, so a later process loads the
+machine code instead of compiling it. The module is written by this process
+only, and rewritten whenever its text differs from the model's source, so
+nothing is run that this code did not generate. ``has_build(model)`` says
+whether a build is at hand (``symrom.rollout.integrate``'s ``auto`` backend
+uses the generated code then).
 
 Sines and cosines of state variables dominate a step's cost. An RK4 step
 evaluates them once, at its start, with ``math.sin``/``math.cos``; its three
@@ -29,9 +36,14 @@ the semantics of ``symrom.rollout.integrate.integrate_rk4``;
 from __future__ import annotations
 
 import hashlib
+import importlib.util
+import json
 import math
+import os
+import sys
 import time
 from collections import OrderedDict
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -46,6 +58,7 @@ if TYPE_CHECKING:  # the model is only read here; hybrid.py imports this module
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
 CACHE_SIZE = 16  # compiled models kept per process
+CACHE_ENV = "SYMROM_CACHE_DIR"  # the disk cache's folder; "off" (or "") for none
 # LLVM's fast-math flags without nnan/ninf: a NaN or an overflow must still fail the bound test.
 FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
 # Largest shift |t - s| for which ``shift`` uses its polynomials: the first dropped terms,
@@ -181,6 +194,81 @@ def model_source(model: HybridModel) -> str:
     return "\n".join(lines) + "\n" + SHIFT_SOURCE + _rk4_source(l, trig)
 
 
+def cache_dir() -> Path | None:
+    """The folder of the generated code's disk cache: ``$SYMROM_CACHE_DIR`` if set ("off" or
+    empty: no disk cache), else ``$XDG_CACHE_HOME/symrom/generated`` (default
+    ``~/.cache/symrom/generated``)."""
+    env = os.environ.get(CACHE_ENV)
+    if env is not None:
+        return None if env.strip().lower() in ("", "off") else Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "symrom" / "generated"
+
+
+# The module written to the disk cache: the model's source, then its compilation with
+# numba's own disk cache (LSODA's right-hand sides without fast-math, as in ``_compiled``).
+_MODULE_HEAD = "import math\n\nimport numba\nimport numpy as np\n\n"
+_MODULE_TAIL = f"""
+FASTMATH = {sorted(FASTMATH)!r}
+shift = numba.njit(fastmath=set(FASTMATH), cache=True)(shift)
+accel_s = numba.njit(fastmath=set(FASTMATH), cache=True)(accel_s)
+accel_ref = numba.njit(cache=True)(accel_ref)
+rollout = numba.njit(fastmath=set(FASTMATH), cache=True)(rollout)
+rhs = numba.njit(cache=True)(rhs)
+"""
+
+
+def _stamp(text: str) -> str:
+    """What a build on disk depends on: its module's text (hashed), numba, Python and numba's
+    cache folder."""
+    import numba
+
+    return json.dumps({"module_sha256": hashlib.sha256(text.encode()).hexdigest(), "numba": numba.__version__,
+                       "python": sys.version.split()[0], "numba_cache_dir": os.environ.get("NUMBA_CACHE_DIR", "")})
+
+
+def _module_path(key: str) -> Path | None:
+    folder = cache_dir()
+    return None if folder is None else folder / f"symrom_model_{key[:32]}.py"
+
+
+def has_build(model: HybridModel) -> bool:
+    """Whether the generated code of ``model`` is compiled in this process or on disk."""
+    key = _key(model)
+    if key in _CACHE:
+        return True
+    path = _module_path(key)
+    if path is None:
+        return False
+    try:
+        return path.with_suffix(".built").read_text() == _stamp(path.read_text())
+    except OSError:
+        return False
+
+
+def _load_module(model: HybridModel, key: str) -> tuple[dict, Path, str] | None:
+    """The model's compiled namespace from the disk cache (written first if missing or
+    different), or None when there is no usable cache folder."""
+    from symrom.atomic import write_text_atomic
+
+    path = _module_path(key)
+    if path is None:
+        return None
+    text = _MODULE_HEAD + model_source(model) + _MODULE_TAIL
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if not path.is_file() or path.read_text() != text:
+            path.with_suffix(".built").unlink(missing_ok=True)
+            write_text_atomic(path, text)
+    except OSError:
+        return None
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[path.stem] = module  # numba's cache finds the module's globals by its name
+    spec.loader.exec_module(module)
+    return vars(module), path, text
+
+
 def _key(model: HybridModel) -> str:
     h = hashlib.sha256(repr(model.library.to_dict()).encode())
     h.update(np.ascontiguousarray(model.Xi, dtype=float).tobytes())
@@ -196,18 +284,31 @@ def _compiled(model: HybridModel) -> dict:
     import numba
 
     t0 = time.perf_counter()
-    ns: dict = {"math": math, "np": np}
-    exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
-    for name in ("shift", "accel_s"):  # compiled before the functions that call them
-        ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
-    ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
-    rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
+    loaded = _load_module(model, key)
+    if loaded is not None:
+        ns, path, text = loaded
+        rollout, rhs = ns["rollout"], ns["rhs"]
+    else:
+        path = None
+        ns = {"math": math, "np": np}
+        exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
+        for name in ("shift", "accel_s"):  # compiled before the functions that call them
+            ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
+        ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
+        rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
     l = model.latent_dim
     z = np.zeros((1, 2, l))
     # Compile for the argument types the integrators pass, so that the first real call is fast.
     rollout(z, z, z, np.zeros((1, 2), np.int64), np.array([2], np.int64), np.ones(2, np.bool_), 0.002, 1,
             np.ones((1, 2 * l)), z.copy(), z.copy(), np.zeros(1, np.int64))
     rhs(np.zeros(2 * l), 0.0, 0, np.zeros(l))
+    if path is not None:
+        try:
+            from symrom.atomic import write_text_atomic
+
+            write_text_atomic(path.with_suffix(".built"), _stamp(text))
+        except OSError:
+            pass
     entry = {"rollout": rollout, "rhs": rhs, "c_rhs": ns["c_rhs"], "compile_s": time.perf_counter() - t0}
     _CACHE[key] = entry
     while len(_CACHE) > CACHE_SIZE:

@@ -5,15 +5,20 @@ dq, nu = pinv(W_e^T) u), the decoder (q = W_d xi + B_d), every phase's latent
 dynamics ddxi = f_k(xi, dxi, nu) written out term by term from the sympy form
 of the library (full double precision, only the active terms), and one
 classical Runge-Kutta step of the latent state with the input and the phase
-held, as the rollouts do. Each file states the model's hash (SHA-256 of its
-model file's content) and its phase names; phase k is the k-th name.
+held, as the rollouts do; the learned contact guards, free prediction from
+(q0, dq0) with an input sequence (the schedule given or the guards deciding,
+as ``HybridModel.predict_path``), and, for a model of a described robot, the
+input map from joint torques and feet to u (``symrom.model.export_io``). Each
+file states the model's hash (SHA-256 of its model file's content) and its
+phase names; phase k is the k-th name. Every function takes the latent state
+as one vector s = [xi, dxi] (2l) and the inputs as nu (l).
 
 - ``c``: ``symrom_model.h`` and ``symrom_model.c`` (C99, math.h only), from
   sympy's C printer;
-- ``casadi``: ``symrom_model.casadi``, a serialized ``casadi.Function``
-  ``dynamics(xi, dxi, nu, phase) -> ddxi`` plus the per-phase functions and
-  their Jacobians with respect to the state and the inputs, written with
-  CasADi's own format (``casadi.Function.load``);
+- ``casadi``: one ``symrom_model_<name>.casadi`` per ``casadi.Function``
+  (``casadi_functions``: ``dynamics(s, nu, phase) -> ddxi``, ``rk4_step(s, nu,
+  phase, h)``, the per-phase functions and their Jacobians, the guards, the
+  input map), written with CasADi's own format (``casadi.Function.load``);
 - ``python``: ``symrom_model.py``, NumPy only.
 """
 
@@ -27,6 +32,7 @@ import numpy as np
 import sympy
 
 from symrom.atomic import write_text_atomic
+from symrom.model.export_io import c_declarations, c_source, casadi_extras, python_source, robot_chains
 from symrom.model.expressions import latent_expressions
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import symbols
@@ -34,6 +40,7 @@ from symrom.model.persistence import model_hash
 
 TARGETS = ("c", "casadi", "python")
 PREFIX = "symrom_model"
+BOUND = 50.0  # divergence bound of the exported predict_path, x the model's yardstick (RolloutOptions.bound)
 
 
 def export(model: HybridModel, target: str, out: str | os.PathLike) -> list[Path]:
@@ -77,6 +84,8 @@ def _export_c(model: HybridModel, out: Path) -> list[Path]:
 #define SYMROM_N_PHASES {P}
 #define SYMROM_MODEL_SHA256 "{digest}"
 #define SYMROM_PHASES "{names}"
+#define SYMROM_N_GUARDS {len(model.guards or [])}
+#define SYMROM_HAS_INPUT_MAP {int(robot_chains(model) is not None)}
 void symrom_encode(const double q[18], const double dq[18], double s[2 * SYMROM_LATENT_DIM]);
 void symrom_encode_input(const double u[18], double nu[SYMROM_LATENT_DIM]);
 void symrom_decode(const double s[2 * SYMROM_LATENT_DIM], double q[18]);
@@ -85,7 +94,7 @@ int symrom_accel(int phase, const double s[2 * SYMROM_LATENT_DIM], const double 
                  double ddxi[SYMROM_LATENT_DIM]);
 /* One classical Runge-Kutta step of length h (s) of s in place, nu and phase held. */
 int symrom_rk4_step(int phase, double s[2 * SYMROM_LATENT_DIM], const double nu[SYMROM_LATENT_DIM], double h);
-#endif
+{c_declarations()}#endif
 """
     cases = []
     for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
@@ -151,7 +160,7 @@ int symrom_rk4_step(int phase, double s[2 * L], const double nu[L], double h) {{
     for (int i = 0; i < 2 * L; i++) s[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
     return 0;
 }}
-"""
+{c_source(model, BOUND)}"""
     paths = [out / f"{PREFIX}.h", out / f"{PREFIX}.c"]
     write_text_atomic(paths[0], header)
     write_text_atomic(paths[1], source)
@@ -160,53 +169,58 @@ int symrom_rk4_step(int phase, double s[2 * L], const double nu[L], double h) {{
 
 # ------------------------------------------------------------------ CasADi
 def casadi_functions(model: HybridModel):
-    """``{name: casadi.Function}``: ``dynamics`` (xi, dxi, nu, phase -> ddxi), per phase
-    ``accel_<phase>`` (xi, dxi, nu -> ddxi) and its Jacobians ``jac_<phase>``
-    (-> d ddxi / d [xi, dxi], d ddxi / d nu), ``rk4_step_<phase>`` (s, nu, h -> s),
-    ``encode`` (q, dq -> xi, dxi), ``encode_input`` (u -> nu), ``decode`` (xi -> q)."""
+    """``{name: casadi.Function}``, every one taking the latent state as s = [xi, dxi] (2l):
+    ``dynamics`` (s, nu, phase -> ddxi), ``rk4_step`` (s, nu, phase, h -> s_next), per phase
+    ``accel_<phase>`` (s, nu -> ddxi), its Jacobians ``jac_<phase>`` (s, nu -> d ddxi / d s,
+    d ddxi / d nu) and ``rk4_step_<phase>`` (s, nu, h -> s_next); ``encode`` (q, dq -> s),
+    ``encode_input`` (u -> nu), ``decode`` (s -> q); the guards (``guard_switch`` and one
+    ``guard_<source>_<target>`` each) and, for a described robot, the input map ``input`` and
+    ``input_kinematics`` (``symrom.model.export_io.casadi_extras``)."""
     try:
         import casadi as ca
     except ImportError:
         raise ImportError("the CasADi export needs casadi: pip install 'symrom[export]'") from None
     l = model.latent_dim
     ae = model.autoencoder
-    xi, dxi, nu = ca.SX.sym("xi", l), ca.SX.sym("dxi", l), ca.SX.sym("nu", l)
+    s, nu, h, phase = ca.SX.sym("s", 2 * l), ca.SX.sym("nu", l), ca.SX.sym("h"), ca.SX.sym("phase")
     s_sym, nu_sym = symbols(l)
     table = {"sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "exp": ca.exp, "log": ca.log, "sqrt": ca.sqrt,
              "tanh": ca.tanh, "Abs": ca.fabs, "sign": ca.sign, "atan": ca.atan}
-    args = [xi[i] for i in range(l)] + [dxi[i] for i in range(l)] + [nu[i] for i in range(l)]
+    args = [s[i] for i in range(2 * l)] + [nu[i] for i in range(l)]
     fns, per_phase = {}, []
-    for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
-        f = sympy.lambdify([*s_sym, *nu_sym], rows, modules=[table, "math"])
-        dd = ca.vertcat(*[ca.SX(v) if not isinstance(v, ca.SX) else v for v in f(*args)])
-        name = model.phase_names[k]
-        per_phase.append(dd)
-        fns[f"accel_{name}"] = ca.Function(f"accel_{name}", [xi, dxi, nu], [dd], ["xi", "dxi", "nu"], ["ddxi"])
-        fns[f"jac_{name}"] = ca.Function(f"jac_{name}", [xi, dxi, nu],
-                                         [ca.jacobian(dd, ca.vertcat(xi, dxi)), ca.jacobian(dd, nu)],
-                                         ["xi", "dxi", "nu"], ["d_state", "d_nu"])
-        s, h = ca.SX.sym("s", 2 * l), ca.SX.sym("h")
-        acc = fns[f"accel_{name}"]
 
+    def rk4(acc):
         def field(z):
-            return ca.vertcat(z[l:], acc(z[:l], z[l:], nu))
+            return ca.vertcat(z[l:], acc(z))
 
         k1 = field(s)
         k2 = field(s + h / 2 * k1)
         k3 = field(s + h / 2 * k2)
         k4 = field(s + h * k3)
-        fns[f"rk4_step_{name}"] = ca.Function(f"rk4_step_{name}", [s, nu, h], [s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)],
+        return s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+    for k, rows in enumerate(latent_expressions(model.library, model.Xi)):
+        f = sympy.lambdify([*s_sym, *nu_sym], rows, modules=[table, "math"])
+        dd = ca.vertcat(*[ca.SX(v) if not isinstance(v, ca.SX) else v for v in f(*args)])
+        name = model.phase_names[k]
+        per_phase.append(dd)
+        fns[f"accel_{name}"] = acc = ca.Function(f"accel_{name}", [s, nu], [dd], ["s", "nu"], ["ddxi"])
+        fns[f"jac_{name}"] = ca.Function(f"jac_{name}", [s, nu], [ca.jacobian(dd, s), ca.jacobian(dd, nu)],
+                                         ["s", "nu"], ["d_s", "d_nu"])
+        fns[f"rk4_step_{name}"] = ca.Function(f"rk4_step_{name}", [s, nu, h], [rk4(lambda z, a=acc: a(z, nu))],
                                               ["s", "nu", "h"], ["s_next"])
-    phase = ca.SX.sym("phase")
     dyn = per_phase[-1]
     for k in range(len(per_phase) - 2, -1, -1):
         dyn = ca.if_else(phase == k, per_phase[k], dyn)
-    fns["dynamics"] = ca.Function("dynamics", [xi, dxi, nu, phase], [dyn], ["xi", "dxi", "nu", "phase"], ["ddxi"])
+    fns["dynamics"] = dynamics = ca.Function("dynamics", [s, nu, phase], [dyn], ["s", "nu", "phase"], ["ddxi"])
+    fns["rk4_step"] = ca.Function("rk4_step", [s, nu, phase, h], [rk4(lambda z: dynamics(z, nu, phase))],
+                                  ["s", "nu", "phase", "h"], ["s_next"])
     q, dq, u = ca.SX.sym("q", 18), ca.SX.sym("dq", 18), ca.SX.sym("u", 18)
     W_e, W_d = ca.DM(ae.W_e), ca.DM(ae.W_d)
-    fns["encode"] = ca.Function("encode", [q, dq], [W_e @ q + ca.DM(ae.B_e), W_e @ dq], ["q", "dq"], ["xi", "dxi"])
+    fns["encode"] = ca.Function("encode", [q, dq], [ca.vertcat(W_e @ q + ca.DM(ae.B_e), W_e @ dq)], ["q", "dq"], ["s"])
     fns["encode_input"] = ca.Function("encode_input", [u], [ca.DM(ae.input_map.T) @ u], ["u"], ["nu"])
-    fns["decode"] = ca.Function("decode", [xi], [W_d @ xi + ca.DM(ae.B_d)], ["xi"], ["q"])
+    fns["decode"] = ca.Function("decode", [s], [W_d @ s[:l] + ca.DM(ae.B_d)], ["s"], ["q"])
+    casadi_extras(model, fns, ca)
     return fns
 
 
@@ -224,6 +238,7 @@ def _export_casadi(model: HybridModel, out: Path) -> list[Path]:
     meta = out / f"{PREFIX}_casadi.json"
     write_text_atomic(meta, json.dumps({"model_sha256": model_hash(model), "phase_names": model.phase_names,
                                         "latent_dim": model.latent_dim, "casadi": ca.__version__,
+                                        "state": "s = [xi, dxi] (2l)",
                                         "functions": {n: f"{PREFIX}_{n}.casadi" for n in fns}}, indent=1))
     return paths + [meta]
 
@@ -290,7 +305,7 @@ def rk4_step(phase, s, nu, h):
     k3 = field(s + h / 2 * k2)
     k4 = field(s + h * k3)
     return s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-'''
+''' + python_source(model, BOUND)
     path = out / f"{PREFIX}.py"
     write_text_atomic(path, text)
     return [path]

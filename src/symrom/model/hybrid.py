@@ -21,7 +21,7 @@ import sympy
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs
+from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs, has_build
 from symrom.model.expressions import latent_expressions
 from symrom.model.guards import Guard
 from symrom.model.kernel import compiled_rollout
@@ -226,7 +226,7 @@ class HybridModel:
         phase = self.phase_index(ds)
         ae, bounds = self.autoencoder, ds.jump_bounds()
         x, v, nu, ph = [], [], [], []
-        for j in jumps:
+        for j in jumps:  # jump by jump: small products stay off BLAS's threads
             a, b = bounds[j]
             x.append(ae.encode(ds.q[a:b]))
             v.append(ae.encode_derivative(ds.dq[a:b]))
@@ -254,7 +254,8 @@ class HybridModel:
                                  c_rhs=lambda: generated_c_rhs(self), c_params=c_params)
 
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
-                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated)
+                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated,
+                             lambda: has_build(self))
 
     # ------------------------------------------------------------ free prediction
     def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,

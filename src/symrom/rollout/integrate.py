@@ -37,11 +37,16 @@ from symrom.rollout import compiled_lsoda
 from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
-# auto: rk4 by the compiled term-table kernel (no compilation per model), lsoda with the
-# NumPy right-hand side; generated: the model's own compiled code for both (about a
-# second to compile per model, then the fastest); table: the term-table kernel;
-# numpy: the reference.
+# auto: rk4 by the model's generated code when a build of it is at hand (compiled in this
+# process or in the disk cache, ``symrom.model.codegen.has_build``) or when the rollout's
+# work pays for compiling it (``GENERATED_PAYS_STEPS``), else by the compiled term-table
+# kernel (no compilation per model); lsoda with the NumPy right-hand side; generated: the
+# model's own compiled code for both (about a second to compile per model, then the
+# fastest); table: the term-table kernel; numpy: the reference.
 BACKENDS = ("auto", "table", "generated", "numpy")
+# RK4 steps from which compiling the generated code (about 1 s) pays under ``auto``: it
+# saves about 2.5e-7 s a step over the term table (docs/benchmarks.md, rollouts).
+GENERATED_PAYS_STEPS = 4_000_000
 # scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
 # solver compiled (needs the model's generated code).
 LSODA_SOLVERS = ("scipy", "numbalsoda")
@@ -118,8 +123,13 @@ def reset_mask(n: int, reset: float | None, dt: float) -> np.ndarray:
 def pad_edge(arrays: list[np.ndarray]) -> np.ndarray:
     """Stack per-jump arrays (n_j, ...) into (J, n_max, ...), repeating each last sample."""
     n_max = max(a.shape[0] for a in arrays)
-    return np.stack([np.pad(a, ((0, n_max - a.shape[0]),) + ((0, 0),) * (a.ndim - 1), mode="edge")
-                     for a in arrays])
+    first = np.asarray(arrays[0])
+    out = np.empty((len(arrays), n_max) + first.shape[1:], dtype=np.result_type(*arrays))
+    for j, a in enumerate(arrays):
+        n = a.shape[0]
+        out[j, :n] = a
+        out[j, n:] = a[n - 1]
+    return out
 
 
 # Acceleration of a second-order system with the inputs of sample k held:
@@ -246,6 +256,10 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
     resets = reset_mask(int(lens.max()), options.reset, dt)
     if options.backend == "table" and sysm.compiled is None:
         raise ValueError("this model has no compiled integrator; use backend 'numpy'")
+    if options.backend == "auto" and sysm.generated is not None and generated is None:
+        steps = int((lens - 1).clip(min=0).sum()) * options.substeps
+        if (sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS:
+            generated = sysm.generated()
     fast = generated.integrator if generated is not None else sysm.compiled if options.backend != "numpy" else None
     if fast is not None:
         X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, dt, options.substeps)

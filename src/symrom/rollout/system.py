@@ -59,7 +59,8 @@ class RolloutSystem:
     (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
     the system's own compiled code (``GeneratedCode``), called only when the
-    ``generated`` backend or the compiled LSODA is asked for.
+    ``generated`` backend or the compiled LSODA is asked for (or by ``auto`` when
+    ``has_build()`` says it is compiled already, or the work pays for compiling it).
     """
 
     x: list[np.ndarray]
@@ -70,6 +71,7 @@ class RolloutSystem:
     observe: Callable[[int, np.ndarray], np.ndarray]
     compiled: Callable | None = None
     generated: Callable[[], GeneratedCode] | None = None
+    has_build: Callable[[], bool] | None = None
 
     @property
     def n_jumps(self) -> int:
