@@ -139,11 +139,11 @@ class LearnedDynamics:
     def stance(self, s, F):
         l = self.l
         nu = ca.mtimes(ca.DM(self.B), F)
-        return ca.vertcat(s[l:], self._acc[STANCE_PHASE](s[:l], s[l:], nu))
+        return ca.vertcat(s[l:], self._acc[STANCE_PHASE](s, nu))
 
     def flight(self, s):
         l = self.l
-        return ca.vertcat(s[l:], self._acc[FLIGHT_PHASE](s[:l], s[l:], ca.DM.zeros(l)))
+        return ca.vertcat(s[l:], self._acc[FLIGHT_PHASE](s, ca.DM.zeros(l)))
 
     def position(self, s):
         return ca.mtimes(self._Wd, s[:self.l]) + self._Bd
