@@ -931,6 +931,9 @@ def jump_cmd(
         result = jump(built, target_x, target_z, engine=engine)
     write_landing(out, result, trajectory=trajectory, force=force)
     ex = result.execution
+    if not result.reachable:
+        console.print(f"warning: x = {target_x} m is out of the {planner} model's reach under the force, friction "
+                      f"and stance bounds; the closest plan lands at {ex.plan.landing_x:.3f} m", highlight=False)
     out_console.print(f"{planner} plan ({1e3 * ex.plan.solve_time_s:.1f} ms): landed at x = {ex.landing_x:.3f} m "
                       f"for a target of {target_x:.3f} m (error {100 * result.error_x:+.1f} cm), apex "
                       f"{ex.apex_z:.3f} m; {out / 'landing.json'}", highlight=False, soft_wrap=True)

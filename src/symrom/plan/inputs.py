@@ -45,3 +45,16 @@ def force_input_map(model: HybridModel, robot: str, q: np.ndarray) -> np.ndarray
     cols = [model.autoencoder.encode_input(stance_input(robot, q, e)[None])[0]
             for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
     return np.stack(cols, axis=1)
+
+
+def torque_map(robot: str, qs: list[np.ndarray], limits: np.ndarray, share: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
+    """(A (m, 2), bounds (m,)): the joint torques A F (N m) that a summed force F = (F_x, F_z) N
+    shared equally by the four feet asks of every joint at each configuration of ``qs`` (each
+    (18,)), and ``share`` of the joint's torque limit (``limits`` (12,) N m) as its bound, the
+    rest left to the execution's joint PD and attitude moment."""
+    rows, bounds = [], []
+    for q in qs:
+        cols = [stance_input(robot, q, e)[:12] for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
+        rows.append(np.stack(cols, axis=1))
+        bounds.append(share * np.asarray(limits, dtype=float))
+    return np.concatenate(rows), np.concatenate(bounds)

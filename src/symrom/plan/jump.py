@@ -26,7 +26,7 @@ from symrom.names import BASE_POS, JOINTS
 from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PointMass
 from symrom.plan.execute import Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
-from symrom.plan.inputs import force_input_map
+from symrom.plan.inputs import force_input_map, torque_map
 from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError
 from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.stance import start_pose
@@ -35,6 +35,7 @@ from symrom.sim.world import RobotState
 
 PLANNERS = ("learned", "point-mass", "aslip")
 GUARDS = ("height", "learned")
+REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
 LANDING_FORMAT = 1
 
 
@@ -106,7 +107,9 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         dyn = ASlipDynamics(aslip.m, params=aslip, pivot=(float(pivot[0]), float(pivot[2] + q_crouch[BASE_POS][2])))
     cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
     rule = LearnedGuards.of(model) if guards == "learned" else HeightGuards()
-    return RobotPlanner(kind, robot, guards, JumpPlanner(dyn, mass, cfg, rule), params.crouch_height, params.takeoff_height,
+    # the legs' torques at the start and at the end of the push (crouch, take-off height)
+    limits = torque_map(robot, [q_crouch, start_pose(robot, params.takeoff_height)], desc.torque_limit)
+    return RobotPlanner(kind, robot, guards, JumpPlanner(dyn, mass, cfg, rule, limits), params.crouch_height, params.takeoff_height,
                         params.apex_height)
 
 
@@ -141,12 +144,19 @@ class JumpResult:
     def error_x(self) -> float:
         return self.execution.landing_x - self.target_x
 
+    @property
+    def reachable(self) -> bool:
+        """Whether the plan itself lands on the target (within ``REACH_TOL``): a target out of
+        the model's reach under the force, friction and stance bounds gets the closest plan."""
+        return abs(self.execution.plan.landing_x - self.target_x) <= REACH_TOL
+
     def landing(self) -> dict:
         """landing.json's content (``LANDING_FORMAT``)."""
         ex, plan = self.execution, self.execution.plan
         return {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
                 "robot": self.robot, "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
-                "landing_x": ex.landing_x, "error_x": self.error_x, "apex_z": ex.apex_z,
+                "landing_x": ex.landing_x, "error_x": self.error_x,
+                "planned_landing_x": plan.landing_x, "target_reachable": self.reachable, "apex_z": ex.apex_z,
                 "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
                 "liftoff": dict(zip(("x", "z", "vx", "vz"), ex.liftoff.tolist())), "t_push_s": ex.t_push,
                 "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,

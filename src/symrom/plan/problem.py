@@ -118,10 +118,11 @@ class JumpPlanner:
     """The NLP of one model, built once (module docstring); ``solve`` plans one jump.
 
     dyn: the model (``PlanDynamics``); mass kg: the robot's, for the scale of the force terms
-    and the first guess; guards: the phase-switch rule."""
+    and the first guess; guards: the phase-switch rule; torque_map: (A (m, 2), limits (m,)) with
+    A F the joint torques (N m) a summed force F asks of the legs, bounded by the limits."""
 
     def __init__(self, dyn: PlanDynamics, mass: float, config: PlanConfig | None = None,
-                 guards: Guards | None = None):
+                 guards: Guards | None = None, torque_map: tuple[np.ndarray, np.ndarray] | None = None):
         self.dyn, self.mass = dyn, float(mass)
         self.config = cfg = config or PlanConfig()
         self.guards = guards or HeightGuards()
@@ -157,6 +158,10 @@ class JumpPlanner:
             prev = S[:, k]
             add([(dyn.velocity(prev)[1], 0.0, ca.inf)])  # the base rises all through the push
             add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
+            if torque_map is not None:  # joint torques the force asks of the legs, within the limits
+                A, lim = torque_map
+                tau = ca.mtimes(ca.DM(A), Fk)
+                add([(tau[i], -float(lim[i]), float(lim[i])) for i in range(A.shape[0])])
         add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[1]), (1, T[2])):  # rise, then fall
             h = dur / (K * M)
