@@ -127,6 +127,18 @@ def test_point_mass_plan_matches_the_closed_form():
     assert plan.t_rise + plan.t_fall == pytest.approx(t_air, abs=1e-9)
 
 
+def test_torque_limits_bound_the_force():
+    m = 13.1
+    A = np.array([[0.0, 0.05], [0.03, 0.04]])  # two joints' torques per N of (F_x, F_z)
+    lim = np.array([8.0, 9.0])
+    nlp = JumpPlanner(PointMass(m), mass=m, torque_map=(A, lim))
+    plan = nlp.solve(np.array([0.0, 0.21, 0.0, 0.0]), 0.45, z_liftoff=0.33, apex=0.45)
+    assert np.all(np.abs(plan.forces @ A.T) <= lim + 1e-6)
+    assert np.max(np.abs(plan.forces @ A.T) / lim) > 0.99  # the bound is what holds it back
+    free = JumpPlanner(PointMass(m), mass=m).solve(np.array([0.0, 0.21, 0.0, 0.0]), 0.45, z_liftoff=0.33, apex=0.45)
+    assert np.max(np.abs(free.forces @ A.T) / lim) > 1.0
+
+
 def test_unreachable_target_is_reported_not_hung():
     m = 13.1
     nlp = JumpPlanner(PointMass(m), mass=m)
