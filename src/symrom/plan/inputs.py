@@ -51,10 +51,17 @@ def torque_map(robot: str, qs: list[np.ndarray], limits: np.ndarray, share: floa
     """(A (m, 2), bounds (m,)): the joint torques A F (N m) that a summed force F = (F_x, F_z) N
     shared equally by the four feet asks of every joint at each configuration of ``qs`` (each
     (18,)), and ``share`` of the joint's torque limit (``limits`` (12,) N m) as its bound, the
-    rest left to the execution's joint PD and attitude moment."""
+    rest left to the execution's joint PD and attitude moment. Rows that bound the same torque
+    (mirrored legs) appear once."""
     rows, bounds = [], []
     for q in qs:
         cols = [stance_input(robot, q, e)[:12] for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
         rows.append(np.stack(cols, axis=1))
         bounds.append(share * np.asarray(limits, dtype=float))
-    return np.concatenate(rows), np.concatenate(bounds)
+    A, b = np.concatenate(rows), np.concatenate(bounds)
+    # the bounds are symmetric: keep one of the rows equal up to sign (mirrored legs), and none
+    # that no force can load
+    key = np.round(np.column_stack([np.abs(A) / b[:, None], np.sign(A[:, 0] * A[:, 1])]), 12)
+    keep = np.sort(np.unique(key, axis=0, return_index=True)[1])
+    keep = keep[np.abs(A[keep]).sum(axis=1) > 0]
+    return A[keep], b[keep]
