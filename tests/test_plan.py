@@ -184,5 +184,5 @@ def test_jump_cli_end_to_end(tmp_path):
     tr = json.loads((out / "trajectory.json").read_text())
     assert len(tr["t"]) == len(tr["base"]) > 100
     # bad input: one clear line
-    res = CliRunner().invoke(app, ["jump", "--planner", "aslip", "--out", str(tmp_path / "j2")])
+    res = CliRunner().invoke(app, ["jump", "--planner", "aslip", "--target-x", "0.2", "--out", str(tmp_path / "j2")])
     assert res.exit_code != 0 and "params.json" in res.output

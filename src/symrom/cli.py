@@ -889,24 +889,29 @@ def _evaluate_baseline(model, ds, data: Path, split: str, resets: tuple[float | 
 @app.command("jump", cls=_Command)
 @guarded
 def jump_cmd(
+    target_x: Annotated[float, typer.Option("--target-x", help="Forward landing distance from the start of the push, m.")],
+    out: Annotated[Path, typer.Option("--out", help="Output directory (landing.json, trajectory.json).")],
     model_path: Annotated[Optional[Path], typer.Argument(
         help="The planner's model: model.json (learned) or an aSLIP params.json (aslip, from symrom aslip); "
              "point-mass needs none.")] = None,
     robot: Annotated[str, typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml.")] = "go1",
-    target_x: Annotated[float, typer.Option("--target-x", help="Forward landing distance from the start of the push, m.")] = 0.3,
     target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the pronk's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
     guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown at the take-off height) "
                                         "or learned (the model's own contact switches; learned planner).")] = "height",
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    out: Annotated[Path, typer.Option("--out", help="Output directory (landing.json, trajectory.json).")] = Path("jump"),
     trajectory: Annotated[bool, typer.Option("--trajectory/--no-trajectory", help="Also write trajectory.json.")] = True,
     force: Force = False,
 ) -> None:
     """Plan a pronk to a target with a model (CasADi/IPOPT) and execute it in simulation."""
+    import importlib.util
+
     from symrom.atomic import check_output_file
-    from symrom.plan.jump import GUARDS, PLANNERS, jump, make_planner, read_aslip_params, write_landing
     from symrom.sim.engine import ENGINES
+
+    if importlib.util.find_spec("casadi") is None:
+        raise ValueError("symrom jump plans with CasADi and IPOPT, which are not installed: pip install 'symrom[export]'")
+    from symrom.plan.jump import GUARDS, PLANNERS, jump, make_planner, read_aslip_params, write_landing
 
     if planner not in PLANNERS:
         raise ValueError(f"--planner must be one of {', '.join(PLANNERS)}, got {planner!r}")
