@@ -66,6 +66,7 @@ def run(model_path: Path, aslip_path: Path, engines: list[str], n: int, seed: in
                     rows.append({"target_x": float(x), "landing_x": ex.landing_x, "error_x": r.error_x,
                                  "apex_z": ex.apex_z, "planned_apex_z": ex.plan.apex_z,
                                  "t_stance_s": ex.plan.t_stance, "solve_time_s": ex.plan.solve_time_s,
+                                 "solve_cpu_s": ex.plan.solve_cpu_s,
                                  "iterations": ex.plan.iterations, "rest_x": ex.rest_x,
                                  "liftoff_v": ex.liftoff[2:].tolist(), "planned_liftoff_v": ex.plan.liftoff.tolist()})
                 except Exception as e:  # a failed jump is a result, recorded with its reason
@@ -76,6 +77,7 @@ def run(model_path: Path, aslip_path: Path, engines: list[str], n: int, seed: in
                 "engine": engine, "planner": label, "guards": guards, "jumps": rows, "failed": len(rows) - len(ok),
                 "abs_error_x_m": _stats(err), "signed_error_x_mean_m": float(np.mean([r["error_x"] for r in ok])) if ok else None,
                 "solve_time_s": _stats([r["solve_time_s"] for r in ok]) if ok else None,
+                "solve_cpu_s": _stats([r["solve_cpu_s"] for r in ok]) if ok else None,
                 "apex_z_m": _stats([r["apex_z"] for r in ok]) if ok else None,
                 # executed over planned lift-off speed: how far the model's stance gain is off
                 "liftoff_speed_ratio": {

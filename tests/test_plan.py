@@ -108,6 +108,36 @@ def test_learned_guards_set_lift_off_and_touchdown():
         LearnedGuards.of(PLANTED)
 
 
+def test_learned_plan_agrees_with_the_models_own_prediction():
+    """The plan's force profile fed to ``HybridModel.predict_path`` as u, its guards deciding the
+    phases, touches down where the plan said."""
+    from dataclasses import replace
+
+    from symrom.model.guards import Guard
+    from symrom.plan.guards import LearnedGuards
+
+    model = replace(PLANTED, guards=[Guard("contact", "flight", ["xi2"], np.array([1.0]), -0.32, 0.1),
+                                     Guard("flight", "contact", ["xi2"], np.array([-1.0]), 0.35, 0.1)])
+    dyn = LearnedDynamics(model, np.eye(2))
+    q0 = np.zeros(18)
+    q0[Z] = 0.21
+    plan = JumpPlanner(dyn, mass=13.0, guards=LearnedGuards.of(model)).solve(
+        dyn.initial_state(q0, np.zeros(18)), 0.35, z_liftoff=0.33, min_apex=0.43)
+
+    def inputs(t, state):
+        u = np.zeros(18)
+        u[X], u[Z] = plan.force_at(t)  # u's wrench: F_x, F_y, F_z at columns 12-14, as nu = (u[12], u[14])
+        return u
+
+    dt = 1e-3
+    path = model.predict_path(q0, np.zeros(18), inputs, dt, n=1000, phase0="contact", dwell0=1.0)
+    landed = [sw for sw in path.switches if sw["target"] == "contact"]
+    assert [sw["target"] for sw in path.switches][:2] == ["flight", "contact"]
+    k = landed[0]["k"]
+    assert path.q[k, X] == pytest.approx(plan.landing_x, abs=3e-3)  # within a sample's travel
+    assert path.t[k] == pytest.approx(plan.t_stance + plan.t_rise + plan.t_fall, abs=2 * dt)
+
+
 def test_point_mass_plan_matches_the_closed_form():
     m = 13.1
     nlp = JumpPlanner(PointMass(m), mass=m)
