@@ -191,13 +191,13 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
     """Write ``landing.json`` (and ``trajectory.json``: t s, base x y z roll pitch yaw, contact,
     phase at 500 Hz) into folder ``out``, atomically."""
     with atomic_dir(out, force) as tmp:
-        (tmp / "landing.json").write_text(json.dumps(result.landing(), indent=1) + "\n")
+        (tmp / "landing.json").write_text(json.dumps(result.landing(), indent=1, allow_nan=False) + "\n")
         if trajectory:
             tr = result.execution.trajectory
             doc = {"format_version": LANDING_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
                    "units": "s, m, rad", "t": np.asarray(tr["t"]).tolist(), "base": np.asarray(tr["base"]).tolist(),
                    "contact": np.asarray(tr["contact"]).tolist(), "phase": list(tr["phase"])}
-            (tmp / "trajectory.json").write_text(json.dumps(doc) + "\n")
+            (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
 
 
 __all__ = ["JumpResult", "PLANNERS", "RobotPlanner", "jump", "make_planner", "pronk_params", "read_aslip_params",
