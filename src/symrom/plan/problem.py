@@ -138,7 +138,6 @@ class JumpPlanner:
         T = ca.SX.sym("T", 3)  # stance, rise, fall durations
         F = ca.SX.sym("F", 2, N)
         S = ca.SX.sym("S", n, N + 2 * K)  # shooting nodes after the start
-        self._n_vars = (3, 2 * N, n * (N + 2 * K))
         g, lbg, ubg = [], [], []
 
         def eq(e):
