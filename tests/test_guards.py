@@ -92,7 +92,7 @@ def test_fit_learns_guards_that_round_trip_and_print(model, tmp_path):
         np.testing.assert_array_equal(g.weights, h.weights)
     text = back.equations_text()
     assert "contact switches (guards):" in text and "contact -> flight: when" in text
-    assert "% guard contact -> flight:" in back.equations_text(latex=True)
+    assert r"\mathrm{contact} \to \mathrm{flight}:\ " in back.equations_text(latex=True)
 
 
 def test_older_files_load_without_guards_and_bad_guards_are_named(model, tmp_path):

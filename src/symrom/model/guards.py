@@ -17,12 +17,12 @@ before the switch on stays that end in another phase, firing at all on stays
 the jump ends in. Candidates are the levels of one feature (either sign, the
 level the loss minimiser over a grid of quantiles) and linear boundaries of
 two of the best single features (directions every 10 degrees on standardised
-features, then the level). The single best on the validation jumps is kept
-unless a pair lowers the validation loss by ``PAIR_GAIN`` (sparsity first);
-without validation jumps, the training loss decides. The dwell is half the
-shortest training stay ending in the transition: it keeps a guard that holds
-at a phase's start (a lift-off level of the input, right after touchdown)
-from firing at once.
+features, then the level), scored on at most ``MAX_WINDOWS`` stays per
+transition (evenly spaced). The single best on the validation jumps is kept
+unless a pair brings the validation loss below ``PAIR_GAIN`` of it (sparsity
+first); without validation jumps, the training loss decides. The dwell is half
+the shortest training stay ending in the transition: it keeps a condition that
+already holds at a phase's start from firing at once.
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ ANGLES = 36  # directions of a two-feature boundary (every 10 degrees)
 TOP_SINGLE = 6  # the best single features whose pairs are tried
 DWELL_SHARE = 0.5  # min_dwell_s: this share of the shortest training stay ending in the transition
 EPS_T = 1e-12  # s, rounding allowance of the dwell test (the same in every export)
+MAX_WINDOWS = 200  # stays per transition a candidate is scored on (evenly spaced beyond): bounds the fit's time
 
 
 def feature_names(l: int) -> list[str]:
@@ -115,8 +116,9 @@ class Guard:
     def text(self, latex: bool = False, digits: int = 3) -> str:
         """One line: the transition, its condition and dwell."""
         if latex:
-            return (rf"% guard {self.source} -> {self.target}: ${self.condition(True, digits)}$ "
-                    rf"after {self.min_dwell_s:.3g} s in {self.source}")
+            src, tgt = (n.replace("_", r"\_") for n in (self.source, self.target))
+            return (rf"\mathrm{{{src}}} \to \mathrm{{{tgt}}}:\ {self.condition(True, digits)} "
+                    rf"\quad (t_{{\mathrm{{{src}}}}} \geq {self.min_dwell_s:.3g}\,\mathrm{{s}})")
         return (f"{self.source} -> {self.target}: when {self.condition(False, digits)} "
                 f"(after {self.min_dwell_s:.3g} s in {self.source})")
 
@@ -223,6 +225,13 @@ def _windows(all_stays: list[_Stay], phase: np.ndarray, src: int, tgt: int, dwel
     return out
 
 
+def _thin(windows: list) -> list:
+    """At most ``MAX_WINDOWS`` of ``windows``, evenly spaced."""
+    if len(windows) <= MAX_WINDOWS:
+        return windows
+    return [windows[int(i)] for i in np.linspace(0, len(windows) - 1, MAX_WINDOWS)]
+
+
 def _losses(p: np.ndarray, windows: list, levels: np.ndarray, dt: float) -> np.ndarray:
     """Mean timing loss (s) (len(levels),) of the guard ``p >= level`` on the windows."""
     total = np.zeros(levels.size)
@@ -282,8 +291,8 @@ def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_b
             continue
         lengths = [s.stop - s.start for s in train_stays if phase[s.start] == src and s.after == tgt]
         dwell = int(np.floor(DWELL_SHARE * min(lengths)))
-        tw = _windows(train_stays, phase, src, tgt, dwell)
-        vw = _windows(val_stays, phase, src, tgt, dwell)
+        tw = _thin(_windows(train_stays, phase, src, tgt, dwell))
+        vw = _thin(_windows(val_stays, phase, src, tgt, dwell))
         single = []  # (val-or-train loss, train loss, val loss, terms idx, weights, level)
         for i in range(3 * l if use_inputs else 2 * l):
             for sign in (1.0, -1.0):

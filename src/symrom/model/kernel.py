@@ -377,10 +377,28 @@ def term_programs(table: TermTable, Xi: np.ndarray) -> tuple[np.ndarray, ...]:
     return fidx, nfac, coef, n_act, trig
 
 
+_PROGRAMS: dict = {}  # (id(library), Xi bytes) -> (library, integrator): a path's set-up made once
+PROGRAMS_KEPT = 32
+
+
 def compiled_rollout(library: Library, Xi: np.ndarray):
     """An integrator of the hybrid latent model with coefficients Xi (P, p, l) for
     ``symrom.rollout.integrate`` (``RolloutSystem.compiled``), or None if the
-    library has no term table or numba is not installed."""
+    library has no term table or numba is not installed. Kept for the last
+    ``PROGRAMS_KEPT`` (library, Xi): reading the term table costs milliseconds, more
+    than a short path (``predict_path``) takes to integrate."""
+    key = (id(library), np.ascontiguousarray(Xi, dtype=float).tobytes())
+    hit = _PROGRAMS.get(key)
+    if hit is not None and hit[0] is library:
+        return hit[1]
+    fn = _compiled_rollout(library, Xi)
+    if len(_PROGRAMS) >= PROGRAMS_KEPT:
+        _PROGRAMS.pop(next(iter(_PROGRAMS)))
+    _PROGRAMS[key] = (library, fn)
+    return fn
+
+
+def _compiled_rollout(library: Library, Xi: np.ndarray):
     table = term_table(library)
     if table is None:
         return None

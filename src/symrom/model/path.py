@@ -20,7 +20,7 @@ path is stepped sample by sample on NumPy.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -114,13 +114,14 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
     dt: sample period, s; phases: a schedule (n,) of phase names or model phase
     indices, or None to let the guards decide, starting in ``phase0`` (default: the
     model's first phase) entered ``dwell0`` s before sample 0; options: ``RolloutOptions`` (method
-    ``rk4``; its substeps, bound and backend). Returns a ``PathPrediction``; a
+    ``rk4``; its substeps, bound and backend; not its reset: there is no truth to reset
+    to). Returns a ``PathPrediction``; a
     diverging path ends in NaN with its ``diverged_at``. ``NoGuardsError`` when the
     guards are asked of a model without them.
     """
     from symrom.rollout.integrate import RolloutOptions, integrate_system
 
-    options = RolloutOptions(method="rk4") if options is None else options
+    options = RolloutOptions(method="rk4") if options is None else replace(options, reset=None)
     if options.method != "rk4":
         raise ValueError(f"predict_path integrates with rk4 (the rollouts' fixed-step method), "
                          f"got method {options.method!r}")
