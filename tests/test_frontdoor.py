@@ -91,11 +91,12 @@ def _commands(data_path: Path, model_path: Path, tmp: Path) -> dict[str, list]:
         "aslip": ["aslip", data_path, "--out", "{out}"],
         "newton": ["newton", data_path, "--out", "{out}"],
         "reproduce": ["reproduce", "--quick", "--out", "{out}"],
+        "jump": ["jump", "--planner", "point-mass", "--target-x", "0.2", "--out", "{out}"],
     }
 
 
 COMMANDS = ["train", "train --select", "evaluate", "export", "import", "sweep", "report", "demo", "generate",
-            "finetune", "aslip", "newton", "reproduce"]
+            "finetune", "aslip", "newton", "reproduce", "jump"]
 
 
 @pytest.mark.parametrize("variant", ["under a file", "read-only folder"])

@@ -1,0 +1,1 @@
+"""Jumps to a target planned with a model and executed in simulation (docs/design.md, "Planning a jump")."""

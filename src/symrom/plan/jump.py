@@ -1,0 +1,204 @@
+"""A jump to a target: build a planner for a model, plan from the measured crouch, execute, record.
+
+    planner = make_planner("learned", "go1", model=load_model("model.json"))
+    result = jump(planner, target_x=0.3)                  # plan + simulate (PyBullet)
+    write_landing(out_dir, result)                        # landing.json (+ trajectory.json)
+
+Planners (``PLANNERS``): ``learned`` (a fitted ``HybridModel``), ``point-mass``
+(Newton's law on the description's mass) and ``aslip`` (fitted aSLIP
+parameters, ``symrom aslip``'s params.json). All plan the same problem
+(``plan.problem``) and are executed the same way (``plan.execute``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from symrom.atomic import atomic_dir
+from symrom.baselines.aslip import ASlipParams
+from symrom.model.hybrid import HybridModel
+from symrom.names import BASE_POS, JOINTS
+from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PointMass
+from symrom.plan.execute import Execution, execute
+from symrom.plan.guards import HeightGuards, LearnedGuards
+from symrom.plan.inputs import force_input_map, torque_map
+from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError
+from symrom.robots import get_robot, leg_kinematics, robot_key
+from symrom.robots.stance import start_pose
+from symrom.sim.pronk import PronkParams, scales
+from symrom.sim.world import RobotState
+
+PLANNERS = ("learned", "point-mass", "aslip")
+GUARDS = ("height", "learned")
+REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
+LANDING_FORMAT = 1
+
+
+@dataclass
+class RobotPlanner:
+    """A built planner for ``robot``: kind (``PLANNERS``), its guards (``GUARDS``), the NLP, and the motion's heights: the
+    crouch (m), lift-off (the pronk's take-off height, m) and nominal apex (m)."""
+
+    kind: str
+    robot: str
+    guards: str
+    nlp: JumpPlanner
+    crouch_height: float
+    liftoff_height: float
+    nominal_apex: float
+
+    @property
+    def dyn(self) -> PlanDynamics:
+        return self.nlp.dyn
+
+    def plan(self, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
+             warm: bool = True) -> Plan:
+        """Plan from the robot's configuration q (18,) and velocity dq (18,) at the start of the
+        push; for point-mass and aSLIP the state's x is measured from the start (their laws do
+        not depend on where the jump is)."""
+        s0 = self.dyn.initial_state(q, dq)
+        if self.kind != "learned":
+            s0[0] = 0.0
+        return self.nlp.solve(s0, target_x, self.liftoff_height, apex=target_z,
+                              min_apex=None if target_z is not None else self.nominal_apex, warm=warm)
+
+
+def pronk_params(robot: str) -> PronkParams:
+    """The pronk's nominal jump for ``robot`` (heights scaled by its leg length), its yaw 0."""
+    length = scales(robot)[1]
+    p = PronkParams()
+    return PronkParams(distance=p.distance * length, apex_height=p.apex_height * length,
+                       crouch_height=p.crouch_height * length, takeoff_height=p.takeoff_height * length)
+
+
+def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip: ASlipParams | None = None,
+                 config: PlanConfig | None = None, guards: str = "height") -> RobotPlanner:
+    """Build the NLP of planner ``kind`` for ``robot`` once; ``model`` for ``learned``,
+    ``aslip`` for ``aslip``; ``guards`` (``GUARDS``): ``height`` (``HeightGuards``) or, for the
+    learned planner, ``learned`` (the model's own switches, ``LearnedGuards``)."""
+    if kind not in PLANNERS:
+        raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
+    if guards not in GUARDS:
+        raise ValueError(f"unknown guards {guards!r}; choose from {', '.join(GUARDS)}")
+    if guards == "learned" and kind != "learned":
+        raise ValueError(f"learned guards belong to a learned model; the {kind} planner uses height guards")
+    desc, params = get_robot(robot), pronk_params(robot)
+    mass = desc.mass
+    q_crouch = start_pose(robot, params.crouch_height)
+    if kind == "learned":
+        if model is None:
+            raise ValueError("the learned planner needs a model (model.json)")
+        trained_on = model.info.get("robot")
+        if trained_on is not None and robot_key(trained_on) != robot_key(robot):
+            raise ValueError(f"the model was trained on {trained_on!r}, the jump is for {robot!r}")
+        dyn: PlanDynamics = LearnedDynamics(model, force_input_map(model, robot, q_crouch))
+    elif kind == "point-mass":
+        dyn = PointMass(mass)
+    else:
+        if aslip is None:
+            raise ValueError("the aslip planner needs fitted aSLIP parameters (params.json of symrom aslip)")
+        feet = leg_kinematics(robot).foot_positions(q_crouch[None, JOINTS])[0]  # base frame, level
+        pivot = feet.mean(axis=0)
+        dyn = ASlipDynamics(aslip.m, params=aslip, pivot=(float(pivot[0]), float(pivot[2] + q_crouch[BASE_POS][2])))
+    cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
+    rule = LearnedGuards.of(model) if guards == "learned" else HeightGuards()
+    # the legs' torques at the start and at the end of the push (crouch, take-off height)
+    limits = torque_map(robot, [q_crouch, start_pose(robot, params.takeoff_height)], desc.torque_limit)
+    return RobotPlanner(kind, robot, guards, JumpPlanner(dyn, mass, cfg, rule, limits), params.crouch_height, params.takeoff_height,
+                        params.apex_height)
+
+
+def read_aslip_params(path: str | os.PathLike) -> ASlipParams:
+    """The aSLIP parameters in ``path`` (params.json of ``symrom aslip``); one clear error per bad key."""
+    try:
+        d = json.loads(Path(path).read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ValueError(f"{path}: not a readable aSLIP params.json ({e})") from None
+    missing = [k for k in ("k_s", "l_0", "m") if k not in d]
+    if missing:
+        raise ValueError(f"{path}: key {missing[0]!r} missing (an aSLIP params.json has k_s, l_0, m)")
+    try:
+        return ASlipParams(float(d["k_s"]), float(d["l_0"]), float(d["m"]))
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
+@dataclass
+class JumpResult:
+    """One planned and executed jump: the planner's kind, the target (m), the execution."""
+
+    planner: str
+    robot: str
+    engine: str
+    guards: str
+    target_x: float
+    target_z: float | None
+    execution: Execution
+
+    @property
+    def error_x(self) -> float:
+        return self.execution.landing_x - self.target_x
+
+    @property
+    def reachable(self) -> bool:
+        """Whether the plan itself lands on the target (within ``REACH_TOL``): a target out of
+        the model's reach under the force, friction and stance bounds gets the closest plan."""
+        return abs(self.execution.plan.landing_x - self.target_x) <= REACH_TOL
+
+    def landing(self) -> dict:
+        """landing.json's content (``LANDING_FORMAT``)."""
+        ex, plan = self.execution, self.execution.plan
+        return {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
+                "robot": self.robot, "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
+                "landing_x": ex.landing_x, "error_x": self.error_x,
+                "planned_landing_x": plan.landing_x, "target_reachable": self.reachable, "apex_z": ex.apex_z,
+                "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
+                "liftoff": dict(zip(("x", "z", "vx", "vz"), ex.liftoff.tolist())), "t_push_s": ex.t_push,
+                "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,
+                "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
+                              "start of the push (m); apex_z: largest base height between lift-off and "
+                              "touchdown (m); rest_x: base x at the end of the run, from the same start (m)",
+                "plan": plan.to_dict()}
+
+
+def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, engine: str = "pybullet",
+         warm: bool = True) -> JumpResult:
+    """Plan (from the measured crouch) and execute one jump ``target_x`` m forward, with apex
+    ``target_z`` m if given; raise ``PlanError`` if the plan fails."""
+    if not (np.isfinite(target_x) and target_x >= 0):
+        raise ValueError(f"--target-x must be a non-negative distance in m, got {target_x}")
+    if target_z is not None and not (np.isfinite(target_z) and target_z > planner.liftoff_height):
+        raise ValueError(f"--target-z must be above the lift-off height {planner.liftoff_height:.3f} m, got {target_z}")
+
+    def plan_fn(state: RobotState) -> Plan:
+        plan = planner.plan(state.q, state.dq, target_x, target_z, warm=warm)
+        if not plan.success:
+            raise PlanError(f"the {planner.kind} plan to x = {target_x} m did not converge (IPOPT: {plan.status})")
+        return plan
+
+    params = pronk_params(planner.robot)
+    params.distance = target_x
+    ex = execute(planner.robot, plan_fn, engine, params)
+    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex)
+
+
+def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool = True, force: bool = False) -> None:
+    """Write ``landing.json`` (and ``trajectory.json``: t s, base x y z roll pitch yaw, contact,
+    phase at 500 Hz) into folder ``out``, atomically."""
+    with atomic_dir(out, force) as tmp:
+        (tmp / "landing.json").write_text(json.dumps(result.landing(), indent=1, allow_nan=False) + "\n")
+        if trajectory:
+            tr = result.execution.trajectory
+            doc = {"format_version": LANDING_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
+                   "units": "s, m, rad", "t": np.asarray(tr["t"]).tolist(), "base": np.asarray(tr["base"]).tolist(),
+                   "contact": np.asarray(tr["contact"]).tolist(), "phase": list(tr["phase"])}
+            (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
+
+
+__all__ = ["JumpResult", "PLANNERS", "RobotPlanner", "jump", "make_planner", "pronk_params", "read_aslip_params",
+           "write_landing"]
