@@ -13,6 +13,7 @@ import pytest
 from typer.testing import CliRunner
 
 from symrom.cli import app
+from symrom.model.persistence import FORMAT_VERSION
 from symrom.data.io import write_dataset
 from symrom.testing import make_planted_dataset
 from conftest import one_line_error
@@ -107,7 +108,7 @@ def test_train_does_not_overwrite_without_force(good, tmp_path):
     r = _run("train", good, "--out", out, "--force")
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in out.iterdir()) == ["equations.txt", "model.json"]
-    assert json.loads((out / "model.json").read_text())["format_version"] == 3
+    assert json.loads((out / "model.json").read_text())["format_version"] == FORMAT_VERSION
 
 
 def _corrupt_model(model, tmp_path, edit):
