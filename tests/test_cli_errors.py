@@ -13,8 +13,8 @@ import pytest
 from typer.testing import CliRunner
 
 from symrom.cli import app
-from symrom.model.persistence import FORMAT_VERSION
 from symrom.data.io import write_dataset
+from symrom.model.persistence import FORMAT_VERSION
 from symrom.testing import make_planted_dataset
 from conftest import one_line_error
 
