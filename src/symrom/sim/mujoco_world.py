@@ -161,6 +161,8 @@ class MujocoWorld:
         self._body_root = self.model.body_rootid.astype(np.int64)
         self._feet_arr = np.asarray(self._feet, dtype=np.int64)
         self._signs_arr = np.asarray(self.signs, dtype=float)
+        d = self.data  # views of MjData's fixed-size arrays (each attribute read makes a new one)
+        self._views = (d.qpos, d.qvel, d.xmat, d.xpos, d.cvel, d.subtree_com)
         self._pyramidal = self.model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
         self._pushed = False  # a base force is set for the next tick
         self._quat = np.empty(4)
@@ -206,12 +208,11 @@ class MujocoWorld:
         """The current state of the robot (see ``RobotState``): MuJoCo's arrays read in one
         compiled call (``symrom.sim.compiled.mujoco_state``; ``state_reference`` is the same
         through MuJoCo's own functions)."""
-        d = self.data
         q, dq, R, omega = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3)), np.empty(3)
         foot_pos, foot_vel, contact = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3)), np.empty(N_LEGS, np.uint8)
-        mujoco_state(d.qpos, d.qvel, d.xmat, d.xpos, d.cvel, d.subtree_com, self._body_root, self._base,
-                     self._feet_arr, self._qadr, self._vadr, self._signs_arr, d.contact.geom, self._leg_of_geom,
-                     self._ground, self._quat, q, dq, R, omega, foot_pos, foot_vel, contact)
+        mujoco_state(*self._views, self._body_root, self._base, self._feet_arr, self._qadr, self._vadr,
+                     self._signs_arr, self.data.contact.geom, self._leg_of_geom, self._ground, self._quat,
+                     q, dq, R, omega, foot_pos, foot_vel, contact)
         return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=contact, foot_pos=foot_pos,
                           foot_vel=foot_vel)
 
