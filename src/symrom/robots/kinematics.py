@@ -161,6 +161,19 @@ class LegKinematics:
             out[leg] = np.linalg.norm(at[2] - at[1]), np.linalg.norm(p - at[2])
         return out
 
+    def hip_positions(self) -> np.ndarray:
+        """(4, 3) m: per leg, the origin of the hip flexion (hy) joint, base frame."""
+        out = np.empty((N_LEGS, 3))
+        for leg in range(N_LEGS):
+            R, p = np.eye(3), np.zeros(3)
+            for el, col in zip(self.chains[leg], self.chain_joint_index[leg]):
+                p = p + R @ el.xyz
+                R = R @ el.rot
+                if col == 3 * leg + 1:
+                    out[leg] = p
+                    break
+        return out
+
     def foot_positions(self, q_joints: np.ndarray) -> np.ndarray:
         """Feet in the base frame: q_joints (N, 12) rad -> (N, 4, 3) m."""
         return self.foot_positions_and_jacobians(q_joints)[0]

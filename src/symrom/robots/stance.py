@@ -1,7 +1,7 @@
 """Standing poses from a robot's description: leg inverse kinematics and the start pose.
 
 One way to stand a robot, shared by every motion: feet level under the hips
-(their positions at zero joint angles), the base at a given height, joint
+(their positions at zero joint angles, fore and aft at the hip flexion axis), the base at a given height, joint
 angles from damped Newton steps on the URDF kinematics that start at the
 description's standing leg posture and keep the knees in its range.
 Units: m, rad; base-frame feet (4, 3); joint angles (12,) in symrom's order.
@@ -40,8 +40,15 @@ def leg_ik(robot: str, feet_base: np.ndarray, q_guess: np.ndarray | None = None,
 
 
 def nominal_feet(robot: str) -> np.ndarray:
-    """(4, 3) m: the feet at zero joint angles (legs straight), base frame."""
-    return leg_kinematics(robot).foot_positions(np.zeros((1, N_JOINTS)))[0]
+    """(4, 3) m: the feet under the hips, base frame: at zero joint angles (legs straight),
+    moved fore and aft to the hip flexion axis where the straight leg is not plumb (the
+    Laikago's feet sit 0.16 m behind its hips at zero angles: standing there would put
+    four fifths of its weight on the front legs). Where it is plumb (A1, Go1) the two are
+    the same numbers."""
+    kin = leg_kinematics(robot)
+    feet = kin.foot_positions(np.zeros((1, N_JOINTS)))[0]
+    feet[:, 0] = kin.hip_positions()[:, 0]
+    return feet
 
 
 def standing_joints(robot: str, height: float | None = None, dx: float = 0.0) -> np.ndarray:

@@ -73,6 +73,82 @@ def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
 
 
 @njit
+def mujoco_state(qpos, qvel, xmat, xpos, cvel, subtree_com, body_root, base, feet, qadr, vadr, signs,
+                 con_geom, leg_of_geom, ground, quat, q, dq, R, omega, foot_pos, foot_vel, contact):
+    """The robot's state from MuJoCo's arrays, in one call (``MujocoWorld.state``).
+
+    qpos, qvel, xmat (nbody, 9), xpos (nbody, 3), cvel (nbody, 6), subtree_com (nbody, 3)
+    and body_root (nbody,): MuJoCo's, after a forward pass; base: the base body (its free
+    joint at qpos[0:7], qvel[0:6], angular velocity in the body frame); feet (4,) bodies;
+    qadr, vadr (12,): the joints' addresses; signs (12,); con_geom (ncon, 2) the contacts'
+    geoms, leg_of_geom (ngeom,) the leg of a foot geom or -1, ground the ground geom; quat
+    (4,) scratch. Writes q, dq (18,), R (3, 3), omega (3,) rad/s world, foot_pos and
+    foot_vel (4, 3) (m, m/s, the foot bodies' frames, world) and contact (4,) (1 where a
+    foot geom touches the ground geom). foot_vel is ``mj_objectVelocity``'s linear part:
+    the body's com-based velocity moved from its root's subtree centre of mass to xpos."""
+    w = qvel[3:6]
+    for a in range(3):  # qvel holds the angular velocity in the body frame
+        omega[a] = xmat[base, 3 * a] * w[0] + xmat[base, 3 * a + 1] * w[1] + xmat[base, 3 * a + 2] * w[2]
+    quat[0], quat[1], quat[2], quat[3] = qpos[4], qpos[5], qpos[6], qpos[3]  # (w, x, y, z) as (x, y, z, w)
+    zero, unit = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])  # the free joint sits at the link frame
+    base_state(qpos[0:3], quat, qvel[0:3], omega, zero, unit, q, dq, R)
+    for j in range(12):
+        q[j] = qpos[qadr[j]] * signs[j]
+        dq[j] = qvel[vadr[j]] * signs[j]
+    for k in range(4):
+        b = feet[k]
+        c = subtree_com[body_root[b]]
+        r0, r1, r2 = xpos[b, 0] - c[0], xpos[b, 1] - c[1], xpos[b, 2] - c[2]
+        w0, w1, w2 = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+        foot_vel[k, 0] = cvel[b, 3] + (w1 * r2 - w2 * r1)
+        foot_vel[k, 1] = cvel[b, 4] + (w2 * r0 - w0 * r2)
+        foot_vel[k, 2] = cvel[b, 5] + (w0 * r1 - w1 * r0)
+        foot_pos[k, 0], foot_pos[k, 1], foot_pos[k, 2] = xpos[b, 0], xpos[b, 1], xpos[b, 2]
+        contact[k] = 0
+    for i in range(con_geom.shape[0]):
+        g1, g2 = con_geom[i, 0], con_geom[i, 1]
+        if g1 == ground and leg_of_geom[g2] >= 0:
+            contact[leg_of_geom[g2]] = 1
+        elif g2 == ground and leg_of_geom[g1] >= 0:
+            contact[leg_of_geom[g1]] = 1
+
+
+@njit
+def mujoco_foot_forces(con_geom, con_frame, con_friction, con_dim, con_efc, efc_force, leg_of_geom, ground, f):
+    """The ground's force f (4, 3) N on each foot, world, from MuJoCo's contacts (pyramidal
+    friction cones): per foot/ground contact with constraint rows (efc address >= 0), the
+    force ``mj_contactForce`` decodes (normal: the sum of the pyramid's edge forces; tangent
+    i: (edge 2i - edge 2i+1) mu_i) turned from the contact frame (con_frame rows: normal,
+    tangents) into the world, signed for the foot (MuJoCo's acts from geom1 on geom2).
+    con_*: the contacts' geom (n, 2), frame (n, 9), friction (n, 5), dim (n,), efc_address
+    (n,); efc_force: MuJoCo's; leg_of_geom, ground as in ``mujoco_state``."""
+    f[:, :] = 0.0
+    for i in range(con_geom.shape[0]):
+        g1, g2 = con_geom[i, 0], con_geom[i, 1]
+        if g1 == ground and leg_of_geom[g2] >= 0:
+            k, sign = leg_of_geom[g2], 1.0
+        elif g2 == ground and leg_of_geom[g1] >= 0:
+            k, sign = leg_of_geom[g1], -1.0
+        else:
+            continue
+        a = con_efc[i]
+        if a < 0:  # within the margin, not touching: no force
+            continue
+        dim = con_dim[i]
+        local = np.zeros(3)
+        if dim == 1:
+            local[0] = efc_force[a]
+        else:
+            for e in range(2 * (dim - 1)):
+                local[0] += efc_force[a + e]
+            for t in range(min(dim - 1, 2)):
+                local[t + 1] = (efc_force[a + 2 * t] - efc_force[a + 2 * t + 1]) * con_friction[i, t]
+        for r in range(3):
+            f[k, r] += sign * (con_frame[i, r] * local[0] + con_frame[i, 3 + r] * local[1]
+                               + con_frame[i, 6 + r] * local[2])
+
+
+@njit
 def distribute(foot_pos, centre, legs, force, moment, mu, grf):
     """Ground reactions grf (4, 3) N (``symrom.sim.froggy.distribute``) of the feet
     ``legs`` (int array) giving the body wrench (force, moment), least norm, pulls
@@ -287,9 +363,34 @@ def warm_up(froggy: bool = True) -> None:
     pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
                         np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
     clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
+    _warm_mujoco()
     if not froggy:
         return
     feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
     q[14] = 0.3
     froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
                   np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())
+
+
+def _warm_mujoco() -> None:
+    """Compile the MuJoCo world's reads for the array types MuJoCo hands them: its contact
+    fields are strided views of the contact structs, contiguous when there is one contact
+    or none."""
+    nb, ng = 6, 8
+    i32, i64 = np.int32, np.int64
+    f4, legs = np.zeros((4, 3)), np.full(ng, -1, dtype=i64)
+    legs[2:6] = np.arange(4)
+    qpos = np.zeros(19)
+    qpos[3] = 1.0  # a unit quaternion
+    for n, strided in ((1, False), (2, True)):
+        rows = np.zeros((n, 12 if strided else 2), dtype=i32)
+        geom, dim, efc = rows[:, :2], np.full(n, 3, i32), np.zeros(n, i32)
+        frame, friction = np.zeros((n, 9 if not strided else 20))[:, :9], np.zeros((n, 5 if not strided else 8))[:, :5]
+        if strided:
+            dim, efc = rows[:, 2], rows[:, 3]
+        mujoco_state(qpos, np.zeros(18), np.tile(np.eye(3).ravel(), (nb, 1)), np.zeros((nb, 3)),
+                     np.zeros((nb, 6)), np.zeros((nb, 3)), np.zeros(nb, dtype=i64), 1, np.arange(2, 6, dtype=i64),
+                     np.arange(7, 19, dtype=i32), np.arange(6, 18, dtype=i32), np.ones(12), geom, legs, 0,
+                     np.empty(4), np.empty(18), np.empty(18), np.empty((3, 3)), np.empty(3), np.empty((4, 3)),
+                     np.empty((4, 3)), np.empty(4, dtype=np.uint8))
+        mujoco_foot_forces(geom, frame, friction, dim, efc, np.zeros(4 * n), legs, 0, f4)

@@ -118,7 +118,10 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
     """``params`` (the A1's) for ``robot``, dynamically similar: lengths with the leg length l,
     times and speeds with sqrt(l) (equal Froude number), forces with the mass m, Cartesian
     stiffness with m / l and damping with m / sqrt(l), the levelling moment's stiffness with
-    m l and damping with m l^1.5. Angles stay. A robot whose legs are weaker for its size
+    m l and damping with m l^1.5. Angles stay, but for the crouch's, which is level: the
+    A1's nose-down crouch is its own tuning (its push's nose-up turn brings it back through
+    level), and on other robots it adds to the nose-down turn of the rear-only push (the
+    Mini Cheetah then lands nose-down past the tilt check). A robot whose legs are weaker for its size
     than the A1's (``torque_capacity``, ratio c < 1) gets its thrust times sqrt(c): the
     push then stays within what its motors give for longer (the controller scales each
     leg's torques into the limits). The A1's are returned unchanged."""
@@ -132,7 +135,8 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
     f |= {n: getattr(params, n) * m / l for n in _STIFF}
     f |= {n: getattr(params, n) * m / root for n in _DAMP}
     f |= {"push_speed": params.push_speed * root, "force_all": params.force_all * m_thrust,
-          "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l, "d_att": params.d_att * m * l * root}
+          "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l, "d_att": params.d_att * m * l * root,
+          "crouch_pitch": 0.0}
     return replace(params, **f)
 
 

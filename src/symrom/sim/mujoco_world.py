@@ -39,7 +39,7 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
-from symrom.sim.compiled import base_state
+from symrom.sim.compiled import base_state, mujoco_foot_forces, mujoco_state
 from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, standing_configuration
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
@@ -157,6 +157,14 @@ class MujocoWorld:
         for k, b in enumerate(self._feet):
             self._leg_of_geom[self.model.geom_bodyid == b] = k
         self._leg_list = self._leg_of_geom.tolist()
+        # the arrays ``mujoco_state`` takes, typed once
+        self._body_root = self.model.body_rootid.astype(np.int64)
+        self._feet_arr = np.asarray(self._feet, dtype=np.int64)
+        self._signs_arr = np.asarray(self.signs, dtype=float)
+        d = self.data  # views of MjData's fixed-size arrays (each attribute read makes a new one)
+        self._views = (d.qpos, d.qvel, d.xmat, d.xpos, d.cvel, d.subtree_com)
+        self._pyramidal = self.model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+        self._pushed = False  # a base force is set for the next tick
         self._quat = np.empty(4)
         self.foot_radius = ids["foot_radius"]
         self.mass = float(self.model.body_subtreemass[self._base])  # kg
@@ -174,7 +182,8 @@ class MujocoWorld:
         if q.shape != (N_Q,) or dq.shape != (N_Q,):
             raise ValueError(f"q and dq must have shape ({N_Q},), got {q.shape} and {dq.shape}")
         m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
+        mujoco.mj_resetData(m, d)  # clears a pending base push too
+        self._pushed = False
         R = rpy_to_matrix(q[BASE_RPY])[0]
         quat = np.empty(4)
         mujoco.mju_mat2Quat(quat, R.reshape(-1))
@@ -196,7 +205,20 @@ class MujocoWorld:
         return standing_configuration(self.spec, self.foot_radius, q_joints, xy, rpy, penetration)
 
     def state(self) -> RobotState:
-        """The current state of the robot (see ``RobotState``)."""
+        """The current state of the robot (see ``RobotState``): MuJoCo's arrays read in one
+        compiled call (``symrom.sim.compiled.mujoco_state``; ``state_reference`` is the same
+        through MuJoCo's own functions)."""
+        q, dq, R, omega = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3)), np.empty(3)
+        foot_pos, foot_vel, contact = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3)), np.empty(N_LEGS, np.uint8)
+        mujoco_state(*self._views, self._body_root, self._base, self._feet_arr, self._qadr, self._vadr,
+                     self._signs_arr, self.data.contact.geom, self._leg_of_geom, self._ground, self._quat,
+                     q, dq, R, omega, foot_pos, foot_vel, contact)
+        return RobotState(t=self.t, q=q, dq=dq, omega=omega, R=R, contact=contact, foot_pos=foot_pos,
+                          foot_vel=foot_vel)
+
+    def state_reference(self) -> RobotState:
+        """``state`` through NumPy and MuJoCo's functions (``mj_objectVelocity``): the reference
+        the compiled read is tested against."""
         m, d = self.model, self.data
         q, dq, R = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3))
         qp, qv = d.qpos, d.qvel
@@ -237,6 +259,16 @@ class MujocoWorld:
         return self._forces.copy()
 
     def _solve_forces(self) -> None:
+        if self._pyramidal:
+            d = self.data
+            con = d.contact
+            mujoco_foot_forces(con.geom, con.frame, con.friction, con.dim, con.efc_address, d.efc_force,
+                               self._leg_of_geom, self._ground, self._forces)
+        else:
+            self._solve_forces_reference()
+
+    def _solve_forces_reference(self) -> None:
+        """``_solve_forces`` through ``mj_contactForce`` (any friction cone)."""
         f = self._forces
         f[:] = 0.0
         d = self.data
@@ -273,7 +305,9 @@ class MujocoWorld:
             if self.held.size:
                 applied = tau.copy()
                 applied[self.held] = d.actuator_force[self.held] * self.signs[self.held]
-        d.xfrc_applied[self._base, :3] = 0.0
+        if self._pushed:  # the push lasts one tick
+            d.xfrc_applied[self._base, :3] = 0.0
+            self._pushed = False
         mujoco.mj_step1(m, d)
         self.t += m.opt.timestep
         return applied if report else None
@@ -300,6 +334,7 @@ class MujocoWorld:
         if f.shape != (3,) or not np.all(np.isfinite(f)):
             raise ValueError(f"force must be 3 finite numbers, got {force_world!r}")
         self.data.xfrc_applied[self._base, :3] = f
+        self._pushed = True
 
     def scale_inertia(self, trunk_mass: float, leg_mass: float, inertia: float) -> None:
         """Scale the base's mass by ``trunk_mass``, the other robot bodies' by ``leg_mass``, and
