@@ -906,6 +906,9 @@ def generate_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
     proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
+    randomize: Annotated[bool, typer.Option("--randomize", help="Domain-randomised source jumps: motion, "
+                                            "masses, latency, friction, contact, joint damping, armature, "
+                                            "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
@@ -923,7 +926,7 @@ def generate_cmd(
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
     check_writable(out)
     _check_workers(workers)
-    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
+    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy, randomize=randomize,
                                          noise=NoiseConfig() if noise else None, engine=engine))
     runner = _start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion} ({engine})"

@@ -15,8 +15,10 @@ from symrom.sim.checks import JumpChecks
 from symrom.sim.world import WorldConfig
 
 # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise); 3: the engine is a
-# choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2)
-GENERATOR_VERSION = 3
+# choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2); 4: the
+# proxy draws joint damping, armature, friction loss, a soft contact and a measured torque
+# (its jumps change; nominal and noisy jumps bitwise those of 3), the randomized variant
+GENERATOR_VERSION = 4
 
 
 @dataclass(frozen=True)
@@ -51,7 +53,8 @@ class GenerateConfig:
 
     robot: a built-in name or the key of a description file (its absolute path,
     ``symrom.robots.robot_key``); motion: a name in ``symrom.motions.MOTIONS``;
-    n_jumps; seed; proxy: the motion's hardware-like variant; noise: the noisy
+    n_jumps; seed; proxy: the motion's hardware-like variant; randomize: its
+    domain-randomised variant (``randomized``; not with proxy); noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
     max_attempts: tries per jump before generation fails; engine: the physics engine
     (``symrom.sim.engine.ENGINES``).
@@ -67,6 +70,12 @@ class GenerateConfig:
     checks: JumpChecks = field(default_factory=JumpChecks)
     max_attempts: int = 8
     engine: str = "pybullet"
+    randomize: bool = False
+
+    @property
+    def variant(self) -> str | None:
+        """The motion variant the jumps are drawn with: ``proxy``, ``randomized`` or None."""
+        return "proxy" if self.proxy else "randomized" if self.randomize else None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -133,9 +133,12 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         check_engine(cfg.engine)
     except (UnknownMotionError, RobotDescriptionError, UnknownEngineError) as e:
         raise GenerationError(str(e)) from None
-    if cfg.proxy and "proxy" not in entry.variants:
-        offered = [m for m, e in MOTIONS.items() if "proxy" in e.variants]
-        raise GenerationError(f"--proxy is not a variant of {cfg.motion!r}; motions with it: {offered}")
+    if cfg.proxy and cfg.randomize:
+        raise GenerationError("--proxy and --randomize are two variants; choose one")
+    for flag, variant in (("--proxy", "proxy"), ("--randomize", "randomized")):
+        if cfg.variant == variant and variant not in entry.variants:
+            offered = [m for m, e in MOTIONS.items() if variant in e.variants]
+            raise GenerationError(f"{flag} is not a variant of {cfg.motion!r}; motions with it: {offered}")
     if cfg.n_jumps < 1:
         raise GenerationError(f"need at least one jump, got {cfg.n_jumps}")
     if not motion_available(cfg.motion):

@@ -40,7 +40,8 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.compiled import base_state
-from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, standing_configuration
+from symrom.sim.world import (RobotState, WorldConfig, _check_contact, euler_rate_matrix,
+                              standing_configuration)
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
@@ -315,6 +316,22 @@ class MujocoWorld:
     def set_ground_friction(self, mu: float) -> None:
         """Foot/ground sliding friction (every geom carries it: MuJoCo takes the larger)."""
         self.model.geom_friction[:, 0] = mu
+
+    def set_ground_contact(self, stiffness: float, damping: float) -> None:
+        """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m (MuJoCo's
+        direct ``solref = (-stiffness, -damping)`` on every geom; MuJoCo mixes a pair's)."""
+        _check_contact(stiffness, damping)
+        self.model.geom_solref[:] = (-stiffness, -damping)
+
+    def set_actuator_effects(self, effects: ActuatorEffects) -> None:
+        """Joint damping, armature and friction loss from now on (MuJoCo's dof properties)."""
+        m = self.model
+        m.dof_damping[self._vadr] = effects.damping
+        m.dof_armature[self._vadr] = effects.armature
+        m.dof_frictionloss[self._vadr] = effects.friction_loss
+        mujoco.mj_setConst(m, self.data)  # armature enters the constants of the constraint solver
+        mujoco.mj_forward(m, self.data)
+        self.effects = effects
 
     def close(self) -> None:
         """Nothing to give back (the model and data are freed with the world)."""

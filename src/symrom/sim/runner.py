@@ -55,7 +55,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
-    params = motion.sample_params(params_rng, cfg.robot, "proxy" if cfg.proxy else None)
+    params = motion.sample_params(params_rng, cfg.robot, cfg.variant)
     world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
