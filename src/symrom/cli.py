@@ -676,14 +676,18 @@ def reproduce_cmd(
     backend: BackendName = "local",
     address: Address = None,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
+    only: Annotated[Optional[str], typer.Option(
+        "--only", help="Run one part only: sim2real (with the SIM Go1 selection it needs).")] = None,
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     import shlex
     from dataclasses import replace
 
     from symrom.atomic import check_writable
-    from symrom.experiments.reproduce import ReproduceConfig, reproduce
+    from symrom.experiments.reproduce import PARTS, ReproduceConfig, reproduce
 
+    if only is not None and only not in PARTS:
+        raise typer.BadParameter(f"{only!r}; one of: {', '.join(PARTS)}", param_hint="--only")
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
     from symrom.sim.engine import check_engine
@@ -697,7 +701,7 @@ def reproduce_cmd(
             if not transient:
                 console.log(msg)
 
-        summary = reproduce(out, cfg, command=command, say=say)
+        summary = reproduce(out, cfg, command=command, say=say, only=only)
         if not no_report:
             from symrom.report.html import build_report
 
@@ -707,7 +711,12 @@ def reproduce_cmd(
         full = exp["metrics"]["horizons"]["full"]
         typer.echo(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
                    f"{exp['active_terms']}, diverged {full['diverged_jumps']}/{exp['metrics']['n_jumps']}")
-    typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
+    if summary.get("sim2real", {}).get("targets"):
+        from symrom.report.sim2real import sim2real_markdown
+
+        typer.echo(sim2real_markdown(summary["sim2real"]["targets"]))
+    if "sweep" in summary:
+        typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
     typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
 
 

@@ -310,6 +310,15 @@ class ProxyWorld:
         applied = self.world.step(self.motors.apply(tau, self.world.joint_velocities()), report)
         return None if applied is None else self.logged_torque(tau, applied)
 
+    @property
+    def logged_torque_bound(self) -> np.ndarray:
+        """(12,) N m: the largest |logged torque| the torque model can give (the limits, or
+        for ``measured`` |bias| + scale x limit)."""
+        c, limit = self.cfg, self.world.torque_limit
+        if c.torque_log == "measured":
+            return np.tile(np.abs(np.asarray(c.torque_bias, dtype=float)), N_LEGS) + c.torque_scale * limit
+        return limit
+
     def logged_torque(self, tau_cmd: np.ndarray, applied: np.ndarray) -> np.ndarray:
         """(12,) N m the log holds for command ``tau_cmd`` (12,) and ``applied`` (12,): see
         ``ProxyConfig.torque_log``."""

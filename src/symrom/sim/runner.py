@@ -60,6 +60,9 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
+    bound = getattr(world, "logged_torque_bound", None)  # a measured torque may pass the limits
+    if bound is not None and not np.array_equal(bound, world.torque_limit):
+        info["torque_bound"] = np.asarray(bound).tolist()
     force = None
     if cfg.noise is not None:
         n = cfg.noise
@@ -127,7 +130,8 @@ def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarr
         if "stopped" in info:  # failed for certain while it ran; the other checks were not run
             bad = [info["stopped"]]
         else:
-            bad = check_jump(log, cfg.robot, dt, cfg.checks, info["finished"]) + motion.check(log, dt, cfg.checks)
+            bad = (check_jump(log, cfg.robot, dt, cfg.checks, info["finished"], info.get("torque_bound"))
+                   + motion.check(log, dt, cfg.checks))
         if not bad:
             record = {"jump": jump, "attempt": attempt, "spawn_key": [jump, attempt],
                       "retries": failures, "samples": int(log["t"].shape[0]), **info}
