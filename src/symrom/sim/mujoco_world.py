@@ -45,6 +45,7 @@ from symrom.sim.world import (RobotState, WorldConfig, _check_contact, euler_rat
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
+CONTACT_IMPEDANCE = 0.9  # MuJoCo's solimp d of a contact set by set_ground_contact (its lowest default)
 HOLD_ERROR = 0.005  # rad: a held joint's servo gives its full torque limit at this error
 HOLD_INERTIA = 0.02  # kg m^2: the inertia the held joints' servo damping is set for
 _ROBOT, _GROUND = 2, 1  # contype / conaffinity bits
@@ -318,10 +319,20 @@ class MujocoWorld:
         self.model.geom_friction[:, 0] = mu
 
     def set_ground_contact(self, stiffness: float, damping: float) -> None:
-        """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m (MuJoCo's
-        direct ``solref = (-stiffness, -damping)`` on every geom; MuJoCo mixes a pair's)."""
+        """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m per foot.
+
+        MuJoCo's soft contact is not a spring in newtons: with impedance d and direct
+        ``solref = (-k, -b)`` its force solves (A + R) f = aref - a0, aref = -b v - k r,
+        R = (1 - d) / d x A's diagonal (the foot's inverse weight w, ``body_invweight0``). At
+        rest that gives r = (1 - d) / d x w x load / k: with d held constant
+        (``CONTACT_IMPEDANCE``) and k, b = (1 - d) / d x w x (stiffness, damping) a foot sinks
+        by load / stiffness, as on PyBullet's contactStiffness."""
         _check_contact(stiffness, damping)
-        self.model.geom_solref[:] = (-stiffness, -damping)
+        d = CONTACT_IMPEDANCE
+        w = float(np.mean(self.model.body_invweight0[self._feet, 0]))  # 1/kg, along a contact normal
+        scale = (1.0 - d) / d * w
+        self.model.geom_solref[:] = (-stiffness * scale, -damping * scale)
+        self.model.geom_solimp[:, :2] = d
 
     def set_actuator_effects(self, effects: ActuatorEffects) -> None:
         """Joint damping, armature and friction loss from now on (MuJoCo's dof properties)."""
