@@ -165,9 +165,12 @@ def test_sim2real_checks():
     good = {"source": col(0.1, 0.12), "fine_tuned": col(0.03, 0.04, 1.03), "target_alone": col(0.03, 0.035)}
     c = sim2real_checks(good)
     assert c["source_z"] and c["fine_tuned_z"] and c["not_above_source"] and c["flight_gravity"]
-    assert c["vs_target_alone"] and c["scratch_ratio"] == pytest.approx(0.04 / 0.035)
+    assert c["vs_target_alone"] and c["scratch_ratio_z"] == pytest.approx(0.04 / 0.035)
+    assert c["scratch_ratio_x"] == pytest.approx(1.0)
     bad = {**good, "fine_tuned": col(0.03, 0.06, 1.07), "source": col(0.1, 0.05)}
     c = sim2real_checks(bad)
     assert not (c["fine_tuned_z"] or c["not_above_source"] or c["flight_gravity"] or c["vs_target_alone"])
+    c = sim2real_checks({**good, "fine_tuned": col(0.1, 0.03)})  # z fine, x 3.3x the target-alone's
+    assert c["fine_tuned_z"] and not c["vs_target_alone"]
     c = sim2real_checks({**good, "source": col(0.1, 0.12, diverged=1)})
     assert c["source_z"] is None and c["not_above_source"] is None  # a diverged column is not a number

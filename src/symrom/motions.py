@@ -76,7 +76,8 @@ class MotionEntry:
 
 MOTIONS: dict[str, MotionEntry] = {
     "froggy": MotionEntry("froggy", ("contact", "partial", "flight"), partial_before_flight,
-                          splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION"),
+                          splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION",
+                          variants=("randomized",)),
     "pronk": MotionEntry("pronk", ("contact", "flight"), contact_flight,
                          splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.pronk:MOTION",
                          variants=("proxy", "randomized")),

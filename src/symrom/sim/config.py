@@ -57,7 +57,8 @@ class GenerateConfig:
     domain-randomised variant (``randomized``; not with proxy); noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
     max_attempts: tries per jump before generation fails; engine: the physics engine
-    (``symrom.sim.engine.ENGINES``).
+    (``symrom.sim.engine.ENGINES``); splits: (train, val, test) jump counts, None for the
+    motion's (``generate.split_counts``).
     """
 
     robot: str
@@ -71,6 +72,7 @@ class GenerateConfig:
     max_attempts: int = 8
     engine: str = "pybullet"
     randomize: bool = False
+    splits: tuple[int, int, int] | None = None
 
     @property
     def variant(self) -> str | None:

@@ -62,7 +62,7 @@ from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
-from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, for_engine, sample_proxy
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy
 from symrom.sim.engine import World, make_world
 from symrom.sim.world import WorldConfig
 
@@ -448,10 +448,7 @@ class PronkMotion(PlainMotion):
 
     def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
         world = make_world(engine, robot, config)
-        if params.proxy is None:
-            return world
-        params.proxy = for_engine(params.proxy, engine)  # the jump's record: what was simulated
-        return ProxyWorld(world, params.proxy)
+        return world if params.proxy is None else ProxyWorld(world, params.proxy)
 
     def make_controller(self, robot: str, params: PronkParams) -> PronkController:
         return PronkController(robot, params)

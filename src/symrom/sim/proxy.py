@@ -11,9 +11,9 @@ drawn from an rng into a ``ProxyConfig`` that is recorded with the data
   ``World.set_ground_contact``);
 - what sits between motor and joint (``World.set_actuator_effects``): viscous
   joint damping, armature (reflected rotor inertia) and Coulomb friction loss.
-  PyBullet has no armature: on that engine the proxy's armature is set to zero
-  (``for_engine``; the jump's record says so) and MuJoCo is the target that has
-  every effect;
+  PyBullet has no armature: on that engine ``ProxyWorld`` sets the proxy's
+  armature to zero (``for_engine``; the jump's record holds what was simulated)
+  and MuJoCo is the target that has every effect;
 - motor latency: commanded torques reach the joints ``latency`` s late (a delay
   buffer of whole physics ticks) and torque-speed saturation: while a motor
   drives (torque and speed of the same sign) its limit falls linearly from full
@@ -33,7 +33,7 @@ world) for randomised source data; ``sample_proxy(rng, ranges)`` draws one jump'
 
 Use, in this order (what a runner does)::
 
-    cfg = for_engine(sample_proxy(rng), engine)  # or PronkParams.proxy
+    cfg = sample_proxy(rng)                      # or PronkParams.proxy
     world = ProxyWorld(make_world(engine, "go1", config), cfg)  # a World too
     world.reset(q0); s = world.state()           # corrupted readings (what is logged)
     applied = world.step(tau_cmd)                # delayed, saturated torque actually applied
@@ -278,13 +278,15 @@ class ProxyWorld:
     """A world seen through the proxy's motors and sensors; the same methods (a
     ``symrom.sim.engine.World`` of any engine).
 
-    Construction applies the mass, inertia and friction perturbations to ``world``.
+    Construction applies the mass, inertia, friction, contact and actuator perturbations to
+    ``world``; ``cfg`` is what the engine simulates of them (``for_engine``; the runner
+    records it in place of the drawn one).
     Other attributes (``spec``, ``config``, ``client`` ...) are the wrapped world's.
     """
 
     def __init__(self, world, cfg: ProxyConfig):
-        self.world, self.cfg = world, cfg
-        apply_to_world(world, cfg)
+        self.world, self.cfg = world, for_engine(cfg, world.engine)  # what is simulated
+        apply_to_world(world, self.cfg)
         self.motors = TorqueChannel(cfg, world.torque_limit, world.config.dt)
         self.sensors = SensorModel(cfg)
 

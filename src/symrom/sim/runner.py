@@ -20,6 +20,7 @@ from symrom.sim.checks import check_jump
 from symrom.sim.config import GenerateConfig, NoiseConfig
 from symrom.sim.controller import load_motion
 from symrom.sim.parts import LOG_KEYS, jsonable
+from symrom.sim.proxy import ProxyWorld
 from symrom.sim.world import RobotState
 
 
@@ -60,6 +61,8 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
+    if isinstance(world, ProxyWorld):  # what the engine simulates of the drawn perturbations
+        info["params"]["proxy"] = jsonable(asdict(world.cfg))
     bound = getattr(world, "logged_torque_bound", None)  # a measured torque may pass the limits
     if bound is not None and not np.array_equal(bound, world.torque_limit):
         info["torque_bound"] = np.asarray(bound).tolist()
