@@ -104,11 +104,14 @@ def test_sim2real_table_on_both_targets(run):
     for name, t in s2r["targets"].items():
         choice = json.loads((d / name / "finetune_choice.json").read_text())
         assert choice["split"] == "val" and len(choice["rows"]) == 4 * 4  # 2 sources x 2 variants x 4 methods
-        assert t["source_model"] == choice["rows"][choice["chosen"]]["source"]
+        assert t["chosen_source"] == choice["rows"][choice["chosen"]]["source"]
+        best = min((r for r in choice["rows"] if r["finetune"] == "calibrate" and r["score"] is not None),
+                   key=lambda r: r["score"])
+        assert t["source_model"] == best["source"]
         for col in ("source", "fine_tuned", "target_alone", "chosen"):
             e = t[col]
             assert {"x_rmse", "z_rmse", "diverged_jumps", "drifted_jumps", "flight_acc", "flight_ratio"} <= set(e)
-            metrics = json.loads((d / name / {"source": "source_eval", "fine_tuned": "fine_tuned/eval",
+            metrics = json.loads((d / name / {"source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
                                               "target_alone": "target_alone/eval", "chosen": "eval"}[col]
                                   / "metrics.json").read_text())
             assert e["z_rmse"] == metrics["horizons"]["full"]["components"]["z"]["rmse"]

@@ -430,6 +430,13 @@ def sim2real_checks(table: dict) -> dict:
     return out
 
 
+def table_source(choice: dict) -> str:
+    """The source of the side-by-side table: the one whose ``DEFAULT_METHOD`` fine-tuning scores
+    best on the target's val jumps (``finetune_choice.json``'s rows); else the chosen row's."""
+    rows = [r for r in choice["rows"] if r["finetune"] == DEFAULT_METHOD and r["score"] is not None]
+    return min(rows, key=lambda r: r["score"])["source"] if rows else choice["rows"][choice["chosen"]]["source"]
+
+
 def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridModel], settings: TrainConfig,
                cfg: ReproduceConfig, say: Say) -> tuple[dict, dict]:
     """Sim-to-real onto one target dataset: every (source, fine-tuning) candidate chosen on its val
@@ -457,34 +464,33 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
                else _evaluate_into(model, ds, d / "eval", cfg, f"{title} (chosen on val)"))
     entry = _experiment_entry(model, metrics, run, target, d / "model.json")
     chosen = choice["rows"][choice["chosen"]]
-    src_key = chosen["source"]
-    source = sources[src_key]
-    spath = d / "source_eval" / "metrics.json"
-    entry["before_finetune"] = (json.loads(spath.read_text()) if _done(spath)
-                                else _evaluate_into(source, ds, d / "source_eval", cfg, f"{title} (source as is)"))
-    entry["finetune"] = {**asdict(cfg.finetune), "source": src_key, "method": chosen["finetune"]}
+
+    def as_is(key: str) -> dict:  # a source evaluated on the test jumps as it was trained
+        path = d / "sources_eval" / key / "metrics.json"
+        return (json.loads(path.read_text()) if _done(path)
+                else _evaluate_into(sources[key], ds, path.parent, cfg, f"{title} ({key} source as is)"))
+
+    entry["before_finetune"] = as_is(chosen["source"])
+    entry["finetune"] = {**asdict(cfg.finetune), "source": chosen["source"], "method": chosen["finetune"]}
     entry["finetune_choice"] = choice
+    src_key = table_source(choice)
+    source = sources[src_key]
     table = {"source_model": src_key, "method": DEFAULT_METHOD, "chosen_method": chosen["finetune"],
-             "chosen": _side_entry(model, metrics, ds),
+             "chosen_source": chosen["source"], "chosen": _side_entry(model, metrics, ds),
              "engine": ds.generator.get("engine"),
              "data": str(target.relative_to(run)),
              "jumps": {s: int(len(ds.jumps_in(s))) for s in ("train", "val", "test")},
-             "source": _side_entry(source, entry["before_finetune"], ds)}
-    from symrom.model.hybrid import ModelDataError
-
+             "source": _side_entry(source, as_is(src_key), ds)}
     fdir = d / "fine_tuned"
     if _done(fdir / "model.json"):
         ft = load_model(fdir / "model.json")
+    elif _done(fdir / "refused.json"):
+        ft = None
+        table["fine_tuned"] = json.loads((fdir / "refused.json").read_text())
     else:
-        say(f"{name}: fine-tuning the {src_key} source by {DEFAULT_METHOD}")
-        try:
-            ft = finetune(source, ds, config=replace(cfg.finetune, method=DEFAULT_METHOD))
-        except ModelDataError as e:
-            ft = None
-            table["fine_tuned"] = {"refused": str(e)}
-        if ft is not None:
-            write_model_files(ft, fdir)
+        ft = _default_finetune(source, ds, fdir, cfg, table, f"{name}: fine-tuning the {src_key} source", say)
     if ft is not None:
+        table["prior_weight"] = ft.info["finetune"]["config"]["prior_weight"]  # accepted on val
         fpath = fdir / "eval" / "metrics.json"
         fm = (json.loads(fpath.read_text()) if _done(fpath)
               else _evaluate_into(ft, ds, fdir / "eval", cfg, f"{title} (fine-tuned, {DEFAULT_METHOD})"))
@@ -498,6 +504,28 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
     table["target_alone"] = _side_entry(alone, am, ds)
     table["checks"] = sim2real_checks(table)
     return entry, table
+
+
+def _default_finetune(source: HybridModel, ds: Dataset, fdir: Path, cfg: ReproduceConfig, table: dict,
+                      what: str, say: Say) -> HybridModel | None:
+    """The default fine-tuning, as ``symrom finetune`` does it: ``DEFAULT_METHOD`` on the train
+    jumps, checked on the val jumps (the prior weight raised tenfold while the val score rises
+    more than the tolerance; ``experiments.finetune.run_finetune``). Writes ``fdir`` (the model
+    and ``finetune.json``, or ``refused.json``); None if refused (the reason in ``table``)."""
+    from symrom.experiments.finetune import FineTuneCheck, FineTuneRefused, run_finetune, write_finetune
+    from symrom.model.hybrid import ModelDataError
+
+    say(f"{what} by {DEFAULT_METHOD}, checked on val")
+    try:
+        result = run_finetune(source, ds, FineTuneCheck(config=replace(cfg.finetune, method=DEFAULT_METHOD)))
+    except (FineTuneRefused, ModelDataError) as e:
+        table["fine_tuned"] = {"refused": str(e)}
+        fdir.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(fdir / "refused.json", json.dumps(table["fine_tuned"]))
+        return None
+    fdir.mkdir(parents=True, exist_ok=True)
+    write_finetune(fdir, result)
+    return result.model
 
 
 def run_sim2real(run: Path, data: dict[str, Path], settings: TrainConfig, cfg: ReproduceConfig,
@@ -600,7 +628,7 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
                                  paper="go1_proxy", files={
                                      "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
                                      "data": exps["go1_proxy"]["data"], "source_model": rel("sources", src, "model.json"),
-                                     "before": rel("go1_proxy", "source_eval", "metrics.json"),
+                                     "before": rel("go1_proxy", "sources_eval", src, "metrics.json"),
                                      "choice": rel("go1_proxy", "finetune_choice.json")},
                                  facts={"finetune": exps["go1_proxy"]["finetune"]}))
     if "sweep" in summary:

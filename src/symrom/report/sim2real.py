@@ -32,9 +32,10 @@ def sim2real_rows(targets: dict[str, dict]) -> list[list[str]]:
             e = t.get(key) or {}
             what = label + (f" ({t['source_model']})" if key in ("source", "fine_tuned") else "")
             if key == "fine_tuned":
-                what += f", {t.get('method', '')}"
+                what += f", {t.get('method', '')}" + (f" (prior weight {t['prior_weight']:g})"
+                                                       if t.get("prior_weight") is not None else "")
             if key == "chosen":
-                what += f" ({t['source_model']}, {t.get('chosen_method')})"
+                what += f" ({t.get('chosen_source')}, {t.get('chosen_method')})"
             if "refused" in e:
                 rows.append([name, what, f"refused: {e['refused']}", "", "", "", "", ""])
                 continue
@@ -63,10 +64,12 @@ def check_lines(targets: dict[str, dict]) -> list[str]:
 
 def sim2real_blocks(targets: dict[str, dict]) -> list:
     """The report's blocks: the table and the targets' lines."""
-    return [Para("Each target's test jumps: the source chosen on the target's val jumps, as it is; fine-tuned "
-                 "on the target's 12 train jumps by the default method; a model trained on those jumps alone "
-                 "with the same settings; the candidate chosen on val among every source and fine-tuning (the
-                 experiment's model). Flight z acceleration: the model's decoded mean on the test flight "
+    return [Para("Each target's test jumps: the source whose default fine-tuning scores best on the target's val "
+                 "jumps, as it is; fine-tuned "
+                 "on the target's 12 train jumps by the default method, as `symrom finetune` does it (its "
+                 "prior weight raised while the val score rises); a model trained on those jumps alone "
+                 "with the same settings; the candidate chosen on val among every source and fine-tuning "
+                 "(the experiment's model). Flight z acceleration: the model's decoded mean on the test flight "
                  "rows (the data's own beside it), and its ratio to -g."),
             Table(HEADER, sim2real_rows(targets), caption="Sim-to-real, side by side"),
             *(Para(line) for line in check_lines(targets))]
