@@ -589,7 +589,8 @@ def _calibration_lines(record: dict) -> None:
                               soft_wrap=True)
     test = (cal or {}).get("flight_test")
     if test:
-        out_console.print(f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {test['se']:.2g} m/s² "
+        se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump
+        out_console.print(f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {se} m/s² "
                           f"over {test['jumps']} jumps (contradicts the source above {test['limit']:.2g} and "
                           f"{test['t_limit']:g} standard errors): gravity "
                           + ("calibrated" if test["contradicted"] else "kept"), highlight=False, soft_wrap=True)
