@@ -3,24 +3,29 @@
 Layout of ``DIR`` (every step is skipped when its output exists, so an
 interrupted run resumes where it stopped and datasets are never regenerated):
 
-    data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
+    data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_randomized.h5, go1_proxy.h5,
+         go1_proxy_mujoco.h5                                     simulated datasets
     <exp>/     model.json (the selected model), eval/, selection/ (selection.json, cells/),
                paper_defaults/ (model.json, eval/),
                aslip/, aslip_rollout/, newton/, newton_fitted/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
-    go1_proxy/ base/model.json, base_exact/model.json (trained on the noisy Go1 variant
-               with the settings selected on SIM Go1, refined and not), model.json
-               (the candidate chosen on the proxy's val jumps), finetune_choice.json,
-               eval/, base_eval/
+    sources/<noisy|randomized>/<refined|exact>/model.json   sim-to-real sources, trained on
+               the noisy and the domain-randomised Go1 with the settings selected on SIM Go1
+    go1_proxy/, go1_proxy_mujoco/   sim-to-real targets (the proxy in PyBullet, in MuJoCo):
+               model.json (the candidate chosen on the target's val jumps), finetune_choice.json,
+               eval/, sources_eval/<source>/<variant>/ (sources as trained), fine_tuned/ (the
+               default fine-tuning, checked on val), target_alone/ (trained on the target's
+               train jumps alone)
     sweep/     sweep.json, cells/, encoders/W_e_l<k>.json
-    summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
-                   role and files, which the report renders
+    summary.json   experiments, sweep, sim2real, run, and ``manifest``: every experiment
+                   with its role and files, which the report renders
 
 Every ``model.json`` has its ``equations.txt`` beside it (``write_model_files``).
 
 Experiments: SIM Go1 pronking, SIM A1 froggy (phases contact / partial /
-flight), sim-to-real (train on noisy Go1, fine-tune on the proxy's training
-jumps, choose on its val jumps, evaluate on its test jump), the baselines (aSLIP
+flight), sim-to-real on two targets (train on the noisy and on the domain-randomised
+Go1, fine-tune on the target's training jumps, choose on its val jumps, evaluate on
+its test jumps beside the source as is and a model of the target's jumps alone), the baselines (aSLIP
 fitted to acceleration residuals and to rollouts, Newton on the measured force
 as it is and with fitted gains) beside each SIM model, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
 
