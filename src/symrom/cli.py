@@ -688,7 +688,7 @@ def reproduce_cmd(
     from symrom.experiments.reproduce import PARTS, ReproduceConfig, reproduce
 
     if only is not None and only not in PARTS:
-        raise typer.BadParameter(f"{only!r}; one of: {', '.join(PARTS)}", param_hint="--only")
+        raise ValueError(f"--only {only!r}: not a part of the run; one of: {', '.join(PARTS)}")
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
     from symrom.sim.engine import check_engine
