@@ -135,7 +135,7 @@ def test_randomized_variant_recorded_and_reproducible():
     from symrom.data.io import read_dataset
     from symrom.sim.generate import GenerateConfig, GenerationError, generate
 
-    cfg = GenerateConfig("go1", "pronk", 2, seed=3, randomize=True)
+    cfg = GenerateConfig("go1", "pronk", 2, seed=3, randomize=True, splits=(1, 0, 1))
     a = generate(cfg, tmp_path("rand_a.h5"))
     out = tmp_path("rand_b.h5")
     generate(cfg, out)
@@ -148,8 +148,11 @@ def test_randomized_variant_recorded_and_reproducible():
         assert p["proxy"]["armature"] == [0.0, 0.0, 0.0]  # PyBullet: none, and the record says so
         assert p["proxy"]["contact_stiffness"] is not None
     assert jumps[0]["params"]["pitch"] != jumps[1]["params"]["pitch"]
+    assert list(a.split) == ["train", "test"] and a.generator["splits"] == {"train": 1, "val": 0, "test": 1}
     np.testing.assert_array_equal(a.q, b.q)
     np.testing.assert_array_equal(a.tau, b.tau)
+    with pytest.raises(GenerationError, match=r"splits \(1, 1, 1\) must be three jump counts"):
+        generate(replace(cfg, splits=(1, 1, 1)), tmp_path("rand_s.h5"))
     with pytest.raises(GenerationError, match="choose one"):
         generate(replace(cfg, proxy=True), tmp_path("rand_c.h5"), force=True)
     # froggy's randomised jumps vary the length of the rear-only phase

@@ -632,7 +632,8 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
         out.append(ManifestEntry("go1_proxy", FINE_TUNED, f"proxy Go1, adapted from the {src} model",
                                  paper="go1_proxy", files={
                                      "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
-                                     "data": exps["go1_proxy"]["data"], "source_model": rel("sources", src, "model.json"),
+                                     "data": exps["go1_proxy"]["data"],
+                                     "source_model": rel("sources", src, "model.json"),
                                      "before": rel("go1_proxy", "sources_eval", src, "metrics.json"),
                                      "choice": rel("go1_proxy", "finetune_choice.json")},
                                  facts={"finetune": exps["go1_proxy"]["finetune"]}))

@@ -14,7 +14,8 @@ COLUMNS = (("source", "source as is"), ("fine_tuned", "fine-tuned"), ("target_al
            ("chosen", "chosen on val"))
 HEADER = ["target", "model", "full x RMSE [m]", "full z RMSE [m]", "flight z acc. [m/s^2] (data)",
           "vs -g", "diverged", "drifted"]
-CHECKS = (("source_z", "source z RMSE <= {source_z_le} m"), ("fine_tuned_z", "fine-tuned z RMSE <= {fine_tuned_z_le} m"),
+CHECKS = (("source_z", "source z RMSE <= {source_z_le} m"),
+          ("fine_tuned_z", "fine-tuned z RMSE <= {fine_tuned_z_le} m"),
           ("not_above_source", "fine-tuned not above the source"),
           ("flight_gravity", "fine-tuned flight gravity within {gravity_within:.0%}"),
           ("vs_target_alone", "fine-tuned x and z <= {scratch_ratio_le}x target alone"))

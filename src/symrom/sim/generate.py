@@ -103,12 +103,13 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
         "retries": int(sum(len(r["retries"]) for r in records)),
         "jumps": [{k: v for k, v in r.items() if k != "diagnostics"} for r in records],
     }
+    split = (split_labels(cfg.n_jumps, cfg.motion, cfg.proxy) if cfg.splits is None
+             else np.repeat(np.array(SPLITS, dtype=object), counts))
     if cfg.robot not in ROBOTS:  # a description file: keep its text with the data
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
                     t=cat["t"], q=cat["q"], dq=cat["dq"], tau=cat["tau"], contact=cat["contact"],
-                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy) if cfg.splits is None
-                    else np.repeat(np.array(SPLITS, dtype=object), counts),
+                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split,
                     dt=dt, generator=generator)
 
 
