@@ -446,8 +446,9 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
                cfg: ReproduceConfig, say: Say) -> tuple[dict, dict]:
     """Sim-to-real onto one target dataset: every (source, fine-tuning) candidate chosen on its val
     jumps (``choose_proxy``), reported on its test jumps; beside it the side-by-side table of the
-    chosen source as it is, fine-tuned by the default method and a model trained on the target's
-    train jumps alone with the same settings. Returns (the experiment's summary entry, the table)."""
+    source whose default fine-tuning scores best on val (``table_source``) as it is, fine-tuned by
+    the default method (checked on val) and a model trained on the target's train jumps alone
+    with the same settings. Returns (the experiment's summary entry, the table)."""
     d = run / name
     d.mkdir(parents=True, exist_ok=True)
     ds = read_dataset(target)
