@@ -36,7 +36,10 @@ def files(tmp_path_factory):
     save_model(model, d / "sim_model.json")
     px = proxy_go1()
     log = write_hardware(d / "flights.csv", [flight_segment(px, j) for j in range(px.n_jumps)])
-    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--split", "4,1,1", "--out", str(d / "flights.h5")])
+    # --lenient: in these flights the damped legs hold still, so a few 50 ms windows of the
+    # time-scale check see only the readings' noise (the simulator's times are exact)
+    r = runner.invoke(app, ["import", str(log), "--robot", "go1", "--split", "4,1,1", "--lenient",
+                            "--out", str(d / "flights.h5")])
     assert r.exit_code == 0, r.output
     return d / "sim_model.json", d / "flights.h5"
 

@@ -24,6 +24,8 @@ def run(tmp_path_factory):
     shutil.copy(reference_file("froggy"), d / "data" / "a1_sim.h5")
     shutil.copy(reference_file("pronk", noise=True), d / "data" / "go1_noisy.h5")
     shutil.copy(reference_file("pronk"), d / "data" / "go1_proxy.h5")
+    shutil.copy(reference_file("pronk", noise=True), d / "data" / "go1_randomized.h5")
+    shutil.copy(reference_file("pronk"), d / "data" / "go1_proxy_mujoco.h5")
     before = {p.name: p.stat().st_mtime for p in (d / "data").iterdir()}
     cfg = replace(ReproduceConfig.quick(), sweep_dims=(1, 2), sweep_seeds=2, workers=1,
                   adam=AdamConfig(epochs=2, refine_epochs=1, threshold_every=1))
@@ -92,6 +94,30 @@ def test_manifest_lists_every_experiment_with_its_role(run):
         "before_finetune"]
 
 
+def test_sim2real_table_on_both_targets(run):
+    from symrom.experiments.reproduce import sim2real_checks
+
+    d, summary, *_ = run
+    s2r = json.loads((d / "summary.json").read_text())["sim2real"]
+    assert s2r["sources"] == {"noisy": "go1_noisy", "randomized": "go1_randomized"}
+    assert set(s2r["targets"]) == {"go1_proxy", "go1_proxy_mujoco"}
+    for name, t in s2r["targets"].items():
+        choice = json.loads((d / name / "finetune_choice.json").read_text())
+        assert choice["split"] == "val" and len(choice["rows"]) == 4 * 4  # 2 sources x 2 variants x 4 methods
+        assert t["chosen_source"] == choice["rows"][choice["chosen"]]["source"]
+        best = min((r for r in choice["rows"] if r["finetune"] == "calibrate" and r["score"] is not None),
+                   key=lambda r: r["score"])
+        assert t["source_model"] == best["source"]
+        for col in ("source", "fine_tuned", "target_alone", "chosen"):
+            e = t[col]
+            assert {"x_rmse", "z_rmse", "diverged_jumps", "drifted_jumps", "flight_acc", "flight_ratio"} <= set(e)
+            metrics = json.loads((d / name / {"source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
+                                              "target_alone": "target_alone/eval", "chosen": "eval"}[col]
+                                  / "metrics.json").read_text())
+            assert e["z_rmse"] == metrics["horizons"]["full"]["components"]["z"]["rmse"]
+        assert t["checks"] == sim2real_checks(t)
+
+
 def test_rerun_resumes_without_retraining(run):
     d, _, _, cfg = run
     stamp = (d / "go1_sim" / "model.json").stat().st_mtime
@@ -116,3 +142,4 @@ def test_report_builds_from_the_run(run):
     assert "the go1_sim model (encoder: " in md_text
     assert "Model selection on the validation split" in md_text and "stability of each phase" in md_text
     assert "go1_proxy before fine-tuning" in md_text and "| exact |" in md_text and "| adam |" in md_text
+    assert "Sim-to-real: source, fine-tuned and target alone" in md_text and "| go1_proxy_mujoco | target alone |" in md_text

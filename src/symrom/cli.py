@@ -602,7 +602,8 @@ def _calibration_lines(record: dict) -> None:
                               soft_wrap=True)
     test = (cal or {}).get("flight_test")
     if test:
-        out_console.print(f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {test['se']:.2g} m/s² "
+        se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump
+        out_console.print(f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {se} m/s² "
                           f"over {test['jumps']} jumps (contradicts the source above {test['limit']:.2g} and "
                           f"{test['t_limit']:g} standard errors): gravity "
                           + ("calibrated" if test["contradicted"] else "kept"), highlight=False, soft_wrap=True)
@@ -689,14 +690,18 @@ def reproduce_cmd(
     backend: BackendName = "local",
     address: Address = None,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
+    only: Annotated[Optional[str], typer.Option(
+        "--only", help="Run one part only: sim2real (with the SIM Go1 selection it needs).")] = None,
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     import shlex
     from dataclasses import replace
 
     from symrom.atomic import check_writable
-    from symrom.experiments.reproduce import ReproduceConfig, reproduce
+    from symrom.experiments.reproduce import PARTS, ReproduceConfig, reproduce
 
+    if only is not None and only not in PARTS:
+        raise ValueError(f"--only {only!r}: not a part of the run; one of: {', '.join(PARTS)}")
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
     from symrom.sim.engine import check_engine
@@ -710,7 +715,7 @@ def reproduce_cmd(
             if not transient:
                 console.log(msg)
 
-        summary = reproduce(out, cfg, command=command, say=say)
+        summary = reproduce(out, cfg, command=command, say=say, only=only)
         if not no_report:
             from symrom.report.html import build_report
 
@@ -720,7 +725,12 @@ def reproduce_cmd(
         full = exp["metrics"]["horizons"]["full"]
         typer.echo(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
                    f"{exp['active_terms']}, diverged {full['diverged_jumps']}/{exp['metrics']['n_jumps']}")
-    typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
+    if summary.get("sim2real", {}).get("targets"):
+        from symrom.report.sim2real import sim2real_markdown
+
+        typer.echo(sim2real_markdown(summary["sim2real"]["targets"]))
+    if "sweep" in summary:
+        typer.echo(f"best latent dimension (L_mod): {summary['sweep']['best_latent_dim']}")
     typer.echo(f"summary: {out / 'summary.json'}" + ("" if no_report else f"\nreport: {out / 'report.html'}"))
 
 
@@ -977,6 +987,9 @@ def generate_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
     proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
+    randomize: Annotated[bool, typer.Option("--randomize", help="Domain-randomised source jumps: motion, "
+                                            "masses, latency, friction, contact, joint damping, armature, "
+                                            "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
@@ -994,7 +1007,7 @@ def generate_cmd(
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
     check_writable(out)
     _check_workers(workers)
-    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy,
+    config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy, randomize=randomize,
                                          noise=NoiseConfig() if noise else None, engine=engine))
     runner = _start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion} ({engine})"

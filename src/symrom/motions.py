@@ -57,7 +57,8 @@ class MotionEntry:
     phase_names: index -> name of the phases ``phase_rule(contact (N, 4), jump (N,))
     -> (N,) int8`` assigns; splits: the paper's (train, val, test) jump counts per
     variant (``""`` for the plain one), scaled for other jump counts; variants:
-    the options beyond ``noise`` the plug-in offers (e.g. ``proxy``); plugin:
+    the options beyond ``noise`` the plug-in offers (e.g. ``proxy``,
+    ``randomized``); plugin:
     ``"module:attribute"`` of its ``symrom.sim.controller.Motion``.
     """
 
@@ -75,10 +76,11 @@ class MotionEntry:
 
 MOTIONS: dict[str, MotionEntry] = {
     "froggy": MotionEntry("froggy", ("contact", "partial", "flight"), partial_before_flight,
-                          splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION"),
+                          splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION",
+                          variants=("randomized",)),
     "pronk": MotionEntry("pronk", ("contact", "flight"), contact_flight,
                          splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.pronk:MOTION",
-                         variants=("proxy",)),
+                         variants=("proxy", "randomized")),
 }
 
 

@@ -3,24 +3,29 @@
 Layout of ``DIR`` (every step is skipped when its output exists, so an
 interrupted run resumes where it stopped and datasets are never regenerated):
 
-    data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_proxy.h5   simulated datasets
+    data/go1_sim.h5, a1_sim.h5, go1_noisy.h5, go1_randomized.h5, go1_proxy.h5,
+         go1_proxy_mujoco.h5                                     simulated datasets
     <exp>/     model.json (the selected model), eval/, selection/ (selection.json, cells/),
                paper_defaults/ (model.json, eval/),
                aslip/, aslip_rollout/, newton/, newton_fitted/ (metrics.json, params.json)
     go1_sim/solvers/{exact,adam}/ (model.json, eval/)
-    go1_proxy/ base/model.json, base_exact/model.json (trained on the noisy Go1 variant
-               with the settings selected on SIM Go1, refined and not), model.json
-               (the candidate chosen on the proxy's val jumps), finetune_choice.json,
-               eval/, base_eval/
+    sources/<noisy|randomized>/<refined|exact>/model.json   sim-to-real sources, trained on
+               the noisy and the domain-randomised Go1 with the settings selected on SIM Go1
+    go1_proxy/, go1_proxy_mujoco/   sim-to-real targets (the proxy in PyBullet, in MuJoCo):
+               model.json (the candidate chosen on the target's val jumps), finetune_choice.json,
+               eval/, sources_eval/<source>/<variant>/ (sources as trained), fine_tuned/ (the
+               default fine-tuning, checked on val), target_alone/ (trained on the target's
+               train jumps alone)
     sweep/     sweep.json, cells/, encoders/W_e_l<k>.json
-    summary.json   experiments, sweep, run, and ``manifest``: every experiment with its
-                   role and files, which the report renders
+    summary.json   experiments, sweep, sim2real, run, and ``manifest``: every experiment
+                   with its role and files, which the report renders
 
 Every ``model.json`` has its ``equations.txt`` beside it (``write_model_files``).
 
 Experiments: SIM Go1 pronking, SIM A1 froggy (phases contact / partial /
-flight), sim-to-real (train on noisy Go1, fine-tune on the proxy's training
-jumps, choose on its val jumps, evaluate on its test jump), the baselines (aSLIP
+flight), sim-to-real on two targets (train on the noisy and on the domain-randomised
+Go1, fine-tune on the target's training jumps, choose on its val jumps, evaluate on
+its test jumps beside the source as is and a model of the target's jumps alone), the baselines (aSLIP
 fitted to acceleration residuals and to rollouts, Newton on the measured force
 as it is and with fitted gains) beside each SIM model, the latent-dimension trade-off on SIM Go1, and both solvers on SIM Go1.
 
@@ -65,7 +70,8 @@ Say = Callable[..., None]  # say(message, transient=False); transient = a progre
 
 @dataclass(frozen=True)
 class DatasetSpec:
-    """One simulated dataset: robot, motion, jumps and variant flags."""
+    """One simulated dataset: robot, motion, jumps and variant flags; engine: its physics engine
+    (None: the run's); seed: added to the run's seed (datasets drawn independently)."""
 
     name: str
     robot: str
@@ -73,6 +79,10 @@ class DatasetSpec:
     jumps: int
     noise: bool = False
     proxy: bool = False
+    randomize: bool = False
+    engine: str | None = None
+    seed: int = 0
+    splits: tuple[int, int, int] | None = None
 
 
 @dataclass(frozen=True)
@@ -98,7 +108,10 @@ class ReproduceConfig:
         DatasetSpec("go1_sim", "go1", "pronk", 156),
         DatasetSpec("a1_sim", "a1", "froggy", 150),
         DatasetSpec("go1_noisy", "go1", "pronk", 156, noise=True),
-        DatasetSpec("go1_proxy", "go1", "pronk", 15, proxy=True),
+        # sim-to-real targets: the paper's 12 train jumps, more val and test jumps than its 2 and 1
+        DatasetSpec("go1_proxy", "go1", "pronk", 24, proxy=True, splits=(12, 4, 8)),
+        DatasetSpec("go1_randomized", "go1", "pronk", 156, randomize=True, seed=1),
+        DatasetSpec("go1_proxy_mujoco", "go1", "pronk", 24, proxy=True, engine="mujoco", seed=2, splits=(12, 4, 8)),
     )
     experiments: tuple[ExperimentSpec, ...] = (
         ExperimentSpec("go1_sim", "go1_sim", 2, (2, 3, 4)),
@@ -136,7 +149,9 @@ class ReproduceConfig:
         return cls(
             datasets=(DatasetSpec("go1_sim", "go1", "pronk", 10), DatasetSpec("a1_sim", "a1", "froggy", 8),
                       DatasetSpec("go1_noisy", "go1", "pronk", 8, noise=True),
-                      DatasetSpec("go1_proxy", "go1", "pronk", 5, proxy=True)),
+                      DatasetSpec("go1_proxy", "go1", "pronk", 5, proxy=True),
+                      DatasetSpec("go1_randomized", "go1", "pronk", 8, randomize=True, seed=1),
+                      DatasetSpec("go1_proxy_mujoco", "go1", "pronk", 5, proxy=True, engine="mujoco", seed=2)),
             experiments=(ExperimentSpec("go1_sim", "go1_sim", 2, (2,)), ExperimentSpec("a1_sim", "a1_sim", 4, (3,))),
             selection=QUICK_SELECTION, sweep_dims=(1, 2, 4, 6, 18), sweep_seeds=2,
             adam=AdamConfig(epochs=20, refine_epochs=5, threshold_every=10), integrator="rk4")
@@ -169,8 +184,9 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
 
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
-    gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed, proxy=spec.proxy,
-                        noise=NoiseConfig() if spec.noise else None, engine=cfg.engine)
+    gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed + spec.seed, proxy=spec.proxy,
+                        randomize=spec.randomize, noise=NoiseConfig() if spec.noise else None,
+                        engine=spec.engine or cfg.engine, splits=spec.splits)
     generate(gc, path, backend=cfg.execution(), resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))
@@ -307,11 +323,21 @@ def selected_config(model: HybridModel, **changes) -> TrainConfig:
     return replace(TrainConfig(**model.info["training"]), **changes)
 
 
-# Sim-to-real candidates: the source trained on the noisy variant with the selected
-# settings, with and without its refinement, each kept as it is or fine-tuned on the
-# proxy's train jumps by calibration (learn.calibrate), acceleration (FineTune) or rollout (Refine).
+# Sim-to-real. Sources: a model trained, with the settings selected on SIM Go1 (refined and
+# not), on each source dataset; targets: hardware-like Go1 datasets whose settings no source saw
+# (the proxy in PyBullet, and in MuJoCo with armature too). Candidates: every source kept as it
+# is or fine-tuned on the target's train jumps by calibration (learn.calibrate, the default),
+# acceleration (FineTune) or rollout (Refine); chosen on the target's val jumps.
+SIM2REAL_SOURCES = {"noisy": "go1_noisy", "randomized": "go1_randomized"}  # source -> dataset
+SIM2REAL_TARGETS = ("go1_proxy", "go1_proxy_mujoco")  # target datasets, one experiment each
 PROXY_SOURCES = ("refined", "exact")
 PROXY_METHODS = ("none", "calibrate", "acceleration", "rollout")
+DEFAULT_METHOD = "calibrate"  # the fine-tuning of the side-by-side table
+# The sim-to-real targets checked on each target's test jumps (docs/results.md)
+SOURCE_Z_MAX = 0.15  # m: the source as it is, full-horizon base-height RMSE
+FINETUNED_Z_MAX = 0.05  # m: fine-tuned
+GRAVITY_TOLERANCE = 0.05  # fine-tuned flight acceleration within 5 % of -g
+SCRATCH_RATIO_MAX = 1.25  # fine-tuned at most this many times the target-alone model's RMSE
 
 
 def proxy_selection(cfg: ReproduceConfig) -> SelectionConfig:
@@ -319,9 +345,31 @@ def proxy_selection(cfg: ReproduceConfig) -> SelectionConfig:
     return replace(cfg.selection, reference=paper_reference("go1_proxy") if cfg.paper_reference else None)
 
 
+def source_models(run: Path, data: dict[str, Path], settings: TrainConfig, cfg: ReproduceConfig,
+                  say: Say) -> dict[str, HybridModel]:
+    """Every sim-to-real source model by key ``<source>/<refined|exact>``, trained on its source
+    dataset (``SIM2REAL_SOURCES``, those the run has) into ``run/sources/<source>/<variant>``."""
+    out = {}
+    for src, name in SIM2REAL_SOURCES.items():
+        if name not in data:
+            continue
+        ds = None
+        for variant in PROXY_SOURCES:
+            path = run / "sources" / src / variant / "model.json"
+            if _done(path):
+                out[f"{src}/{variant}"] = load_model(path)
+                continue
+            say(f"sim-to-real: training the {variant} source on {name}")
+            ds = ds or read_dataset(data[name])
+            tc = settings if variant == "refined" else replace(settings, refine=False)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            out[f"{src}/{variant}"] = _train_or_load(path, ds, tc)[0]
+    return out
+
+
 def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceConfig,
-                 say: Say) -> tuple[list[dict], list[HybridModel | None], int | None]:
-    """Every (source, fine-tuning) candidate scored on the proxy's val jumps against the paper's
+                 say: Say, label: str = "go1_proxy") -> tuple[list[dict], list[HybridModel | None], int | None]:
+    """Every (source, fine-tuning) candidate scored on the target's val jumps against the paper's
     implied RMSE for the proxy (``select.score_model``), and the index ``select.choose`` picks:
     the sparsest that meets it at both horizons, else the sparsest within the tolerance of the
     best. A fine-tuning that cannot be done is recorded with its reason."""
@@ -331,9 +379,9 @@ def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceCon
     scfg = proxy_selection(cfg)
     yardstick = scfg.yardstick(ds)
     rows, models = [], []
-    for src in PROXY_SOURCES:
+    for src in sources:
         for method in PROXY_METHODS:
-            say(f"go1_proxy: {src} source, fine-tuning {method}")
+            say(f"{label}: {src} source, fine-tuning {method}")
             row: dict = {"source": src, "finetune": method}
             try:
                 model = (sources[src] if method == "none" else
@@ -348,41 +396,154 @@ def choose_proxy(sources: dict[str, HybridModel], ds: Dataset, cfg: ReproduceCon
     return rows, models, choose(rows, scfg.tolerance, reference=scfg.reference is not None)
 
 
-def run_proxy(run: Path, noisy: Path, proxy: Path, settings: TrainConfig, cfg: ReproduceConfig, say: Say) -> dict:
-    """Sim-to-real: train on the noisy Go1 variant with the ``settings`` selected on SIM Go1
-    (refined and not), fine-tune on the proxy's train jumps, choose on its val jumps
-    (``choose_proxy``), report on its test jumps."""
-    d = run / "go1_proxy"
-    (d / "base").mkdir(parents=True, exist_ok=True)
-    say("go1_proxy: training on the noisy Go1 variant")
-    noisy_ds = read_dataset(noisy)
-    sources = {"refined": _train_or_load(d / "base" / "model.json", noisy_ds, settings)[0],
-               "exact": _train_or_load(d / "base_exact" / "model.json", noisy_ds, replace(settings, refine=False))[0]}
-    ds = read_dataset(proxy)
+def _side_entry(model: HybridModel, metrics: dict, ds: Dataset) -> dict:
+    """One column of the side-by-side table: full-horizon x and z RMSE (m), diverged and drifted
+    jumps, and the decoded flight acceleration on the test rows (m/s^2, its ratio to -g)."""
+    from symrom.learn.calibrate import flight_gravity
+
+    full = metrics["horizons"]["full"]
+    comps = full["components"]
+    fg = flight_gravity(model, ds, ds.rows_of("test"))
+    return {"x_rmse": comps["x"]["rmse"] if comps else None, "z_rmse": comps["z"]["rmse"] if comps else None,
+            "diverged_jumps": full["diverged_jumps"], "drifted_jumps": full.get("drifted_jumps", 0),
+            "flight_acc": None if fg is None else fg["model"], "flight_acc_data": None if fg is None else fg["data"],
+            "flight_ratio": None if fg is None else fg["ratio"], "active_terms": int(model.mask.sum())}
+
+
+def sim2real_checks(table: dict) -> dict:
+    """The sim-to-real targets on one target's side-by-side ``table`` (``run_target``): each a
+    bool, None where a column is missing or diverged. ``scratch_ratio_x`` / ``_z``: fine-tuned
+    over target-alone full-horizon RMSE; ``vs_target_alone`` needs both within the bound."""
+    src, ft, alone = table.get("source"), table.get("fine_tuned"), table.get("target_alone")
+
+    def rmse(e, c):
+        return None if e is None or e.get(f"{c}_rmse") is None or e["diverged_jumps"] else e[f"{c}_rmse"]
+
+    out: dict = {"source_z_le": SOURCE_Z_MAX, "fine_tuned_z_le": FINETUNED_Z_MAX,
+                 "gravity_within": GRAVITY_TOLERANCE, "scratch_ratio_le": SCRATCH_RATIO_MAX}
+    zs, zf = rmse(src, "z"), rmse(ft, "z")
+    out["source_z"] = None if zs is None else zs <= SOURCE_Z_MAX
+    out["fine_tuned_z"] = None if zf is None else zf <= FINETUNED_Z_MAX
+    out["not_above_source"] = None if zf is None or zs is None else zf <= zs
+    out["flight_gravity"] = (None if ft is None or ft.get("flight_ratio") is None
+                             else abs(ft["flight_ratio"] - 1.0) <= GRAVITY_TOLERANCE)
+    for c in ("x", "z"):
+        f, a = rmse(ft, c), rmse(alone, c)
+        out[f"scratch_ratio_{c}"] = None if f is None or a is None else f / a
+    ratios = [out["scratch_ratio_x"], out["scratch_ratio_z"]]
+    out["vs_target_alone"] = None if None in ratios else max(ratios) <= SCRATCH_RATIO_MAX
+    return out
+
+
+def table_source(choice: dict) -> str:
+    """The source of the side-by-side table: the one whose ``DEFAULT_METHOD`` fine-tuning scores
+    best on the target's val jumps (``finetune_choice.json``'s rows); else the chosen row's."""
+    rows = [r for r in choice["rows"] if r["finetune"] == DEFAULT_METHOD and r["score"] is not None]
+    return min(rows, key=lambda r: r["score"])["source"] if rows else choice["rows"][choice["chosen"]]["source"]
+
+
+def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridModel], settings: TrainConfig,
+               cfg: ReproduceConfig, say: Say) -> tuple[dict, dict]:
+    """Sim-to-real onto one target dataset: every (source, fine-tuning) candidate chosen on its val
+    jumps (``choose_proxy``), reported on its test jumps; beside it the side-by-side table of the
+    source whose default fine-tuning scores best on val (``table_source``) as it is, fine-tuned by
+    the default method (checked on val) and a model trained on the target's train jumps alone
+    with the same settings. Returns (the experiment's summary entry, the table)."""
+    d = run / name
+    d.mkdir(parents=True, exist_ok=True)
+    ds = read_dataset(target)
     cpath = d / "finetune_choice.json"
     if _done(d / "model.json") and _done(cpath):
         model, choice = load_model(d / "model.json"), json.loads(cpath.read_text())
     else:
-        rows, models, k = choose_proxy(sources, ds, cfg, say)
-        if k is None:  # every candidate diverged on val: keep the source as trained
+        rows, models, k = choose_proxy(sources, ds, cfg, say, name)
+        if k is None:  # every candidate diverged on val: keep the first source as trained
             k = 0
         model = models[k]
-        choice = {"version": 1, "rows": rows, "chosen": k, "split": "val",
+        choice = {"version": 2, "rows": rows, "chosen": k, "split": "val",
                   "rule": selection_rule(proxy_selection(cfg))}
         write_model_files(model, d)
         write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))
+    title = {"go1_proxy": "proxy Go1"}.get(name, name.replace("_", " "))
     mpath = d / "eval" / "metrics.json"
     metrics = (json.loads(mpath.read_text()) if _done(mpath)
-               else _evaluate_into(model, ds, d / "eval", cfg, "proxy Go1 (chosen on val)"))
-    entry = _experiment_entry(model, metrics, run, proxy, d / "model.json")
-    bpath = d / "base_eval" / "metrics.json"
-    entry["before_finetune"] = (json.loads(bpath.read_text()) if _done(bpath)
-                                else _evaluate_into(sources["refined"], ds, d / "base_eval", cfg,
-                                                    "proxy Go1 (sim model)"))
+               else _evaluate_into(model, ds, d / "eval", cfg, f"{title} (chosen on val)"))
+    entry = _experiment_entry(model, metrics, run, target, d / "model.json")
     chosen = choice["rows"][choice["chosen"]]
+
+    def as_is(key: str) -> dict:  # a source evaluated on the test jumps as it was trained
+        path = d / "sources_eval" / key / "metrics.json"
+        return (json.loads(path.read_text()) if _done(path)
+                else _evaluate_into(sources[key], ds, path.parent, cfg, f"{title} ({key} source as is)"))
+
+    entry["before_finetune"] = as_is(chosen["source"])
     entry["finetune"] = {**asdict(cfg.finetune), "source": chosen["source"], "method": chosen["finetune"]}
     entry["finetune_choice"] = choice
-    return entry
+    src_key = table_source(choice)
+    source = sources[src_key]
+    table = {"source_model": src_key, "method": DEFAULT_METHOD, "chosen_method": chosen["finetune"],
+             "chosen_source": chosen["source"], "chosen": _side_entry(model, metrics, ds),
+             "engine": ds.generator.get("engine"),
+             "data": str(target.relative_to(run)),
+             "jumps": {s: int(len(ds.jumps_in(s))) for s in ("train", "val", "test")},
+             "source": _side_entry(source, as_is(src_key), ds)}
+    fdir = d / "fine_tuned"
+    if _done(fdir / "model.json"):
+        ft = load_model(fdir / "model.json")
+    elif _done(fdir / "refused.json"):
+        ft = None
+        table["fine_tuned"] = json.loads((fdir / "refused.json").read_text())
+    else:
+        ft = _default_finetune(source, ds, fdir, cfg, table, f"{name}: fine-tuning the {src_key} source", say)
+    if ft is not None:
+        table["prior_weight"] = ft.info["finetune"]["config"]["prior_weight"]  # accepted on val
+        fpath = fdir / "eval" / "metrics.json"
+        fm = (json.loads(fpath.read_text()) if _done(fpath)
+              else _evaluate_into(ft, ds, fdir / "eval", cfg, f"{title} (fine-tuned, {DEFAULT_METHOD})"))
+        table["fine_tuned"] = _side_entry(ft, fm, ds)
+    say(f"{name}: training on the target's train jumps alone")
+    tc = settings if src_key.endswith("/refined") else replace(settings, refine=False)
+    alone, _ = _train_or_load(d / "target_alone" / "model.json", ds, tc)
+    apath = d / "target_alone" / "eval" / "metrics.json"
+    am = (json.loads(apath.read_text()) if _done(apath)
+          else _evaluate_into(alone, ds, d / "target_alone" / "eval", cfg, f"{title} (target alone)"))
+    table["target_alone"] = _side_entry(alone, am, ds)
+    table["checks"] = sim2real_checks(table)
+    return entry, table
+
+
+def _default_finetune(source: HybridModel, ds: Dataset, fdir: Path, cfg: ReproduceConfig, table: dict,
+                      what: str, say: Say) -> HybridModel | None:
+    """The default fine-tuning, as ``symrom finetune`` does it: ``DEFAULT_METHOD`` on the train
+    jumps, checked on the val jumps (the prior weight raised tenfold while the val score rises
+    more than the tolerance; ``experiments.finetune.run_finetune``). Writes ``fdir`` (the model
+    and ``finetune.json``, or ``refused.json``); None if refused (the reason in ``table``)."""
+    from symrom.experiments.finetune import FineTuneCheck, FineTuneRefused, run_finetune, write_finetune
+    from symrom.model.hybrid import ModelDataError
+
+    say(f"{what} by {DEFAULT_METHOD}, checked on val")
+    try:
+        result = run_finetune(source, ds, FineTuneCheck(config=replace(cfg.finetune, method=DEFAULT_METHOD)))
+    except (FineTuneRefused, ModelDataError) as e:
+        table["fine_tuned"] = {"refused": str(e)}
+        fdir.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(fdir / "refused.json", json.dumps(table["fine_tuned"]))
+        return None
+    fdir.mkdir(parents=True, exist_ok=True)
+    write_finetune(fdir, result)
+    return result.model
+
+
+def run_sim2real(run: Path, data: dict[str, Path], settings: TrainConfig, cfg: ReproduceConfig,
+                 say: Say) -> tuple[dict[str, dict], dict[str, dict]]:
+    """Sim-to-real on every target the run has (``SIM2REAL_TARGETS``) from every source it has
+    (``SIM2REAL_SOURCES``): the experiments' entries and the side-by-side tables by target."""
+    sources = source_models(run, data, settings, cfg, say)
+    entries, tables = {}, {}
+    for name in SIM2REAL_TARGETS:
+        if name in data and sources:
+            entries[name], tables[name] = run_target(run, name, data[name], sources, settings, cfg, say)
+    return entries, tables
 
 
 def run_solvers(run: Path, data: Path, settings: TrainConfig, cfg: ReproduceConfig, say: Say) -> dict:
@@ -441,6 +602,8 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
 
     exps, out = summary["experiments"], []
     for exp in cfg.experiments:
+        if exp.name not in exps:  # a run of one part only
+            continue
         data = rel("data", f"{exp.data}.h5")
         entry = exps[exp.name]
         out.append(ManifestEntry(exp.name, LEARNED, paper=exp.name if exp.name in PAPER_TABLE2 else None,
@@ -466,15 +629,18 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
                                  files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json")},
                                  facts={"wall_time_s": s["wall_time_s"]}))
     if "go1_proxy" in exps:
-        out.append(ManifestEntry("go1_proxy", FINE_TUNED, "proxy Go1, adapted from the noisy Go1 model",
+        src = exps["go1_proxy"]["finetune"]["source"]
+        out.append(ManifestEntry("go1_proxy", FINE_TUNED, f"proxy Go1, adapted from the {src} model",
                                  paper="go1_proxy", files={
                                      "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
-                                     "data": exps["go1_proxy"]["data"], "source_model": rel("go1_proxy", "base", "model.json"),
-                                     "before": rel("go1_proxy", "base_eval", "metrics.json"),
+                                     "data": exps["go1_proxy"]["data"],
+                                     "source_model": rel("sources", src, "model.json"),
+                                     "before": rel("go1_proxy", "sources_eval", src, "metrics.json"),
                                      "choice": rel("go1_proxy", "finetune_choice.json")},
                                  facts={"finetune": exps["go1_proxy"]["finetune"]}))
-    out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
-                             files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))
+    if "sweep" in summary:
+        out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
+                                 files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))
     return out
 
 
@@ -498,26 +664,50 @@ def _versions() -> dict:
     return v
 
 
-def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None) -> dict:
-    """Run every experiment into ``run``; write and return ``summary.json``'s content."""
+PARTS = ("sim2real",)  # what ``only`` may restrict a run to
+
+
+def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None,
+              only: str | None = None) -> dict:
+    """Run every experiment into ``run``; write and return ``summary.json``'s content.
+
+    only: ``sim2real`` runs just the sim-to-real part (with the SIM Go1 selection its settings
+    come from; the datasets it needs), resumable as the rest; the summary then holds that part.
+    """
+    if only is not None and only not in PARTS:
+        raise ValueError(f"only must be one of {PARTS}, got {only!r}")
     say = say or (lambda msg, transient=False: None)
     t0 = time.perf_counter()
     run.mkdir(parents=True, exist_ok=True)
-    data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in cfg.datasets}
+    needed = {"go1_sim", *SIM2REAL_SOURCES.values(), *SIM2REAL_TARGETS}
+    specs = [s for s in cfg.datasets if only is None or s.name in needed]
+    data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
     summary: dict = {"experiments": {}}
-    for exp in cfg.experiments:
-        summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
+    if only is None:
+        for exp in cfg.experiments:
+            summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
+        have_sim = "go1_sim" in summary["experiments"]
+    else:
+        sim = next((e for e in cfg.experiments if e.name == "go1_sim"), None)
+        have_sim = sim is not None
+        if have_sim:
+            say("go1_sim: selecting the settings on the validation split (the sim-to-real settings)")
+            _selected(run, sim, read_dataset(data["go1_sim"]), cfg, say)
+    settings = selected_config(load_model(run / "go1_sim" / "model.json")) if have_sim else None
     go1 = summary["experiments"].get("go1_sim")
-    settings = selected_config(load_model(run / "go1_sim" / "model.json")) if go1 is not None else None
     if go1 is not None and cfg.compare_solvers:
         go1["solvers"] = run_solvers(run, data["go1_sim"], settings, cfg, say)
-    if settings is not None and "go1_noisy" in data and "go1_proxy" in data:
-        summary["experiments"]["go1_proxy"] = run_proxy(run, data["go1_noisy"], data["go1_proxy"], settings,
-                                                         cfg, say)
-    summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
+    if settings is not None:
+        entries, tables = run_sim2real(run, data, settings, cfg, say)
+        if "go1_proxy" in entries:  # the paper's Table 2 row
+            summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
+        summary["sim2real"] = {"sources": {k: v for k, v in SIM2REAL_SOURCES.items() if v in data},
+                               "targets": tables}
+    if only is None:
+        summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
-                      "config": json.loads(json.dumps(asdict(cfg), default=str)),
+                      "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
                       "wall_time_s": time.perf_counter() - t0}
     write_text_atomic(run / "summary.json", json.dumps(summary, indent=1, allow_nan=False,
                                                        default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))

@@ -87,8 +87,9 @@ def flight_residual(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows
     m = float(per_jump.mean())
     se = float(per_jump.std(ddof=1) / np.sqrt(per_jump.size)) if per_jump.size > 1 else float("inf")
     limit = FLIGHT_TOLERANCE * STANDARD_GRAVITY
-    return {"mean": m, "se": se, "jumps": int(per_jump.size), "limit": limit, "t_limit": FLIGHT_T,
-            "contradicted": bool(abs(m) > limit and abs(m) > FLIGHT_T * se)}
+    # se None for a single jump (no spread to judge by; the model file holds no infinity)
+    return {"mean": m, "se": se if np.isfinite(se) else None, "jumps": int(per_jump.size), "limit": limit,
+            "t_limit": FLIGHT_T, "contradicted": bool(abs(m) > limit and abs(m) > FLIGHT_T * se)}
 
 
 def flight_gravity(model: HybridModel, ds: Dataset, rows: np.ndarray) -> dict | None:

@@ -19,6 +19,7 @@ from symrom.report.context import Context
 from symrom.report.document import Para, Section, render_html, render_markdown
 from symrom.report.roles import build_sections
 from symrom.report.run import load_run
+from symrom.report.sim2real import sim2real_blocks
 
 
 def report_paths(out_html: str | os.PathLike) -> tuple[Path, Path, Path]:
@@ -49,6 +50,10 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force:
         say("experiments")
         secs = [Section("experiments", "Experiments of this run").add(*experiments_blocks(run, html_path.parent))]
         secs += build_sections(run, Context(run, fig_dir))
+        targets = run.summary.get("sim2real", {}).get("targets")
+        if targets:
+            secs.append(Section("sim2real", "Sim-to-real: source, fine-tuned and target alone").add(
+                *sim2real_blocks(targets)))
         say("data and provenance")
         secs += [Section("data", "Data summary").add(*data_blocks(run, html_path.parent)),
                  Section("run", "Commands, versions and seeds").add(*run_blocks(run))]

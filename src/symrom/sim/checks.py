@@ -53,9 +53,11 @@ def longest_run(mask: np.ndarray) -> tuple[int, int]:
 
 
 def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpChecks = JumpChecks(),
-               finished: bool = True) -> list[str]:
+               finished: bool = True, torque_bound: np.ndarray | None = None) -> list[str]:
     """Reasons ``log`` (as from ``run_jump``: q (n, 18), tau (n, 12), contact (n, 4)) fails
-    the common checks; empty if it passes. dt: s between logged samples."""
+    the common checks; empty if it passes. dt: s between logged samples; torque_bound (12,)
+    N m: what a logged torque may reach (default the robot's limits; a measured torque's
+    bias and scale widen it)."""
     q, contact, tau = log["q"], log["contact"], log["tau"]
     bad: list[str] = []
     if q.shape[0] < 2:
@@ -67,7 +69,7 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
         bad.append(f"fell: tilt {tilt:.2f} rad")
     if q[-1, BASE_POS][2] <= checks.min_final_height:
         bad.append(f"fell: final height {q[-1, BASE_POS][2]:.3f} m")
-    limit = np.asarray(get_robot(robot).torque_limit)
+    limit = np.asarray(get_robot(robot).torque_limit if torque_bound is None else torque_bound)
     if np.any(np.abs(tau) > limit + 1e-9):
         bad.append("torque over the limit")
     airborne = contact.sum(axis=1) == 0

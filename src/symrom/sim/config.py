@@ -17,8 +17,10 @@ from symrom.sim.world import WorldConfig
 # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise); 3: the engine is a
 # choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2); 4: feet
 # under the hips where straight legs are not plumb (the Laikago's stance), froggy crouches level
-# on robots other than the A1, MuJoCo's state read compiled (its jumps those of 3 to ~1e-9);
-# the A1's and Go1's PyBullet jumps bitwise those of 3
+# on robots other than the A1, MuJoCo's state read compiled (its jumps those of 3 to ~1e-9); the
+# proxy draws joint damping, armature, friction loss, a soft contact and a measured torque (its
+# jumps change), the randomized variant; the A1's and Go1's nominal and noisy PyBullet jumps
+# bitwise those of 3
 GENERATOR_VERSION = 4
 
 
@@ -54,10 +56,12 @@ class GenerateConfig:
 
     robot: a built-in name or the key of a description file (its absolute path,
     ``symrom.robots.robot_key``); motion: a name in ``symrom.motions.MOTIONS``;
-    n_jumps; seed; proxy: the motion's hardware-like variant; noise: the noisy
+    n_jumps; seed; proxy: the motion's hardware-like variant; randomize: its
+    domain-randomised variant (``randomized``; not with proxy); noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
     max_attempts: tries per jump before generation fails; engine: the physics engine
-    (``symrom.sim.engine.ENGINES``).
+    (``symrom.sim.engine.ENGINES``); splits: (train, val, test) jump counts, None for the
+    motion's (``generate.split_counts``).
     """
 
     robot: str
@@ -70,6 +74,13 @@ class GenerateConfig:
     checks: JumpChecks = field(default_factory=JumpChecks)
     max_attempts: int = 8
     engine: str = "pybullet"
+    randomize: bool = False
+    splits: tuple[int, int, int] | None = None
+
+    @property
+    def variant(self) -> str | None:
+        """The motion variant the jumps are drawn with: ``proxy``, ``randomized`` or None."""
+        return "proxy" if self.proxy else "randomized" if self.randomize else None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -52,7 +52,7 @@ class Motion(Protocol):
 
     def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> Any:
         """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s.
-        variant: one of the motion's registered variants (e.g. ``proxy``) or None."""
+        variant: one of the motion's registered variants (e.g. ``proxy``, ``randomized``) or None."""
 
     def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
         """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a

@@ -95,6 +95,13 @@ class World(Protocol):
     def set_ground_friction(self, mu: float) -> None:
         """Set the foot/ground lateral friction coefficient."""
 
+    def set_ground_contact(self, stiffness: float, damping: float) -> None:
+        """Make the ground contact a spring-damper of ``stiffness`` N/m and ``damping`` N s/m."""
+
+    def set_actuator_effects(self, effects: ActuatorEffects) -> None:
+        """Simulate joint damping, armature and friction loss ``effects`` from now on (an engine
+        that cannot simulate one refuses it with a ValueError)."""
+
     def close(self) -> None:
         """Release the engine's resources (idempotent)."""
 

@@ -37,8 +37,9 @@ from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
-from symrom.sim.engine import World
-from symrom.sim.world import RobotState
+from symrom.sim.engine import World, make_world
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy
+from symrom.sim.world import RobotState, WorldConfig
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
@@ -60,6 +61,8 @@ class FroggyParams:
     xy_ratio softens stance gains horizontally; k_att N m/rad and d_att
     N m s/rad level the body. hold_hx: the hip abduction joints are held at
     their standing angle (the paper's froggy), else driven like the others.
+    proxy: the randomised world of a ``randomized`` jump (``symrom.sim.proxy``), else None;
+    randomized: a domain-randomised source jump (``source = sim``).
     """
 
     stand_height: float = 0.27
@@ -91,6 +94,8 @@ class FroggyParams:
     k_att: float = 150.0
     d_att: float = 8.0
     hold_hx: bool = True
+    proxy: ProxyConfig | None = None
+    randomized: bool = False
 
 
 REFERENCE_ROBOT = "a1"  # the robot the parameters were tuned on
@@ -138,6 +143,40 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
           "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l, "d_att": params.d_att * m * l * root,
           "crouch_pitch": 0.0}
     return replace(params, **f)
+
+
+@dataclass(frozen=True)
+class FroggyRanges:
+    """Uniform ranges (low, high) of a ``randomized`` froggy jump, for the A1 (then ``scaled``):
+    crouch_height m, crouch_pitch rad, push_speed m/s, angle rad, t_hold, t_push_all and
+    t_push_rear s (the rear-only phase's length), force_all N (force_rear: 0.5-0.7 of it).
+    Wider than the nominal jumps' on every side."""
+
+    crouch_height: tuple[float, float] = (0.175, 0.2)
+    crouch_pitch: tuple[float, float] = (0.12, 0.28)
+    push_speed: tuple[float, float] = (1.1, 1.5)
+    angle: tuple[float, float] = (0.25, 0.5)
+    t_hold: tuple[float, float] = (0.03, 0.15)
+    t_push_all: tuple[float, float] = (0.055, 0.09)
+    t_push_rear: tuple[float, float] = (0.05, 0.11)
+    force_all: tuple[float, float] = (230.0, 330.0)
+    rear_share: tuple[float, float] = (0.5, 0.7)
+
+
+RANDOMIZED_MOTION = FroggyRanges()
+
+
+def sample_randomized(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> FroggyParams:
+    """A domain-randomised froggy jump: the motion from ``RANDOMIZED_MOTION`` and the world
+    from ``proxy.RANDOMIZED_RANGES``; scaled to ``robot``."""
+    r, u = RANDOMIZED_MOTION, rng.uniform
+    force_all = float(u(*r.force_all))
+    return scaled(FroggyParams(
+        crouch_height=float(u(*r.crouch_height)), crouch_pitch=float(u(*r.crouch_pitch)),
+        push_speed=float(u(*r.push_speed)), angle=float(u(*r.angle)), t_hold=float(u(*r.t_hold)),
+        t_push_all=float(u(*r.t_push_all)), t_push_rear=float(u(*r.t_push_rear)), force_all=force_all,
+        force_rear=force_all * float(u(*r.rear_share)), t_after_land=float(u(1.0, 1.2)),
+        proxy=sample_proxy(rng, RANDOMIZED_RANGES), randomized=True), robot)
 
 
 def sample_params(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> FroggyParams:
@@ -361,12 +400,17 @@ class FroggyChecks:
 
 @dataclass(frozen=True)
 class FroggyMotion(PlainMotion):
-    """The froggy plug-in (registry entry ``froggy``): rear-only push right before the flight."""
+    """The froggy plug-in (registry entry ``froggy``): rear-only push right before the flight;
+    variant ``randomized``: domain-randomised source jumps (``sample_randomized``)."""
 
     checks: FroggyChecks = FroggyChecks()
 
     def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> FroggyParams:
-        return sample_params(rng, robot)
+        return sample_randomized(rng, robot) if variant == "randomized" else sample_params(rng, robot)
+
+    def make_world(self, robot: str, config: WorldConfig, params: FroggyParams, engine: str) -> World:
+        world = make_world(engine, robot, config)
+        return world if params.proxy is None else ProxyWorld(world, params.proxy)
 
     def make_controller(self, robot: str, params: FroggyParams) -> FroggyController:
         return FroggyController(robot, params)

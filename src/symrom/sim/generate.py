@@ -94,7 +94,7 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
     cat = {k: np.concatenate([lg[k] for lg in logs]) for k in logs[0]}
     jump = np.concatenate([np.full(lg["t"].shape[0], j, np.int32) for j, lg in enumerate(logs)])
     dt = cfg.world.dt * cfg.world.log_every
-    counts = split_counts(cfg.n_jumps, cfg.motion, cfg.proxy)
+    counts = cfg.splits or split_counts(cfg.n_jumps, cfg.motion, cfg.proxy)
     generator = {
         "generator": "symrom.sim.generate", "version": GENERATOR_VERSION, "engine": cfg.engine,
         "config": jsonable(cfg.to_dict()), "fingerprint": cfg.fingerprint(),
@@ -103,11 +103,13 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
         "retries": int(sum(len(r["retries"]) for r in records)),
         "jumps": [{k: v for k, v in r.items() if k != "diagnostics"} for r in records],
     }
+    split = (split_labels(cfg.n_jumps, cfg.motion, cfg.proxy) if cfg.splits is None
+             else np.repeat(np.array(SPLITS, dtype=object), counts))
     if cfg.robot not in ROBOTS:  # a description file: keep its text with the data
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
                     t=cat["t"], q=cat["q"], dq=cat["dq"], tau=cat["tau"], contact=cat["contact"],
-                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split_labels(cfg.n_jumps, cfg.motion, cfg.proxy),
+                    foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split,
                     dt=dt, generator=generator)
 
 
@@ -133,11 +135,17 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         check_engine(cfg.engine)
     except (UnknownMotionError, RobotDescriptionError, UnknownEngineError) as e:
         raise GenerationError(str(e)) from None
-    if cfg.proxy and "proxy" not in entry.variants:
-        offered = [m for m, e in MOTIONS.items() if "proxy" in e.variants]
-        raise GenerationError(f"--proxy is not a variant of {cfg.motion!r}; motions with it: {offered}")
+    if cfg.proxy and cfg.randomize:
+        raise GenerationError("--proxy and --randomize are two variants; choose one")
+    for flag, variant in (("--proxy", "proxy"), ("--randomize", "randomized")):
+        if cfg.variant == variant and variant not in entry.variants:
+            offered = [m for m, e in MOTIONS.items() if variant in e.variants]
+            raise GenerationError(f"{flag} is not a variant of {cfg.motion!r}; motions with it: {offered}")
     if cfg.n_jumps < 1:
         raise GenerationError(f"need at least one jump, got {cfg.n_jumps}")
+    if cfg.splits is not None and (len(cfg.splits) != 3 or min(cfg.splits) < 0 or sum(cfg.splits) != cfg.n_jumps):
+        raise GenerationError(f"splits {tuple(cfg.splits)} must be three jump counts (train, val, test) "
+                              f"summing to the {cfg.n_jumps} jumps")
     if not motion_available(cfg.motion):
         raise GenerationError(f"the {cfg.motion} controller ({entry.plugin}) is not installed")
     return cfg if robot == cfg.robot else replace(cfg, robot=robot)

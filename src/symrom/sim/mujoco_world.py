@@ -40,10 +40,12 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.compiled import base_state, mujoco_foot_forces, mujoco_state
-from symrom.sim.world import RobotState, WorldConfig, euler_rate_matrix, standing_configuration
+from symrom.sim.world import (RobotState, WorldConfig, _check_contact, euler_rate_matrix,
+                              standing_configuration)
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
+CONTACT_IMPEDANCE = 0.9  # MuJoCo's solimp d of a contact set by set_ground_contact (its lowest default)
 HOLD_ERROR = 0.005  # rad: a held joint's servo gives its full torque limit at this error
 HOLD_INERTIA = 0.02  # kg m^2: the inertia the held joints' servo damping is set for
 _ROBOT, _GROUND = 2, 1  # contype / conaffinity bits
@@ -350,6 +352,32 @@ class MujocoWorld:
     def set_ground_friction(self, mu: float) -> None:
         """Foot/ground sliding friction (every geom carries it: MuJoCo takes the larger)."""
         self.model.geom_friction[:, 0] = mu
+
+    def set_ground_contact(self, stiffness: float, damping: float) -> None:
+        """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m per foot.
+
+        MuJoCo's soft contact is not a spring in newtons: with impedance d and direct
+        ``solref = (-k, -b)`` its force solves (A + R) f = aref - a0, aref = -b v - k r,
+        R = (1 - d) / d x A's diagonal (the foot's inverse weight w, ``body_invweight0``). At
+        rest that gives r = (1 - d) / d x w x load / k: with d held constant
+        (``CONTACT_IMPEDANCE``) and k, b = (1 - d) / d x w x (stiffness, damping) a foot sinks
+        by load / stiffness, as on PyBullet's contactStiffness."""
+        _check_contact(stiffness, damping)
+        d = CONTACT_IMPEDANCE
+        w = float(np.mean(self.model.body_invweight0[self._feet, 0]))  # 1/kg, along a contact normal
+        scale = (1.0 - d) / d * w
+        self.model.geom_solref[:] = (-stiffness * scale, -damping * scale)
+        self.model.geom_solimp[:, :2] = d
+
+    def set_actuator_effects(self, effects: ActuatorEffects) -> None:
+        """Joint damping, armature and friction loss from now on (MuJoCo's dof properties)."""
+        m = self.model
+        m.dof_damping[self._vadr] = effects.damping
+        m.dof_armature[self._vadr] = effects.armature
+        m.dof_frictionloss[self._vadr] = effects.friction_loss
+        mujoco.mj_setConst(m, self.data)  # armature enters the constants of the constraint solver
+        mujoco.mj_forward(m, self.data)
+        self.effects = effects
 
     def close(self) -> None:
         """Nothing to give back (the model and data are freed with the world)."""

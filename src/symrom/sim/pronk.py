@@ -62,7 +62,7 @@ from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
-from symrom.sim.proxy import ProxyConfig, ProxyWorld, sample_proxy
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy
 from symrom.sim.engine import World, make_world
 from symrom.sim.world import WorldConfig
 
@@ -79,8 +79,11 @@ class PronkParams:
     and at lift-off, m; crouch_time: standing -> crouched, s; hold_time: pause
     in the crouch, s; settle_time: minimum time after touchdown before the
     jump may be done, s; max_time: the jump is done at the latest then, s;
-    yaw: heading, rad; proxy: hardware-like perturbations (``source = proxy``)
-    or None for the nominal simulator.
+    yaw: heading, rad; pitch: body pitch the MPC holds through crouch and push
+    (rad, positive nose down; 0 level); proxy: hardware-like perturbations
+    (``source = proxy``), or the randomised world of a ``randomized`` jump, or None
+    for the nominal simulator; randomized: a domain-randomised source jump
+    (``source = sim``).
     """
 
     distance: float = 0.25
@@ -93,6 +96,8 @@ class PronkParams:
     max_time: float = 3.0
     yaw: float = 0.0
     proxy: ProxyConfig | None = None
+    pitch: float = 0.0
+    randomized: bool = False
 
 
 @dataclass
@@ -142,14 +147,43 @@ def scales(robot: str) -> tuple[float, float]:
     return (get_robot(robot).mass / get_robot(ref).mass, leg_length(robot) / leg_length(ref))
 
 
-def sample_params(rng: np.random.Generator, proxy: bool = False, robot: str = REFERENCE_ROBOT) -> PronkParams:
+@dataclass(frozen=True)
+class PronkRanges:
+    """Uniform ranges (low, high) of a ``randomized`` jump's motion, for the Go1 (lengths
+    scale with the leg length): distance, apex_height, crouch_height, takeoff_height m;
+    crouch_time, hold_time s (the take-off timing); pitch rad. Wide enough to cover what a
+    real controller's jumps do: the nominal jumps' ranges and beyond on every side."""
+
+    distance: tuple[float, float] = (0.05, 0.5)
+    apex_height: tuple[float, float] = (0.395, 0.47)
+    crouch_height: tuple[float, float] = (0.195, 0.235)
+    takeoff_height: tuple[float, float] = (0.315, 0.345)
+    crouch_time: tuple[float, float] = (0.28, 0.55)
+    hold_time: tuple[float, float] = (0.0, 0.15)
+    pitch: tuple[float, float] = (-0.1, 0.1)
+
+
+RANDOMIZED_MOTION = PronkRanges()
+
+
+def sample_params(rng: np.random.Generator, proxy: bool = False, robot: str = REFERENCE_ROBOT,
+                  randomized: bool = False) -> PronkParams:
     """A random jump: for the Go1 a distance of 0.1-0.4 m, apex 0.41-0.45 m, small
     crouch/timing spread; lengths scale with the robot's leg length (``scales``).
 
     With ``proxy`` the hardware-like perturbations are drawn too (see
-    ``symrom.sim.proxy``).
+    ``symrom.sim.proxy``). ``randomized``: domain randomisation of source data, the motion
+    from ``RANDOMIZED_MOTION`` and the world from ``proxy.RANDOMIZED_RANGES``.
     """
     length = scales(robot)[1]
+    if randomized:
+        r, u = RANDOMIZED_MOTION, rng.uniform
+        return PronkParams(
+            distance=float(u(*r.distance)) * length, apex_height=float(u(*r.apex_height)) * length,
+            crouch_height=float(u(*r.crouch_height)) * length,
+            takeoff_height=float(u(*r.takeoff_height)) * length,
+            crouch_time=float(u(*r.crouch_time)), hold_time=float(u(*r.hold_time)), pitch=float(u(*r.pitch)),
+            proxy=sample_proxy(rng, RANDOMIZED_RANGES), randomized=True)
     return PronkParams(
         distance=float(rng.uniform(0.1, 0.4)) * length,
         apex_height=float(rng.uniform(0.41, 0.45)) * length,
@@ -316,6 +350,8 @@ class PronkController:
         yaw_ref = self.params.yaw
         x_ref = np.zeros((cfg.horizon, 13))  # srb_state of the references: level, not turning
         x_ref[:, 2], x_ref[:, 12] = yaw_ref, GRAVITY
+        if self.params.pitch and self.phase in ("crouch", "push"):
+            x_ref[:, 1] = self.params.pitch
         pos, vel, c = self._references(state.t)
         x_ref[:, 3:6], x_ref[:, 9:12] = pos + self._off_ref, vel
         contact = np.empty((cfg.horizon, N_LEGS))
@@ -404,10 +440,11 @@ class PronkController:
 
 
 class PronkMotion(PlainMotion):
-    """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world."""
+    """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world;
+    ``randomized``: domain-randomised source jumps (motion and world drawn per jump)."""
 
     def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> PronkParams:
-        return sample_params(rng, proxy=variant == "proxy", robot=robot)
+        return sample_params(rng, proxy=variant == "proxy", robot=robot, randomized=variant == "randomized")
 
     def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
         world = make_world(engine, robot, config)
@@ -417,7 +454,7 @@ class PronkMotion(PlainMotion):
         return PronkController(robot, params)
 
     def source(self, params: PronkParams) -> str:
-        return "sim" if params.proxy is None else "proxy"
+        return "sim" if params.proxy is None or params.randomized else "proxy"
 
 
 MOTION = PronkMotion()

@@ -1,18 +1,35 @@
-"""A hardware-like Go1 (``source = "proxy"``) for the sim-to-real step.
+"""A hardware-like Go1 (``source = "proxy"``) for the sim-to-real step, and the
+per-jump domain randomisation of source data (the ``randomized`` variant).
 
-Not hardware: the nominal PyBullet world with the imperfections a real robot
-shows, all drawn from an rng into a ``ProxyConfig`` that is recorded with the
-data (``dataclasses.asdict(cfg)`` is JSON-ready):
+Not hardware: the nominal world with the imperfections a real robot shows, all
+drawn from an rng into a ``ProxyConfig`` that is recorded with the data
+(``dataclasses.asdict(cfg)`` is JSON-ready):
 
-- link masses and inertias off their URDF values (``apply_to_world``, via
-  ``changeDynamics``), and a different ground friction;
+- link masses and inertias off their URDF values (``World.scale_inertia``), a
+  different ground friction, and a softer ground contact (``contact_stiffness``,
+  ``contact_damping``: a spring-damper instead of the source's rigid contact,
+  ``World.set_ground_contact``);
+- what sits between motor and joint (``World.set_actuator_effects``): viscous
+  joint damping, armature (reflected rotor inertia) and Coulomb friction loss.
+  PyBullet has no armature: on that engine ``ProxyWorld`` sets the proxy's
+  armature to zero (``for_engine``; the jump's record holds what was simulated)
+  and MuJoCo is the target that has every effect;
 - motor latency: commanded torques reach the joints ``latency`` s late (a delay
   buffer of whole physics ticks) and torque-speed saturation: while a motor
   drives (torque and speed of the same sign) its limit falls linearly from full
   torque at ``knee_speed_frac * no_load_speed`` to zero at ``no_load_speed``
   (``TorqueChannel``);
+- the torque model of the log (``torque_log``): ``applied`` (exact, what reaches
+  the joints after latency and saturation, before damping and friction loss),
+  ``commanded`` (what the controller asked) or ``measured``
+  (``torque_bias + torque_scale * applied``, a current sensor's error);
 - sensor noise on every reading and a slow drift of the estimated base position
   and yaw (``SensorModel``), as a state estimator would give.
+
+The ranges are named tables (``ProxyRanges``): ``PROXY_RANGES`` for the proxy
+target, ``RANDOMIZED_RANGES`` (wider, covering the proxy's and the nominal
+world) for randomised source data; ``sample_proxy(rng, ranges)`` draws one jump's
+``ProxyConfig``. ``ProxyConfig()`` is the nominal world (no effect at all).
 
 Use, in this order (what a runner does)::
 
@@ -21,6 +38,7 @@ Use, in this order (what a runner does)::
     world.reset(q0); s = world.state()           # corrupted readings (what is logged)
     applied = world.step(tau_cmd)                # delayed, saturated torque actually applied
     world.true_state()                           # the simulator's exact state
+    logged = world.logged_torque(tau_cmd, applied)  # what the log holds (torque_log)
 
 ``apply_to_world(world, cfg)``, ``TorqueChannel`` and ``SensorModel`` are the
 parts, usable on their own. Units: s, m, rad, N m; arrays as in
@@ -34,19 +52,26 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
+from symrom.robots import ActuatorEffects
 from symrom.robots.kinematics import rpy_to_matrix
 
 
 @dataclass
 class ProxyConfig:
-    """Perturbations of one proxy jump (see the module docstring).
+    """Perturbations of one proxy jump (see the module docstring); the defaults are the
+    nominal world.
 
     trunk_mass_scale, leg_mass_scale: factors on the URDF masses (and, with the
     mass, on the inertias); inertia_scale: extra factor on all inertias;
-    friction: ground lateral friction; latency: s; no_load_speed (3,) rad/s for
-    hx, hy, kn; knee_speed_frac: fraction of no_load_speed up to which the full
-    torque is available; noise_*: standard deviations of the readings (rad,
+    friction: ground lateral friction; contact_stiffness N/m, contact_damping
+    N s/m: the ground contact as a spring-damper (None: the engine's rigid
+    contact); damping N m s/rad, armature kg m^2, friction_loss N m: per joint
+    kind (hx, hy, kn), as ``ActuatorEffects``; latency: s; no_load_speed (3,)
+    rad/s for hx, hy, kn; knee_speed_frac: fraction of no_load_speed up to which
+    the full torque is available; torque_log: ``applied``, ``commanded`` or
+    ``measured``; torque_bias (3,) N m per joint kind and torque_scale: of the
+    ``measured`` torque; noise_*: standard deviations of the readings (rad,
     rad/s, m, m/s); drift_vel (2,) m/s and drift_yaw_rate rad/s: estimator
     drift; seed: seed of the sensor noise stream.
     """
@@ -67,33 +92,130 @@ class ProxyConfig:
     drift_vel: tuple[float, float] = (0.0, 0.0)
     drift_yaw_rate: float = 0.0
     seed: int = 0
+    damping: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    armature: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    friction_loss: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    contact_stiffness: float | None = None
+    contact_damping: float | None = None
+    torque_log: str = "applied"
+    torque_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    torque_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.torque_log not in TORQUE_LOGS:
+            raise ValueError(f"proxy torque_log must be one of {TORQUE_LOGS}, got {self.torque_log!r}")
+        if (self.contact_stiffness is None) != (self.contact_damping is None):
+            raise ValueError("proxy: give both contact_stiffness and contact_damping, or neither")
+
+    @property
+    def effects(self) -> ActuatorEffects:
+        """The joint damping, armature and friction loss as ``ActuatorEffects`` (12 joints)."""
+        return ActuatorEffects(tuple(self.damping), tuple(self.armature), tuple(self.friction_loss))
 
 
-def sample_proxy(rng: np.random.Generator) -> ProxyConfig:
-    """Draw a hardware-like perturbation set (ranges typical of a small quadruped)."""
-    return ProxyConfig(
-        trunk_mass_scale=float(rng.uniform(0.95, 1.12)),  # payload: battery, cables, covers
-        leg_mass_scale=float(rng.uniform(0.92, 1.08)),
-        inertia_scale=float(rng.uniform(0.9, 1.2)),
-        friction=float(rng.uniform(0.55, 0.9)),
-        latency=float(rng.uniform(0.002, 0.005)),
-        no_load_speed=tuple(float(v) for v in rng.uniform(0.9, 1.05) * np.array([30.1, 30.1, 20.06])),
-        knee_speed_frac=float(rng.uniform(0.4, 0.6)),
-        noise_q=0.002, noise_dq=0.05, noise_pos=0.002, noise_rpy=0.004,
-        noise_vel=0.02, noise_omega=0.02,
-        drift_vel=tuple(float(v) for v in rng.normal(0.0, 0.01, 2)),
-        drift_yaw_rate=float(rng.normal(0.0, 0.005)),
+TORQUE_LOGS = ("applied", "commanded", "measured")
+
+
+@dataclass(frozen=True)
+class ProxyRanges:
+    """Uniform ranges (low, high) one jump's ``ProxyConfig`` is drawn from, and the fixed
+    sensor noise (standard deviations). Units as in ``ProxyConfig``; per-joint-kind fields
+    (damping, armature, friction_loss, torque_bias) draw each kind on its own;
+    no_load_speed_scale multiplies the Go1's no-load speeds (30.1, 30.1, 20.06) rad/s;
+    contact_stiffness / contact_damping None keep the engine's rigid contact; drift_vel_std
+    m/s and drift_yaw_std rad/s are normal standard deviations."""
+
+    trunk_mass_scale: tuple[float, float] = (0.95, 1.12)  # payload: battery, cables, covers
+    leg_mass_scale: tuple[float, float] = (0.92, 1.08)
+    inertia_scale: tuple[float, float] = (0.9, 1.2)
+    friction: tuple[float, float] = (0.55, 0.9)
+    latency: tuple[float, float] = (0.002, 0.005)
+    no_load_speed_scale: tuple[float, float] = (0.9, 1.05)
+    knee_speed_frac: tuple[float, float] = (0.4, 0.6)
+    damping: tuple[float, float] = (0.0, 0.0)
+    armature: tuple[float, float] = (0.0, 0.0)
+    friction_loss: tuple[float, float] = (0.0, 0.0)
+    contact_stiffness: tuple[float, float] | None = None
+    contact_damping: tuple[float, float] | None = None
+    torque_log: str = "applied"
+    torque_bias: tuple[float, float] = (0.0, 0.0)
+    torque_scale: tuple[float, float] = (1.0, 1.0)
+    noise: tuple[float, float, float, float, float, float] = (0.002, 0.05, 0.002, 0.004, 0.02, 0.02)
+    drift_vel_std: float = 0.01
+    drift_yaw_std: float = 0.005
+
+
+# The proxy target: a Go1 with the effects that break transfer from an ideal simulator.
+# Ranges typical of a 12 kg quadruped's geared motors (joint damping 0.1-0.6 N m s/rad,
+# reflected rotor inertia 0.005-0.02 kg m^2, friction 0.05-0.3 N m), a contact far softer
+# than the source's rigid one (a rubber foot of 1.7-5 cm/kN), a lower ground friction, and a
+# current-sensed torque off by up to 0.3 N m and 10 %.
+PROXY_RANGES = ProxyRanges(
+    friction=(0.5, 0.75), damping=(0.1, 0.6), armature=(0.005, 0.02), friction_loss=(0.05, 0.3),
+    contact_stiffness=(2e4, 6e4), contact_damping=(300.0, 1000.0),
+    torque_log="measured", torque_bias=(-0.3, 0.3), torque_scale=(0.9, 1.1))
+
+# Randomised source data: per jump, ranges wider than the proxy's on every side that the
+# nominal world has too (rigid contact is approximated by the stiff end).
+RANDOMIZED_RANGES = ProxyRanges(
+    trunk_mass_scale=(0.9, 1.2), leg_mass_scale=(0.85, 1.15), inertia_scale=(0.8, 1.3),
+    friction=(0.45, 1.0), latency=(0.0, 0.008), no_load_speed_scale=(0.85, 1.1), knee_speed_frac=(0.35, 0.7),
+    damping=(0.0, 0.9), armature=(0.0, 0.03), friction_loss=(0.0, 0.45),
+    contact_stiffness=(1e4, 2e5), contact_damping=(200.0, 2000.0),
+    torque_log="measured", torque_bias=(-0.5, 0.5), torque_scale=(0.85, 1.15))
+
+
+def sample_proxy(rng: np.random.Generator, ranges: ProxyRanges = PROXY_RANGES) -> ProxyConfig:
+    """Draw one jump's perturbations from ``ranges`` (``PROXY_RANGES``: the proxy target)."""
+    r, u = ranges, rng.uniform
+    kinds = lambda lo_hi: tuple(float(v) for v in u(*lo_hi, 3))  # noqa: E731 (one per joint kind)
+    cfg = dict(
+        trunk_mass_scale=float(u(*r.trunk_mass_scale)),
+        leg_mass_scale=float(u(*r.leg_mass_scale)),
+        inertia_scale=float(u(*r.inertia_scale)),
+        friction=float(u(*r.friction)),
+        latency=float(u(*r.latency)),
+        no_load_speed=tuple(float(v) for v in u(*r.no_load_speed_scale) * np.array([30.1, 30.1, 20.06])),
+        knee_speed_frac=float(u(*r.knee_speed_frac)),
+        noise_q=r.noise[0], noise_dq=r.noise[1], noise_pos=r.noise[2], noise_rpy=r.noise[3],
+        noise_vel=r.noise[4], noise_omega=r.noise[5],
+        drift_vel=tuple(float(v) for v in rng.normal(0.0, r.drift_vel_std, 2)),
+        drift_yaw_rate=float(rng.normal(0.0, r.drift_yaw_std)),
         seed=int(rng.integers(2 ** 31 - 1)),
     )
+    cfg.update(damping=kinds(r.damping), armature=kinds(r.armature), friction_loss=kinds(r.friction_loss),
+               torque_log=r.torque_log, torque_bias=kinds(r.torque_bias), torque_scale=float(u(*r.torque_scale)))
+    if r.contact_stiffness is not None:
+        cfg.update(contact_stiffness=float(np.exp(u(*np.log(r.contact_stiffness)))),  # log-uniform
+                   contact_damping=float(u(*r.contact_damping)))
+    return ProxyConfig(**cfg)
+
+
+# Engines without armature: a proxy on them simulates none (``for_engine``).
+NO_ARMATURE = frozenset({"pybullet"})
+
+
+def for_engine(cfg: ProxyConfig, engine: str) -> ProxyConfig:
+    """``cfg`` as ``engine`` can simulate it: on an engine without armature (PyBullet) the
+    armature is zero. Record the returned config, not the drawn one."""
+    if engine in NO_ARMATURE and any(cfg.armature):
+        return replace(cfg, armature=(0.0, 0.0, 0.0))
+    return cfg
 
 
 def apply_to_world(world, cfg: ProxyConfig) -> None:
-    """Scale the robot's link masses and inertias and set the ground friction, in place.
+    """Scale the robot's link masses and inertias, set the ground friction and contact and the
+    joints' damping, armature and friction loss, in place.
 
-    world: any engine's world (``symrom.sim.engine.World``).
+    world: any engine's world (``symrom.sim.engine.World``); an engine without armature
+    refuses a non-zero one (``for_engine`` first).
     """
     world.scale_inertia(cfg.trunk_mass_scale, cfg.leg_mass_scale, cfg.inertia_scale)
     world.set_ground_friction(cfg.friction)
+    if cfg.contact_stiffness is not None:
+        world.set_ground_contact(cfg.contact_stiffness, cfg.contact_damping)
+    if not cfg.effects.ideal:
+        world.set_actuator_effects(cfg.effects)
 
 
 class TorqueChannel:
@@ -156,13 +278,15 @@ class ProxyWorld:
     """A world seen through the proxy's motors and sensors; the same methods (a
     ``symrom.sim.engine.World`` of any engine).
 
-    Construction applies the mass, inertia and friction perturbations to ``world``.
+    Construction applies the mass, inertia, friction, contact and actuator perturbations to
+    ``world``; ``cfg`` is what the engine simulates of them (``for_engine``; the runner
+    records it in place of the drawn one).
     Other attributes (``spec``, ``config``, ``client`` ...) are the wrapped world's.
     """
 
     def __init__(self, world, cfg: ProxyConfig):
-        self.world, self.cfg = world, cfg
-        apply_to_world(world, cfg)
+        self.world, self.cfg = world, for_engine(cfg, world.engine)  # what is simulated
+        apply_to_world(world, self.cfg)
         self.motors = TorqueChannel(cfg, world.torque_limit, world.config.dt)
         self.sensors = SensorModel(cfg)
 
@@ -182,9 +306,31 @@ class ProxyWorld:
         return self.sensors.corrupt(self.world.state())
 
     def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
-        """Send ``tau`` (12,) N m; returns the torque (12,) actually applied this tick (None
-        with ``report=False``, as ``World.step``)."""
-        return self.world.step(self.motors.apply(tau, self.world.joint_velocities()), report)
+        """Send ``tau`` (12,) N m; returns the torque (12,) the log holds this tick (None with
+        ``report=False``, as ``World.step``): by ``torque_log``, the torque actually applied,
+        the command, or the measured torque (``logged_torque``)."""
+        applied = self.world.step(self.motors.apply(tau, self.world.joint_velocities()), report)
+        return None if applied is None else self.logged_torque(tau, applied)
+
+    @property
+    def logged_torque_bound(self) -> np.ndarray:
+        """(12,) N m: the largest |logged torque| the torque model can give (the limits, or
+        for ``measured`` |bias| + scale x limit)."""
+        c, limit = self.cfg, self.world.torque_limit
+        if c.torque_log == "measured":
+            return np.tile(np.abs(np.asarray(c.torque_bias, dtype=float)), N_LEGS) + c.torque_scale * limit
+        return limit
+
+    def logged_torque(self, tau_cmd: np.ndarray, applied: np.ndarray) -> np.ndarray:
+        """(12,) N m the log holds for command ``tau_cmd`` (12,) and ``applied`` (12,): see
+        ``ProxyConfig.torque_log``."""
+        c = self.cfg
+        if c.torque_log == "commanded":
+            return np.minimum(np.maximum(np.asarray(tau_cmd, dtype=float), -self.world.torque_limit),
+                              self.world.torque_limit)
+        if c.torque_log == "measured":
+            return np.tile(np.asarray(c.torque_bias, dtype=float), N_LEGS) + c.torque_scale * applied
+        return applied
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         self.world.apply_base_force(force_world)

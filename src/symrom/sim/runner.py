@@ -20,6 +20,7 @@ from symrom.sim.checks import check_jump
 from symrom.sim.config import GenerateConfig, NoiseConfig
 from symrom.sim.controller import load_motion
 from symrom.sim.parts import LOG_KEYS, jsonable
+from symrom.sim.proxy import ProxyWorld
 from symrom.sim.world import RobotState
 
 
@@ -55,11 +56,16 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
-    params = motion.sample_params(params_rng, cfg.robot, "proxy" if cfg.proxy else None)
+    params = motion.sample_params(params_rng, cfg.robot, cfg.variant)
     world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
+    if isinstance(world, ProxyWorld):  # what the engine simulates of the drawn perturbations
+        info["params"]["proxy"] = jsonable(asdict(world.cfg))
+    bound = getattr(world, "logged_torque_bound", None)  # a measured torque may pass the limits
+    if bound is not None and not np.array_equal(bound, world.torque_limit):
+        info["torque_bound"] = np.asarray(bound).tolist()
     force = None
     if cfg.noise is not None:
         n = cfg.noise
@@ -127,7 +133,8 @@ def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarr
         if "stopped" in info:  # failed for certain while it ran; the other checks were not run
             bad = [info["stopped"]]
         else:
-            bad = check_jump(log, cfg.robot, dt, cfg.checks, info["finished"]) + motion.check(log, dt, cfg.checks)
+            bad = (check_jump(log, cfg.robot, dt, cfg.checks, info["finished"], info.get("torque_bound"))
+                   + motion.check(log, dt, cfg.checks))
         if not bad:
             record = {"jump": jump, "attempt": attempt, "spawn_key": [jump, attempt],
                       "retries": failures, "samples": int(log["t"].shape[0]), **info}

@@ -110,6 +110,12 @@ def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
     return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
 
 
+def _check_contact(stiffness: float, damping: float) -> None:
+    if not (np.isfinite(stiffness) and stiffness > 0 and np.isfinite(damping) and damping >= 0):
+        raise ValueError(f"ground contact needs stiffness > 0 and damping >= 0 (N/m, N s/m), "
+                         f"got {stiffness!r}, {damping!r}")
+
+
 def standing_configuration(spec: RobotDescription, foot_radius: float, q_joints: np.ndarray,
                            xy: tuple[float, float] = (0.0, 0.0),
                            rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -324,6 +330,27 @@ class BulletWorld:
     def set_ground_friction(self, mu: float) -> None:
         """Lateral friction of the ground (the feet carry 1; Bullet multiplies the two)."""
         p.changeDynamics(self.plane, -1, lateralFriction=mu, physicsClientId=self.client)
+
+    def set_ground_contact(self, stiffness: float, damping: float) -> None:
+        """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m (Bullet's
+        contactStiffness / contactDamping of the plane)."""
+        _check_contact(stiffness, damping)
+        p.changeDynamics(self.plane, -1, contactStiffness=stiffness, contactDamping=damping,
+                         physicsClientId=self.client)
+
+    def set_actuator_effects(self, effects: ActuatorEffects) -> None:
+        """Joint damping and friction loss from now on, as at construction (Bullet's joint damping;
+        a velocity motor towards rest with the friction loss as its force, on the joints not
+        held). Bullet has no armature: a non-zero one is refused (ValueError)."""
+        if any(effects.armature):
+            raise ValueError(f"robot {self.spec.name!r}: the pybullet engine has no armature "
+                             f"(actuator effect armature {effects.armature[:3]}); use --engine mujoco")
+        c = self.client
+        for jid, d in zip(self.joint_ids, effects.damping):
+            p.changeDynamics(self.robot, jid, jointDamping=d, physicsClientId=c)
+        p.setJointMotorControlArray(self.robot, self._driven_ids, p.VELOCITY_CONTROL,
+                                    forces=[effects.friction_loss[k] for k in self._driven], physicsClientId=c)
+        self.effects = effects
 
     # ---------------------------------------------------------------- driving
     def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:

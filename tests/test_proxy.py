@@ -1,0 +1,184 @@
+"""The proxy's new effects reach both engines; the randomised variant is recorded and reproducible;
+the sim-to-real targets are checked as stated."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from _simdata import tmp_path
+from symrom.names import BASE_POS, JOINTS
+from symrom.robots import ActuatorEffects
+from symrom.sim.engine import make_world
+from symrom.sim.proxy import (PROXY_RANGES, RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, for_engine,
+                              sample_proxy)
+
+ENGINES = ("pybullet", "mujoco")
+KNEE = 2  # FR knee
+
+
+def _spin(world, ticks: int = 40) -> float:
+    """|knee rate| (rad/s) after ``ticks`` free ticks of a robot in the air whose FR knee starts
+    at 8 rad/s (free fall: no gravity torque on the joints)."""
+    q = world.standing_q(np.asarray(world.spec.stance_joints))
+    q[BASE_POS.start + 2] += 1.0
+    dq = np.zeros(18)
+    dq[JOINTS.start + KNEE] = 8.0
+    world.reset(q, dq)
+    for _ in range(ticks):
+        world.step(np.zeros(12), report=False)
+    return abs(world.joint_velocities()[KNEE])
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_damping_and_friction_loss_slow_a_joint(engine):
+    free = make_world(engine, "go1")
+    v_free = _spin(free)
+    for effects in (ActuatorEffects(damping=(0.5,) * 3), ActuatorEffects(friction_loss=(0.8,) * 3)):
+        w = make_world(engine, "go1")
+        w.set_actuator_effects(effects)
+        assert _spin(w) < 0.8 * v_free, (engine, effects)
+        w.close()
+    free.close()
+
+
+def test_armature_in_mujoco_refused_by_pybullet():
+    def accel(effects):
+        w = make_world("mujoco", "go1")
+        if effects is not None:
+            w.set_actuator_effects(effects)
+        q = w.standing_q(np.asarray(w.spec.stance_joints))
+        q[BASE_POS.start + 2] += 1.0
+        w.reset(q)
+        tau = np.zeros(12)
+        tau[KNEE] = 5.0
+        for _ in range(5):
+            w.step(tau, report=False)
+        return abs(w.joint_velocities()[KNEE])
+
+    # a knee link's own inertia about its axis is ~0.005 kg m^2: 0.05 of armature slows it severalfold
+    assert accel(ActuatorEffects(armature=(0.05,) * 3)) < 0.5 * accel(None)
+    w = make_world("pybullet", "go1")
+    with pytest.raises(ValueError, match="no armature"):
+        w.set_actuator_effects(ActuatorEffects(armature=(0.01,) * 3))
+    w.close()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_soft_ground_contact_lets_the_robot_sink(engine):
+    def height(soft: bool) -> float:
+        w = make_world(engine, "go1")
+        if soft:
+            w.set_ground_contact(5e3, 300.0)
+        w.hold_joints(list(range(12)))
+        w.reset(w.standing_q(np.asarray(w.spec.stance_joints)))
+        for _ in range(500):
+            w.step(np.zeros(12), report=False)
+        z = w.state().q[BASE_POS][2]
+        w.close()
+        return z
+
+    # ~31 N per foot at 5 kN/m: 6 mm lower than on the rigid ground in PyBullet; MuJoCo's
+    # regularised contact sinks less than its spring says (2.5 mm measured)
+    assert height(True) < height(False) - 0.0015
+    w = make_world(engine, "go1")
+    with pytest.raises(ValueError, match="stiffness > 0"):
+        w.set_ground_contact(-1.0, 10.0)
+    w.close()
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_measured_and_commanded_torque_logs(engine):
+    tau = np.linspace(-3.0, 3.0, 12)  # far below the limits: nothing saturates
+    bias = (0.2, -0.1, 0.3)
+    cfg = ProxyConfig(torque_log="measured", torque_bias=bias, torque_scale=0.9)
+    w = ProxyWorld(make_world(engine, "go1"), cfg)
+    w.reset(w.standing_q(np.asarray(w.spec.stance_joints)))
+    logged = w.step(tau)
+    np.testing.assert_allclose(logged, np.tile(bias, 4) + 0.9 * tau, rtol=0, atol=1e-12)
+    assert np.all(w.logged_torque_bound >= w.torque_limit * 0.9)
+    w.close()
+    # commanded: the request itself, although latency holds it back from the joints
+    w = ProxyWorld(make_world(engine, "go1"), ProxyConfig(torque_log="commanded", latency=0.004))
+    w.reset(w.standing_q(np.asarray(w.spec.stance_joints)))
+    np.testing.assert_allclose(w.step(tau), tau)
+    assert np.all(w.motors.buffer[-1] == tau) and not np.any(w.motors.buffer[0])  # still on its way
+    w.close()
+    with pytest.raises(ValueError, match="torque_log"):
+        ProxyConfig(torque_log="exact")
+
+
+def test_ranges_and_engines():
+    rng = np.random.default_rng(0)
+    for ranges in (PROXY_RANGES, RANDOMIZED_RANGES):
+        for _ in range(20):
+            c = sample_proxy(rng, ranges)
+            for name in ("damping", "armature", "friction_loss", "torque_bias"):
+                lo, hi = getattr(ranges, name)
+                assert all(lo <= v <= hi for v in getattr(c, name)), name
+            assert ranges.contact_stiffness[0] <= c.contact_stiffness <= ranges.contact_stiffness[1]
+            assert ranges.friction[0] <= c.friction <= ranges.friction[1]
+    # the randomised source covers the proxy target's ranges on every side
+    for name in ("trunk_mass_scale", "leg_mass_scale", "inertia_scale", "friction", "latency", "damping",
+                 "armature", "friction_loss", "contact_stiffness", "contact_damping", "torque_bias", "torque_scale"):
+        (lo, hi), (rlo, rhi) = getattr(PROXY_RANGES, name), getattr(RANDOMIZED_RANGES, name)
+        assert rlo <= lo and hi <= rhi, name
+    c = sample_proxy(np.random.default_rng(1))
+    assert any(c.armature) and not any(for_engine(c, "pybullet").armature)
+    assert for_engine(c, "mujoco") == c
+    assert ProxyConfig().effects.ideal  # the default is the nominal world
+
+
+def test_randomized_variant_recorded_and_reproducible():
+    from symrom.data.io import read_dataset
+    from symrom.sim.generate import GenerateConfig, GenerationError, generate
+
+    cfg = GenerateConfig("go1", "pronk", 2, seed=3, randomize=True, splits=(1, 0, 1))
+    a = generate(cfg, tmp_path("rand_a.h5"))
+    out = tmp_path("rand_b.h5")
+    generate(cfg, out)
+    b = read_dataset(out)  # as written
+    assert a.generator["config"]["randomize"] is True and a.source == "sim"
+    jumps = a.generator["jumps"]
+    for rec in jumps:
+        p = rec["params"]
+        assert p["randomized"] is True and p["proxy"]["torque_log"] == "measured"
+        assert p["proxy"]["armature"] == [0.0, 0.0, 0.0]  # PyBullet: none, and the record says so
+        assert p["proxy"]["contact_stiffness"] is not None
+    assert jumps[0]["params"]["pitch"] != jumps[1]["params"]["pitch"]
+    assert list(a.split) == ["train", "test"] and a.generator["splits"] == {"train": 1, "val": 0, "test": 1}
+    np.testing.assert_array_equal(a.q, b.q)
+    np.testing.assert_array_equal(a.tau, b.tau)
+    with pytest.raises(GenerationError, match=r"splits \(1, 1, 1\) must be three jump counts"):
+        generate(replace(cfg, splits=(1, 1, 1)), tmp_path("rand_s.h5"))
+    with pytest.raises(GenerationError, match="choose one"):
+        generate(replace(cfg, proxy=True), tmp_path("rand_c.h5"), force=True)
+    # froggy's randomised jumps vary the length of the rear-only phase
+    from symrom.sim.froggy import MOTION as FROGGY, RANDOMIZED_MOTION
+
+    rear = [FROGGY.sample_params(np.random.default_rng(s), "a1", "randomized") for s in range(8)]
+    lo, hi = RANDOMIZED_MOTION.t_push_rear
+    assert all(p.randomized and p.proxy is not None and lo <= p.t_push_rear <= hi for p in rear)
+    assert np.ptp([p.t_push_rear for p in rear]) > 0.3 * (hi - lo)
+
+
+def test_sim2real_checks():
+    from symrom.experiments.reproduce import sim2real_checks
+
+    def col(x, z, ratio=1.0, diverged=0):
+        return {"x_rmse": x, "z_rmse": z, "diverged_jumps": diverged, "flight_ratio": ratio}
+
+    good = {"source": col(0.1, 0.12), "fine_tuned": col(0.03, 0.04, 1.03), "target_alone": col(0.03, 0.035)}
+    c = sim2real_checks(good)
+    assert c["source_z"] and c["fine_tuned_z"] and c["not_above_source"] and c["flight_gravity"]
+    assert c["vs_target_alone"] and c["scratch_ratio_z"] == pytest.approx(0.04 / 0.035)
+    assert c["scratch_ratio_x"] == pytest.approx(1.0)
+    bad = {**good, "fine_tuned": col(0.03, 0.06, 1.07), "source": col(0.1, 0.05)}
+    c = sim2real_checks(bad)
+    assert not (c["fine_tuned_z"] or c["not_above_source"] or c["flight_gravity"] or c["vs_target_alone"])
+    c = sim2real_checks({**good, "fine_tuned": col(0.1, 0.03)})  # z fine, x 3.3x the target-alone's
+    assert c["fine_tuned_z"] and not c["vs_target_alone"]
+    c = sim2real_checks({**good, "source": col(0.1, 0.12, diverged=1)})
+    assert c["source_z"] is None and c["not_above_source"] is None  # a diverged column is not a number
