@@ -129,8 +129,8 @@ def test_metrics_layout(slip):
     m, _ = evaluate(ASlip(truth), ds, "test", resets=(None, 0.1), options=RolloutOptions("rk4"),
                     data_name="d.h5")
     assert set(m) == {"format_version", "model", "data", "split", "n_jumps", "integrator", "drift_limits",
-                      "horizons"}
-    assert m["format_version"] == 3
+                      "phases", "horizons"}
+    assert m["format_version"] == 3 and m["phases"] == "logged"
     assert m["split"] == "test" and m["n_jumps"] == len(ds.jumps_in("test")) and m["data"] == "d.h5"
     assert list(m["horizons"]) == ["full", "0.1"]
     for h in m["horizons"].values():
