@@ -44,4 +44,6 @@ def test_a_latent_reading_many_components_names_the_largest_and_counts_the_rest(
 def test_latex_names_the_latents_in_latex_comments_only(model):
     lines = model.equations_text(latex=True).splitlines()
     assert r"% \xi_{2} \approx -0.80 z + 0.60 fr\_kn" in lines
-    assert all(l.startswith("%") or l.startswith(r"\ddot{\xi}") for l in lines)
+    # equations, the guards' switching conditions (phase -> phase) and comments: LaTeX throughout
+    assert all(l.startswith(("%", r"\ddot{\xi}", r"\mathrm{")) for l in lines)
+    assert any(r"\to" in l for l in lines if l.startswith(r"\mathrm{"))
