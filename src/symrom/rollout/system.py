@@ -46,6 +46,18 @@ class GeneratedCode:
     c_params: Callable[[dict[str, np.ndarray]], np.ndarray]
 
 
+@dataclass(frozen=True)
+class Padded:
+    """A system's per-jump arrays stacked as the fixed-step integrators take them, each jump's
+    last sample repeated past its end (``symrom.rollout.integrate.pad_edge``): x, v (J, n_max,
+    d), drive {name: (J, n_max, ...)}, lens (J,) the jumps' lengths."""
+
+    x: np.ndarray
+    v: np.ndarray
+    drive: dict[str, np.ndarray]
+    lens: np.ndarray
+
+
 @dataclass
 class RolloutSystem:
     """A model set up on J jumps of a dataset, for the integrators.
@@ -60,7 +72,11 @@ class RolloutSystem:
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
     the system's own compiled code (``GeneratedCode``), called only when the
     ``generated`` backend or the compiled LSODA is asked for (or by ``auto`` when
-    ``has_build()`` says it is compiled already, or the work pays for compiling it).
+    ``has_build()`` says it is compiled already, or the work pays for compiling it);
+    padded: optionally, x, v and drive already stacked (``Padded``; the lists are then
+    views of it), which spares the fixed-step integrators the copy; observe_padded:
+    optionally, ``observe`` on all jumps at once, observe_padded(X (J, n_max, d), lens (J,))
+    -> per jump (lens[j], C).
     """
 
     x: list[np.ndarray]
@@ -72,6 +88,8 @@ class RolloutSystem:
     compiled: Callable | None = None
     generated: Callable[[], GeneratedCode] | None = None
     has_build: Callable[[], bool] | None = None
+    padded: Padded | None = None
+    observe_padded: Callable[[np.ndarray, np.ndarray], list[np.ndarray]] | None = None
 
     @property
     def n_jumps(self) -> int:
