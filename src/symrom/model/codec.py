@@ -54,17 +54,20 @@ def _kernels() -> dict[str, object]:
                     x[j, k, i], v[j, k, i], nu[j, k, i] = x[j, n - 1, i], v[j, n - 1, i], nu[j, n - 1, i]
 
     @njit
-    def decode(X, lens, offsets, W_d, B_d, out):
+    def decode(X, lens, offsets, W_t, B_d, out):
         J, n_max, l = X.shape
         C = out.shape[1]
         for j in range(J):
             for k in range(lens[j]):
                 r = offsets[j] + k
+                for c in range(C):  # rows of W_d^T: each loop a vector over the components
+                    out[r, c] = X[j, k, 0] * W_t[0, c]
+                for i in range(1, l):
+                    x = X[j, k, i]
+                    for c in range(C):
+                        out[r, c] += x * W_t[i, c]
                 for c in range(C):
-                    acc = 0.0
-                    for i in range(l):
-                        acc += X[j, k, i] * W_d[c, i]
-                    out[r, c] = acc + B_d[c]
+                    out[r, c] += B_d[c]
 
     _KERNELS.update(encode=encode, decode=decode)
     return _KERNELS
@@ -96,5 +99,5 @@ def decode_jumps(ae: LinearAutoencoder, X: np.ndarray, lens: np.ndarray) -> list
     np.cumsum(lens[:-1], out=offsets[1:])
     out = np.empty((int(lens.sum()), ae.W_d.shape[0]))
     _kernels()["decode"](np.ascontiguousarray(X, dtype=float), lens, offsets,
-                         np.ascontiguousarray(ae.W_d, dtype=float), np.ascontiguousarray(ae.B_d, dtype=float), out)
+                         np.ascontiguousarray(ae.W_d.T, dtype=float), np.ascontiguousarray(ae.B_d, dtype=float), out)
     return [out[a:a + n] for a, n in zip(offsets.tolist(), lens.tolist())]
