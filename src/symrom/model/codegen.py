@@ -139,6 +139,9 @@ def rollout(x_true, v_true, nu, phase, lens, resets, dt, substeps, limit, X, V, 
 {ind[4:]}{" = ".join([f"r{i}" for i in trig] + ["0.0"]) if trig else "pass"}
             for m in range(substeps):
 {nl.join(ind + line for text in step for line in text.split(nl))}
+        stop = lens[j] if div_at[j] < 0 else div_at[j]
+        X[j, stop:] = math.nan  # after the path: NaN (X, V come uninitialised)
+        V[j, stop:] = math.nan
 
 
 def rhs(y, t, ph, u):
@@ -333,7 +336,7 @@ def generated_integrator(model: HybridModel):
 
     def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
         J, n_max, l = x_true.shape
-        X, V = np.full((J, n_max, l), np.nan), np.full((J, n_max, l), np.nan)
+        X, V = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
         div_at = np.full(J, -1, dtype=np.int64)
         fn(np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
            np.ascontiguousarray(drive["nu"], dtype=float), np.ascontiguousarray(drive["phase"], dtype=np.int64),

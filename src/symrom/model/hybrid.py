@@ -226,8 +226,9 @@ class HybridModel:
         self.check_data(ds)
         phase = self.phase_index(ds)
         # All jumps encoded in one compiled pass, straight into the integrators' padded arrays.
-        x, v, nu, ph = encode_jumps(self.autoencoder, ds.q, ds.dq, ds.u, phase, ds.jump_bounds()[jumps])
-        lens = np.diff(ds.jump_bounds()[jumps], axis=1)[:, 0]
+        bounds = ds.jump_bounds()[jumps]
+        x, v, nu, ph = encode_jumps(self.autoencoder, ds.q, ds.dq, ds.u, phase, bounds)
+        lens = bounds[:, 1] - bounds[:, 0]
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
         padded = Padded(x, v, {"nu": nu, "phase": ph}, lens)
         return self.latent_system(*([a[j, :n] for j, n in enumerate(lens)] for a in (x, v, nu, ph)), scale,
