@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from symrom.learn.training import TrainConfig, train
-from symrom.model.codec import decode_jumps, encode_jumps
+from symrom.model.codec import JumpViews, decode_jumps, encode_inputs, encode_states
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.rollout.system import Padded
 
@@ -31,7 +31,8 @@ def test_jumps_of_unequal_length_encode_and_decode_as_the_autoencoder(model_and_
     model, ds = model_and_data
     ae, phase = model.autoencoder, model.phase_index(ds)
     bounds = np.array([[0, 57], [400, 401], [812, 1130], [60, 300]])  # lengths 57, 1, 318, 240
-    x, v, nu, ph = encode_jumps(ae, ds.q, ds.dq, ds.u, phase, bounds)
+    x, v = encode_states(ae, ds.q, ds.dq, bounds)
+    nu, ph = encode_inputs(ae, ds.u, phase, bounds)
     assert x.shape == v.shape == nu.shape == (4, 318, model.latent_dim) and ph.shape == (4, 318)
     for j, (a, b) in enumerate(bounds):
         n = b - a
@@ -66,10 +67,12 @@ def test_the_padded_path_gives_the_per_jump_paths(model_and_data, backend):
     bounds[:, 1] = bounds[:, 0] + cut
     diverged = []
     for m in (model, bad):
-        x, v, nu, ph = encode_jumps(m.autoencoder, ds.q, ds.dq, ds.u, m.phase_index(ds), bounds)
+        x, v = encode_states(m.autoencoder, ds.q, ds.dq, bounds)
+        nu, ph = encode_inputs(m.autoencoder, ds.u, m.phase_index(ds), bounds)
         lists = [[a[j, :n] for j, n in enumerate(cut)] for a in (x, v, nu, ph)]
         scale = m.rollout_system(ds, np.arange(len(cut))).scale
-        stacked = m.latent_system(*lists, scale, Padded(x, v, {"nu": nu, "phase": ph}, np.array(cut)))
+        states = lambda rows: encode_states(m.autoencoder, ds.q, ds.dq, bounds, rows)  # noqa: E731
+        stacked = m.latent_system(*lists, scale, Padded(states, {"nu": nu, "phase": ph}, np.array(cut)))
         listed = replace(m.latent_system(*lists, scale), observe_padded=None)  # padded by the integrator
 
         a = rollout(_Given(stacked, m.components), ds, np.arange(len(cut)), opts)
@@ -85,3 +88,26 @@ def test_the_padded_path_gives_the_per_jump_paths(model_and_data, backend):
             assert np.isfinite(p[:stop]).all() and np.isnan(p[stop:]).all()
         diverged.append(a.diverged)
     assert not diverged[0].any() and diverged[1].any() and not diverged[1].all()
+
+
+def test_states_are_encoded_where_asked_and_the_lists_in_full_when_read(model_and_data):
+    model, ds = model_and_data
+    bounds = np.array([[0, 57], [812, 1130]])
+    full = encode_states(model.autoencoder, ds.q, ds.dq, bounds)
+    rows = np.zeros(318, dtype=bool)
+    rows[[0, 50, 100, 317]] = True  # 100 and 317: past the first jump's end
+    part = encode_states(model.autoencoder, ds.q, ds.dq, bounds, rows)
+    for a, b in zip(full, part):
+        np.testing.assert_array_equal(a[:, rows], b[:, rows])
+        np.testing.assert_array_equal(a[0, 56:], np.broadcast_to(a[0, 56], a[0, 56:].shape))
+    with pytest.raises(ValueError, match=r"rows: shape \(10,\), expected \(318,\)"):
+        encode_states(model.autoencoder, ds.q, ds.dq, bounds, np.ones(10, bool))
+    calls = []
+    views = JumpViews(lambda: calls.append(1) or full[0], bounds[:, 1] - bounds[:, 0])
+    assert len(views) == 2 and calls == []  # nothing computed until read
+    assert [p.shape for p in views] == [(57, model.latent_dim), (318, model.latent_dim)] and calls == [1]
+    np.testing.assert_array_equal(views[-1], full[0][1])
+    sysm = model.rollout_system(ds, np.arange(3))
+    a, b = ds.jump_bounds()[2]
+    np.testing.assert_allclose(sysm.x[2], model.autoencoder.encode(ds.q[a:b]), rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(sysm.v[2], model.autoencoder.encode_derivative(ds.dq[a:b]), rtol=1e-12, atol=1e-13)

@@ -5,13 +5,18 @@ as the (J, n_max, l) arrays the integrators take (each jump's last sample repeat
 end) and decodes the integrated paths back to q. With NumPy that is either 4 x J small matrix
 products entered from Python, or a few products over all rows, which OpenBLAS spreads over its
 threads at several times the CPU time on a busy machine. Here each is one compiled pass over
-the rows, on the calling thread, written straight into its output.
+the rows, on the calling thread, written straight into its output. The true states xi, dxi
+are encoded only at the samples asked for (``encode_states(rows=...)``: an integrator reads
+them at the start and the resets only); ``JumpViews`` hands out per-jump lists computed in
+full on their first read.
 
 The sums run in the order of ``LinearAutoencoder``'s products (terms by column, the offset
 last) and may differ from BLAS's by rounding (~1e-16 relative).
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -31,27 +36,40 @@ def _kernels() -> dict[str, object]:
     njit = numba.njit(cache=True, fastmath=FASTMATH)
 
     @njit
-    def encode(q, dq, u, phase, starts, lens, W_e, B_e, M, x, v, nu, ph):
+    def encode_states(q, dq, starts, lens, rows, W_e, B_e, x, v):
         J, n_max, l = x.shape
         C = q.shape[1]
+        for j in range(J):
+            for k in range(n_max):
+                if not rows[k]:
+                    continue
+                r = starts[j] + min(k, lens[j] - 1)  # past the jump's end: its last sample
+                for i in range(l):
+                    sx, sv = 0.0, 0.0
+                    for c in range(C):
+                        sx += q[r, c] * W_e[i, c]
+                        sv += dq[r, c] * W_e[i, c]
+                    x[j, k, i] = sx + B_e[i]
+                    v[j, k, i] = sv
+
+    @njit
+    def encode_inputs(u, phase, starts, lens, M, nu, ph):
+        J, n_max, l = nu.shape
+        C = u.shape[1]
         for j in range(J):
             a, n = starts[j], lens[j]
             for k in range(n):
                 r = a + k
                 ph[j, k] = phase[r]
                 for i in range(l):
-                    sx, sv, su = 0.0, 0.0, 0.0
+                    su = 0.0
                     for c in range(C):
-                        sx += q[r, c] * W_e[i, c]
-                        sv += dq[r, c] * W_e[i, c]
                         su += u[r, c] * M[i, c]
-                    x[j, k, i] = sx + B_e[i]
-                    v[j, k, i] = sv
                     nu[j, k, i] = su
             for k in range(n, n_max):  # past the jump's end: its last sample (``pad_edge``)
                 ph[j, k] = ph[j, n - 1]
                 for i in range(l):
-                    x[j, k, i], v[j, k, i], nu[j, k, i] = x[j, n - 1, i], v[j, n - 1, i], nu[j, n - 1, i]
+                    nu[j, k, i] = nu[j, n - 1, i]
 
     @njit
     def decode(X, lens, offsets, W_t, B_d, out):
@@ -69,26 +87,64 @@ def _kernels() -> dict[str, object]:
                 for c in range(C):
                     out[r, c] += B_d[c]
 
-    _KERNELS.update(encode=encode, decode=decode)
+    _KERNELS.update(encode_states=encode_states, encode_inputs=encode_inputs, decode=decode)
     return _KERNELS
 
 
-def encode_jumps(ae: LinearAutoencoder, q: np.ndarray, dq: np.ndarray, u: np.ndarray, phase: np.ndarray,
-                 bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """xi, dxi, nu (J, n_max, l) and phase (J, n_max) int64 of the J row ranges ``bounds``
-    (J, 2) ``[start, stop)`` of q, dq, u (N, 18) and phase (N,), each jump's last sample
-    repeated past its end (n_max: the longest jump; every range holds a row)."""
-    starts = np.ascontiguousarray(bounds[:, 0], dtype=np.int64)
-    lens = np.ascontiguousarray(bounds[:, 1] - bounds[:, 0], dtype=np.int64)
+def _starts_lens(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(bounds[:, 0], dtype=np.int64),
+            np.ascontiguousarray(bounds[:, 1] - bounds[:, 0], dtype=np.int64))
+
+
+def encode_states(ae: LinearAutoencoder, q: np.ndarray, dq: np.ndarray, bounds: np.ndarray,
+                  rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """xi, dxi (J, n_max, l) of the J row ranges ``bounds`` (J, 2) ``[start, stop)`` of q, dq
+    (N, 18), each jump's last sample repeated past its end (n_max: the longest jump; every
+    range holds a row). rows (n_max,) bool: encode only these samples (what the others hold
+    is unspecified; their memory is not even touched); None: all."""
+    starts, lens = _starts_lens(bounds)
     J, l = len(starts), ae.latent_dim
     n_max = int(lens.max()) if J else 0
-    x, v, nu = np.empty((3, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
-    ph = np.empty((J, n_max), dtype=np.int64)
+    rows = np.ones(n_max, dtype=np.bool_) if rows is None else np.ascontiguousarray(rows, dtype=np.bool_)
+    if rows.shape != (n_max,):
+        raise ValueError(f"rows: shape {rows.shape}, expected ({n_max},) (the longest jump)")
+    x, v = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
     f = np.ascontiguousarray
-    _kernels()["encode"](f(q, dtype=float), f(dq, dtype=float), f(u, dtype=float), f(phase, dtype=np.int64),
-                         starts, lens, f(ae.W_e, dtype=float), f(ae.B_e, dtype=float),
-                         f(ae.input_map.T, dtype=float), x, v, nu, ph)
-    return x, v, nu, ph
+    _kernels()["encode_states"](f(q, dtype=float), f(dq, dtype=float), starts, lens, rows,
+                                f(ae.W_e, dtype=float), f(ae.B_e, dtype=float), x, v)
+    return x, v
+
+
+def encode_inputs(ae: LinearAutoencoder, u: np.ndarray, phase: np.ndarray,
+                  bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """nu (J, n_max, l) and phase (J, n_max) int64 of the row ranges ``bounds`` of u (N, 18)
+    and phase (N,), as ``encode_states``."""
+    starts, lens = _starts_lens(bounds)
+    J, l = len(starts), ae.latent_dim
+    n_max = int(lens.max()) if J else 0
+    nu, ph = np.empty((J, n_max, l)), np.empty((J, n_max), dtype=np.int64)
+    f = np.ascontiguousarray
+    _kernels()["encode_inputs"](f(u, dtype=float), f(phase, dtype=np.int64), starts, lens,
+                                f(ae.input_map.T, dtype=float), nu, ph)
+    return nu, ph
+
+
+class JumpViews(Sequence):
+    """Per jump j the view [j, :lens[j]] of a padded array (J, n_max, ...) that ``make()``
+    computes on the first access (once): per-jump lists that cost nothing unless read."""
+
+    def __init__(self, make: Callable[[], np.ndarray], lens: np.ndarray) -> None:
+        self._make, self._lens, self._array = make, np.asarray(lens), None
+
+    def __len__(self) -> int:
+        return len(self._lens)
+
+    def __getitem__(self, j):
+        if isinstance(j, slice):
+            return [self[i] for i in range(len(self))[j]]
+        if self._array is None:
+            self._array = self._make()
+        return self._array[j, :self._lens[j]]
 
 
 def decode_jumps(ae: LinearAutoencoder, X: np.ndarray, lens: np.ndarray) -> list[np.ndarray]:

@@ -13,6 +13,8 @@ phase the model was not trained on cannot be rolled out. Each mismatch raises
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, ClassVar
 
@@ -21,7 +23,7 @@ import sympy
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.codec import decode_jumps, encode_jumps
+from symrom.model.codec import JumpViews, decode_jumps, encode_inputs, encode_states
 from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs, has_build
 from symrom.model.expressions import latent_expressions
 from symrom.model.guards import Guard
@@ -225,17 +227,19 @@ class HybridModel:
         state, held latent inputs nu and phase, decoded predictions of all 18 components."""
         self.check_data(ds)
         phase = self.phase_index(ds)
-        # All jumps encoded in one compiled pass, straight into the integrators' padded arrays.
-        bounds = ds.jump_bounds()[jumps]
-        x, v, nu, ph = encode_jumps(self.autoencoder, ds.q, ds.dq, ds.u, phase, bounds)
+        # All jumps encoded in compiled passes straight into the integrators' padded arrays; the
+        # true states only where an integrator reads them (or in full when the lists are read).
+        ae, bounds = self.autoencoder, ds.jump_bounds()[jumps]
         lens = bounds[:, 1] - bounds[:, 0]
+        nu, ph = encode_inputs(ae, ds.u, phase, bounds)
+        full = functools.cache(lambda: encode_states(ae, ds.q, ds.dq, bounds))
+        x, v = JumpViews(lambda: full()[0], lens), JumpViews(lambda: full()[1], lens)
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
-        padded = Padded(x, v, {"nu": nu, "phase": ph}, lens)
-        return self.latent_system(*([a[j, :n] for j, n in enumerate(lens)] for a in (x, v, nu, ph)), scale,
-                                  padded)
+        padded = Padded(lambda rows: encode_states(ae, ds.q, ds.dq, bounds, rows), {"nu": nu, "phase": ph}, lens)
+        return self.latent_system(x, v, JumpViews(lambda: nu, lens), JumpViews(lambda: ph, lens), scale, padded)
 
-    def latent_system(self, x: list[np.ndarray], v: list[np.ndarray], nu: list[np.ndarray],
-                      ph: list[np.ndarray], scale: np.ndarray, padded: Padded | None = None) -> RolloutSystem:
+    def latent_system(self, x: Sequence[np.ndarray], v: Sequence[np.ndarray], nu: Sequence[np.ndarray],
+                      ph: Sequence[np.ndarray], scale: np.ndarray, padded: Padded | None = None) -> RolloutSystem:
         """The latent ``RolloutSystem`` of given paths: per path, start/reset states x, v
         (n, l), held inputs nu (n, l) and model phase indices (n,); scale (J, 2l); padded:
         the same stacked, if at hand (``RolloutSystem.padded``)."""

@@ -268,13 +268,13 @@ def _integrate(sysm: RolloutSystem, options: RolloutOptions, dt: float,
 def _integrate_fixed_step(sysm: RolloutSystem, options: RolloutOptions, dt: float, generated
                           ) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray | None]:
     """``rk4`` for ``_integrate``."""
-    if sysm.padded is not None:  # stacked by the model already
-        lens, x_pad, v_pad, drive = sysm.padded.lens, sysm.padded.x, sysm.padded.v, sysm.padded.drive
+    lens = sysm.padded.lens if sysm.padded is not None else np.array([x.shape[0] for x in sysm.x])
+    resets = reset_mask(int(lens.max()), options.reset, dt)
+    if sysm.padded is not None:  # stacked by the model already, the states where they are read
+        (x_pad, v_pad), drive = sysm.padded.states(resets), sysm.padded.drive
     else:
-        lens = np.array([x.shape[0] for x in sysm.x])
         x_pad, v_pad, drive = pad_edge(sysm.x), pad_edge(sysm.v), {n: pad_edge(d) for n, d in sysm.drive.items()}
     limit = options.bound * sysm.scale  # (J, 2d)
-    resets = reset_mask(int(lens.max()), options.reset, dt)
     if options.backend == "table" and sysm.compiled is None:
         raise ValueError("this model has no compiled integrator; use backend 'numpy'")
     if options.backend == "auto" and sysm.generated is not None and generated is None:

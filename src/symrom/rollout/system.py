@@ -13,7 +13,7 @@ integrates any such system; ``symrom.evaluate.metrics`` scores it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -49,11 +49,12 @@ class GeneratedCode:
 @dataclass(frozen=True)
 class Padded:
     """A system's per-jump arrays stacked as the fixed-step integrators take them, each jump's
-    last sample repeated past its end (``symrom.rollout.integrate.pad_edge``): x, v (J, n_max,
-    d), drive {name: (J, n_max, ...)}, lens (J,) the jumps' lengths."""
+    last sample repeated past its end (``symrom.rollout.integrate.pad_edge``): drive {name:
+    (J, n_max, ...)}, lens (J,) the jumps' lengths, and states(rows) -> x, v (J, n_max, d), the
+    true state at the samples that rows (n_max,) bool marks (the start and the resets: all an
+    integrator reads of it; what the other samples hold is unspecified)."""
 
-    x: np.ndarray
-    v: np.ndarray
+    states: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     drive: dict[str, np.ndarray]
     lens: np.ndarray
 
@@ -73,15 +74,15 @@ class RolloutSystem:
     the system's own compiled code (``GeneratedCode``), called only when the
     ``generated`` backend or the compiled LSODA is asked for (or by ``auto`` when
     ``has_build()`` says it is compiled already, or the work pays for compiling it);
-    padded: optionally, x, v and drive already stacked (``Padded``; the lists are then
-    views of it), which spares the fixed-step integrators the copy; observe_padded:
+    padded: optionally, the same stacked (``Padded``), which spares the fixed-step
+    integrators the copy and the model the encoding of states they do not read; observe_padded:
     optionally, ``observe`` on all jumps at once, observe_padded(X (J, n_max, d), lens (J,))
     -> per jump (lens[j], C).
     """
 
-    x: list[np.ndarray]
-    v: list[np.ndarray]
-    drive: dict[str, list[np.ndarray]]
+    x: Sequence[np.ndarray]
+    v: Sequence[np.ndarray]
+    drive: dict[str, Sequence[np.ndarray]]
     scale: np.ndarray
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
