@@ -19,10 +19,13 @@ Each process times, side by side, the whole ``rollout()`` call with ``auto``, ``
 and ``generated`` (medians of ``--runs``; the first call of each apart), and the
 integration alone (``integrate_system`` on the system set up once, as
 ``bench_rollout.py`` times it), each as samples per second (the 96,000 samples over
-the median wall time; for the integration also per CPU second of the process, which other
-jobs on the machine disturb least). Prints a Markdown table and writes JSON.
+the median wall time, and per CPU second of the process, which other jobs on the
+machine disturb least). With ``--before SRC`` the same three processes run again on the
+``src`` folder of another checkout (say the commit before a change, ``git archive
+<commit> src | tar -x -C SRC/..``), with caches of their own, in the same run. Prints a
+Markdown table and writes JSON.
 
-    python benchmarks/bench_auto.py --out benchmarks/results/auto.json
+    python benchmarks/bench_auto.py --runs 15 --out benchmarks/results/auto.json
 """
 
 from __future__ import annotations
@@ -59,11 +62,12 @@ def child(args: argparse.Namespace) -> dict:
         t0 = time.perf_counter()
         ro = rollout(model, ds, None, RolloutOptions("rk4", backend=backend))
         first = time.perf_counter() - t0
-        runs = []
+        runs, cpu_runs = [], []
         for _ in range(args.runs):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             ro = rollout(model, ds, None, RolloutOptions("rk4", backend=backend))
             runs.append(time.perf_counter() - t0)
+            cpu_runs.append(time.process_time() - c0)
         q = np.concatenate(ro.q_pred)
         ref = q if ref is None else ref
         med = statistics.median(runs)
@@ -73,7 +77,9 @@ def child(args: argparse.Namespace) -> dict:
             integrate_system(sysm, RolloutOptions("rk4", backend=backend), ds.dt)
             integ.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
+        cpu_med = statistics.median(cpu_runs)
         out["paths"][name] = {"first_s": first, "median_s": med, "runs": runs, "samples_per_s": samples / med,
+                              "cpu_median_s": cpu_med, "cpu_runs": cpu_runs, "samples_per_cpu_s": samples / cpu_med,
                               "integration_median_s": statistics.median(integ), "integration_runs": integ,
                               "integration_samples_per_s": samples / statistics.median(integ),
                               "integration_cpu_median_s": statistics.median(cpu), "integration_cpu_runs": cpu,
@@ -91,35 +97,44 @@ def main() -> None:
     ap.add_argument("--latent-dim", type=int, default=3)
     ap.add_argument("--runs", type=int, default=7)
     ap.add_argument("--out", type=Path, default=None)
+    ap.add_argument("--before", type=Path, default=None,
+                    help="the src folder of another checkout, run the same way for comparison")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         print(json.dumps(child(args)))
         return
     t_start = time.perf_counter()
-    env = {**os.environ, "SYMROM_CACHE_DIR": tempfile.mkdtemp(prefix="symrom-bench-gen-"),
-           "NUMBA_CACHE_DIR": tempfile.mkdtemp(prefix="symrom-bench-numba-")}
     cmd = [sys.executable, __file__, "--child", "--jumps", str(args.jumps), "--samples", str(args.samples),
            "--latent-dim", str(args.latent_dim), "--runs", str(args.runs)]
     procs = {}
-    for name in ("cold", "warm", "warm_again"):
-        t0 = time.perf_counter()
-        r = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
-        procs[name] = json.loads(r.stdout.strip().splitlines()[-1]) | {"process_wall_s": time.perf_counter() - t0}
+    trees = [("", None)] + ([("before_", args.before.resolve())] if args.before else [])
+    for prefix, src in trees:
+        env = {**os.environ, "SYMROM_CACHE_DIR": tempfile.mkdtemp(prefix="symrom-bench-gen-"),
+               "NUMBA_CACHE_DIR": tempfile.mkdtemp(prefix="symrom-bench-numba-")}
+        if src is not None:
+            env["PYTHONPATH"] = os.pathsep.join([str(src), env.get("PYTHONPATH", "")])
+        for name in ("cold", "warm", "warm_again"):
+            t0 = time.perf_counter()
+            r = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True)
+            procs[prefix + name] = (json.loads(r.stdout.strip().splitlines()[-1])
+                                    | {"process_wall_s": time.perf_counter() - t0})
     res = {"dataset": {"jumps": args.jumps, "samples_per_jump": args.samples, "dt": 0.002},
            "model": {"latent_dim": args.latent_dim, "poly_order": 1,
                      "active_terms": procs["cold"]["active_terms"]},
            "substeps": 2, "runs": args.runs, "machine": {"python": platform.python_version(),
                                                          "cpu": platform.machine(), "cpus": os.cpu_count(),
                                                          "load_average": list(os.getloadavg())},
+           "before": str(args.before) if args.before else None,
            "processes": procs, "wall_time_s": time.perf_counter() - t_start}
-    print("| process | backend | first call | median `rollout()` | samples/s | median integration | "
-          "samples/s | samples/CPU-s | max diff vs auto |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| process | backend | first call | median `rollout()` | samples/s | CPU median `rollout()` | "
+          "samples/CPU-s | median integration | samples/s | samples/CPU-s | max diff vs auto |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, p in procs.items():
         for b, r in p["paths"].items():
             print(f"| {name} | {b} | {r['first_s'] * 1e3:.1f} ms | {r['median_s'] * 1e3:.1f} ms | "
-                  f"{r['samples_per_s']:.3g} | {r['integration_median_s'] * 1e3:.1f} ms | "
+                  f"{r['samples_per_s']:.3g} | {r['cpu_median_s'] * 1e3:.1f} ms | {r['samples_per_cpu_s']:.3g} | "
+                  f"{r['integration_median_s'] * 1e3:.1f} ms | "
                   f"{r['integration_samples_per_s']:.3g} | {r['integration_samples_per_cpu_s']:.3g} | "
                   f"{r['max_diff_vs_first_path']:.1e} |")
     print(f"\nwall time {res['wall_time_s']:.0f} s")

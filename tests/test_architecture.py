@@ -27,7 +27,7 @@ LAYERS: dict[str, int] = {
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # the fitted model: its parts, then the compiled execution, the model, its file, its export
     "model": {"autoencoder": 0, "library": 0, "expressions": 0, "guards": 0,
-              "kernel": 1, "codegen": 1, "shooting": 1,
+              "kernel": 1, "codegen": 1, "codec": 1, "shooting": 1,
               "hybrid": 2, "path": 2, "persistence": 3, "export_io": 4, "export": 4},
     # learning: the problem and its regressors, the encoders, the estimator, then what drives it
     "learn": {"audit": 0, "calibrate": 0, "regressors": 1, "adam": 2, "encoders": 2, "plugins": 3, "estimator": 4,

@@ -13,6 +13,8 @@ phase the model was not trained on cannot be rolled out. Each mismatch raises
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any, ClassVar
 
@@ -21,13 +23,14 @@ import sympy
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
+from symrom.model.codec import JumpViews, decode_jumps, encode_inputs, encode_states
 from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs, has_build
 from symrom.model.expressions import latent_expressions
 from symrom.model.guards import Guard
 from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
-from symrom.rollout.system import GeneratedCode, RolloutSystem
+from symrom.rollout.system import GeneratedCode, Padded, RolloutSystem
 
 # A phase's linearised dynamics grow by more than this factor over a typical
 # stay in the phase: a "fast" unstable mode, worth a warning.
@@ -224,21 +227,22 @@ class HybridModel:
         state, held latent inputs nu and phase, decoded predictions of all 18 components."""
         self.check_data(ds)
         phase = self.phase_index(ds)
-        ae, bounds = self.autoencoder, ds.jump_bounds()
-        x, v, nu, ph = [], [], [], []
-        for j in jumps:  # jump by jump: small products stay off BLAS's threads
-            a, b = bounds[j]
-            x.append(ae.encode(ds.q[a:b]))
-            v.append(ae.encode_derivative(ds.dq[a:b]))
-            nu.append(ae.encode_input(ds.u[a:b]))
-            ph.append(phase[a:b])
+        # All jumps encoded in compiled passes straight into the integrators' padded arrays; the
+        # true states only where an integrator reads them (or in full when the lists are read).
+        ae, bounds = self.autoencoder, ds.jump_bounds()[jumps]
+        lens = bounds[:, 1] - bounds[:, 0]
+        nu, ph = encode_inputs(ae, ds.u, phase, bounds)
+        full = functools.cache(lambda: encode_states(ae, ds.q, ds.dq, bounds))
+        x, v = JumpViews(lambda: full()[0], lens), JumpViews(lambda: full()[1], lens)
         scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
-        return self.latent_system(x, v, nu, ph, scale)
+        padded = Padded(lambda rows: encode_states(ae, ds.q, ds.dq, bounds, rows), {"nu": nu, "phase": ph}, lens)
+        return self.latent_system(x, v, JumpViews(lambda: nu, lens), JumpViews(lambda: ph, lens), scale, padded)
 
-    def latent_system(self, x: list[np.ndarray], v: list[np.ndarray], nu: list[np.ndarray],
-                      ph: list[np.ndarray], scale: np.ndarray) -> RolloutSystem:
+    def latent_system(self, x: Sequence[np.ndarray], v: Sequence[np.ndarray], nu: Sequence[np.ndarray],
+                      ph: Sequence[np.ndarray], scale: np.ndarray, padded: Padded | None = None) -> RolloutSystem:
         """The latent ``RolloutSystem`` of given paths: per path, start/reset states x, v
-        (n, l), held inputs nu (n, l) and model phase indices (n,); scale (J, 2l)."""
+        (n, l), held inputs nu (n, l) and model phase indices (n,); scale (J, 2l); padded:
+        the same stacked, if at hand (``RolloutSystem.padded``)."""
         lib, Xi, ae = self.library, self.Xi, self.autoencoder
 
         def c_params(drive: dict[str, np.ndarray]) -> np.ndarray:
@@ -255,7 +259,7 @@ class HybridModel:
 
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
                              lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated,
-                             lambda: has_build(self))
+                             lambda: has_build(self), padded, lambda X, lens: decode_jumps(ae, X, lens))
 
     # ------------------------------------------------------------ free prediction
     def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,

@@ -214,6 +214,14 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
     This is ``rollout`` without the model's set-up and the map back to its
     components (what the benchmarks time).
     """
+    return _integrate(sysm, options, dt, progress)[:3]
+
+
+def _integrate(sysm: RolloutSystem, options: RolloutOptions, dt: float,
+               progress: Callable[[int, int], None] | None = None
+               ) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray | None]:
+    """``integrate_system``, and with a compiled ``rk4`` the padded path X (J, n_max, d)
+    the per-jump paths are views of (else None)."""
     limit = options.bound * sysm.scale  # (J, 2d)
     n_jumps = len(sysm.x)
     numbalsoda = options.method == "lsoda" and options.lsoda_solver == "numbalsoda"
@@ -250,10 +258,23 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
             div.append(d)
             if progress:
                 progress(i + 1, n_jumps)
-        return Xs, Vs, np.array(div, dtype=int)
-    lens = np.array([x.shape[0] for x in sysm.x])
-    drive = {name: pad_edge(d) for name, d in sysm.drive.items()}  # (J, n_max, ...)
+        return Xs, Vs, np.array(div, dtype=int), None
+    out = _integrate_fixed_step(sysm, options, dt, generated)
+    if progress:
+        progress(n_jumps, n_jumps)
+    return out
+
+
+def _integrate_fixed_step(sysm: RolloutSystem, options: RolloutOptions, dt: float, generated
+                          ) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray | None]:
+    """``rk4`` for ``_integrate``."""
+    lens = sysm.padded.lens if sysm.padded is not None else np.array([x.shape[0] for x in sysm.x])
     resets = reset_mask(int(lens.max()), options.reset, dt)
+    if sysm.padded is not None:  # stacked by the model already, the states where they are read
+        (x_pad, v_pad), drive = sysm.padded.states(resets), sysm.padded.drive
+    else:
+        x_pad, v_pad, drive = pad_edge(sysm.x), pad_edge(sysm.v), {n: pad_edge(d) for n, d in sysm.drive.items()}
+    limit = options.bound * sysm.scale  # (J, 2d)
     if options.backend == "table" and sysm.compiled is None:
         raise ValueError("this model has no compiled integrator; use backend 'numpy'")
     if options.backend == "auto" and sysm.generated is not None and generated is None:
@@ -261,16 +282,13 @@ def integrate_system(sysm: RolloutSystem, options: RolloutOptions, dt: float,
         if (sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS:
             generated = sysm.generated()
     fast = generated.integrator if generated is not None else sysm.compiled if options.backend != "numpy" else None
-    if fast is not None:
-        X, V, div_at = fast(pad_edge(sysm.x), pad_edge(sysm.v), drive, lens, resets, limit, dt, options.substeps)
-        Xs, Vs = [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)]
-    else:
+    if fast is None:
         Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
-            {n: a[:, k] for n, a in drive.items()}, xs, vs), pad_edge(sysm.x), pad_edge(sysm.v),
-            lens, resets, limit, dt, options.substeps)
-    if progress:
-        progress(n_jumps, n_jumps)
-    return Xs, Vs, div_at
+            {n: a[:, k] for n, a in drive.items()}, xs, vs), x_pad, v_pad, lens, resets, limit, dt,
+            options.substeps)
+        return Xs, Vs, div_at, None
+    X, V, div_at = fast(x_pad, v_pad, drive, lens, resets, limit, dt, options.substeps)
+    return [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)], div_at, X
 
 
 def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None = None,
@@ -286,6 +304,9 @@ def rollout(model: Rollable, ds: Dataset, jumps: np.ndarray | list[int] | None =
     if jumps.size == 0:
         return Rollout(jumps, [], [], [], np.zeros(0, bool), np.zeros(0, int), comps, ds.dt)
     sysm = model.rollout_system(ds, jumps)
-    Xs, Vs, div_at = integrate_system(sysm, options, ds.dt, progress)
-    q_pred = [sysm.observe(i, X) for i, X in enumerate(Xs)]
+    Xs, Vs, div_at, padded = _integrate(sysm, options, ds.dt, progress)
+    if padded is not None and sysm.observe_padded is not None:  # one call for all jumps
+        q_pred = sysm.observe_padded(padded, np.array([x.shape[0] for x in Xs]))
+    else:
+        q_pred = [sysm.observe(i, X) for i, X in enumerate(Xs)]
     return Rollout(jumps, q_pred, Xs, Vs, div_at >= 0, div_at, comps, ds.dt)

@@ -13,7 +13,7 @@ integrates any such system; ``symrom.evaluate.metrics`` scores it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -46,6 +46,19 @@ class GeneratedCode:
     c_params: Callable[[dict[str, np.ndarray]], np.ndarray]
 
 
+@dataclass(frozen=True)
+class Padded:
+    """A system's per-jump arrays stacked as the fixed-step integrators take them, each jump's
+    last sample repeated past its end (``symrom.rollout.integrate.pad_edge``): drive {name:
+    (J, n_max, ...)}, lens (J,) the jumps' lengths, and states(rows) -> x, v (J, n_max, d), the
+    true state at the samples that rows (n_max,) bool marks (the start and the resets: all an
+    integrator reads of it; what the other samples hold is unspecified)."""
+
+    states: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    drive: dict[str, np.ndarray]
+    lens: np.ndarray
+
+
 @dataclass
 class RolloutSystem:
     """A model set up on J jumps of a dataset, for the integrators.
@@ -60,18 +73,24 @@ class RolloutSystem:
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
     the system's own compiled code (``GeneratedCode``), called only when the
     ``generated`` backend or the compiled LSODA is asked for (or by ``auto`` when
-    ``has_build()`` says it is compiled already, or the work pays for compiling it).
+    ``has_build()`` says it is compiled already, or the work pays for compiling it);
+    padded: optionally, the same stacked (``Padded``), which spares the fixed-step
+    integrators the copy and the model the encoding of states they do not read; observe_padded:
+    optionally, ``observe`` on all jumps at once, observe_padded(X (J, n_max, d), lens (J,))
+    -> per jump (lens[j], C).
     """
 
-    x: list[np.ndarray]
-    v: list[np.ndarray]
-    drive: dict[str, list[np.ndarray]]
+    x: Sequence[np.ndarray]
+    v: Sequence[np.ndarray]
+    drive: dict[str, Sequence[np.ndarray]]
     scale: np.ndarray
     acceleration: Acceleration
     observe: Callable[[int, np.ndarray], np.ndarray]
     compiled: Callable | None = None
     generated: Callable[[], GeneratedCode] | None = None
     has_build: Callable[[], bool] | None = None
+    padded: Padded | None = None
+    observe_padded: Callable[[np.ndarray, np.ndarray], list[np.ndarray]] | None = None
 
     @property
     def n_jumps(self) -> int:
