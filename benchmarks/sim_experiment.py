@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -44,9 +43,10 @@ def record(name: str, entry: dict, selection: dict) -> dict:
                        "jumps": entry["metrics"].get("n_jumps"), "rmse": rmse,
                        "paper_rmse": ref,
                        "at_or_below_paper": None if ref is None else [c for c in rmse if rmse[c] <= ref[c]]}
-    return {"config": entry["config"], "active_terms": sum(entry["active_terms"].values()),
+    chosen = selection["rows"][selection["chosen"]]
+    return {"config": {**entry["config"], "max_terms": chosen.get("max_terms")}, "active_terms": sum(entry["active_terms"].values()),
             "active_per_phase": entry["active_terms"], "selection_seconds": selection.get("seconds"),
-            "selection_rule": selection.get("rule"), "selection_notes": selection.get("notes", []),
+            "candidates": len(selection["rows"]), "selection_rule": selection.get("rule"), "selection_notes": selection.get("notes", []),
             "horizons": horizons}
 
 
@@ -67,14 +67,11 @@ def main() -> None:
     for name in args.experiments:
         exp = known[name]
         spec = next(s for s in cfg.datasets if s.name == exp.data)
-        t0 = time.perf_counter()
         data = ensure_dataset(args.run, spec, cfg, say)
         entry = run_learned(args.run, exp, data, cfg, say)
         selection = json.loads((args.run / name / "selection" / "selection.json").read_text())
-        out["experiments"][name] = {**record(name, entry, selection),
-                                    "command": " ".join(["python", *sys.argv]),
-                                    "wall_time_s": round(time.perf_counter() - t0, 1)}
         line = record(name, entry, selection)
+        out["experiments"][name] = {**line, "command": " ".join(["python", *sys.argv])}
         print(f"{name}: {line['active_terms']} active terms; " + "; ".join(
             f"{h}: {len(v['at_or_below_paper'] or [])}/12 at or below the paper, {v['diverged_jumps']} diverged"
             for h, v in line["horizons"].items()))
