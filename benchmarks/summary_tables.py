@@ -61,7 +61,7 @@ def selections(summary: dict) -> list[str]:
         if "encoder" not in c:
             continue
         lines.append(f"| {name} | {c['encoder']} | {c['latent_dim']} | {c['library']} | {c['threshold']:g} | "
-                     f"{'no' if not c['refine'] else 'yes' if not c.get('max_terms') else 'yes, pruned to ≤ %d' % c['max_terms']} | {sum(exp['active_terms'].values())} | {c['candidates']} |")
+                     f"{'no' if not c['refine'] else 'yes' if not c.get('max_terms') else 'yes, budget %d terms' % c['max_terms']} | {sum(exp['active_terms'].values())} | {c['candidates']} |")
     return lines
 
 
