@@ -123,7 +123,7 @@ class Refine(Regressor):
         while self.max_terms is not None and mask.sum() > self.max_terms:
             n = int(mask.sum())
             drop = min(n - self.max_terms, max(1, int(np.ceil(self.prune_share * n))))
-            Xi, mask, record = prune(Xi, mask, cost(mask, windows[last]), drop)
+            Xi, mask, record = prune(Xi, mask, [cost(mask, [w]) for w in windows[last]], drop)
             Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
             prunings.append({**record, "stages": more})
         report = {name: {**start.report.get(name, {}), "refinement": {
@@ -151,17 +151,20 @@ class Refine(Regressor):
         return params.matrix(theta, mask.shape), stages, last
 
 
-def prune(Xi: np.ndarray, mask: np.ndarray, normal, drop: int) -> tuple[np.ndarray, np.ndarray, dict]:
+def prune(Xi: np.ndarray, mask: np.ndarray, normals: list, drop: int) -> tuple[np.ndarray, np.ndarray, dict]:
     """Remove ``drop`` active coefficients of ``Xi`` (P, p, l) on ``mask``, the least
-    needed first, by their saliency on a rollout cost ``normal`` (as ``levenberg_marquardt``
-    takes it): with H = J^T J at the current coefficients, the cost rises by about
+    needed first, by their saliency on rollout costs ``normals`` (each as
+    ``levenberg_marquardt`` takes it: the stage's windows, and its shortest windows).
+    With H = sum_k J_k^T J_k / c_k (each cost relative to its value, so that the short
+    windows count as much as the long ones), the relative cost rises by about
     theta_i^2 / (2 (H^-1)_ii) when entry i goes and the rest move to make up for it
     (optimal brain surgeon: the ``explained`` measure of STLSQ, on the rollout error).
     One at a time, each removal updating the others and H^-1 (the Schur complement).
-    Returns the new Xi and mask and a record (cost before, terms removed, predicted rise)."""
+    Returns the new Xi and mask and a record (costs before, terms removed, predicted rise)."""
     params = Parameters.of(mask)
     theta = params.vector(Xi)
-    c, dead, H, _ = normal(theta, True)
+    parts = [normal(theta, True) for normal in normals]
+    H = sum(A / max(c, 1e-300) for c, _, A, _ in parts)
     d = np.sqrt(np.maximum(np.diag(H), 1e-300))
     Hs = H / d[:, None] / d[None, :] + 1e-10 * np.eye(theta.size)  # equilibrated, as STLSQ's
     M = np.linalg.pinv(Hs, hermitian=True) / d[:, None] / d[None, :]
@@ -180,7 +183,8 @@ def prune(Xi: np.ndarray, mask: np.ndarray, normal, drop: int) -> tuple[np.ndarr
     new_mask[params.phase[~keep], params.term[~keep], params.latent[~keep]] = False
     out = np.zeros_like(Xi)
     out[new_mask] = Parameters.of(mask).matrix(theta, mask.shape)[new_mask]
-    return out, new_mask, {"cost_before": float(c), "dead_before": int(dead), "removed": int(drop),
+    return out, new_mask, {"costs_before": [float(c) for c, *_ in parts],
+                           "dead_before": int(sum(d for _, d, *_ in parts)), "removed": int(drop),
                            "active_after": int(new_mask.sum()), "predicted_rise": rise}
 
 
