@@ -1,7 +1,7 @@
 """The reproduction's SIM results, read from the committed record of its summary.
 
 ``benchmarks/results/reproduce_summary.json`` is written by
-``python benchmarks/sim_experiment.py a1_sim go1_sim --run RUN`` (reproduce's functions and
+``python benchmarks/sim_experiment.py a1_sim --run RUN`` (reproduce's functions and
 settings, docs/results.md). The counts are recomputed here from the stored test RMSE and the
 paper's Table 2, not read from the record's own lists.
 """
