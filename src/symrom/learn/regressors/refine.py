@@ -22,8 +22,11 @@ the training jumps, by multiple shooting:
   higher cost, or with windows outside the bound, keeps the previous result
   and ends the schedule.
 
-The support never changes: refinement moves the coefficients STLSQ chose,
-never adds terms. ``max_jumps`` caps the training jumps used (evenly spaced).
+Refinement moves the coefficients STLSQ chose and never adds terms. With a
+term budget, ``max_terms``, it then removes terms while the model has more:
+``prune_share`` of them at a time (never below the budget), the least needed
+first by their saliency on the rollout costs (``prune``), and runs the schedule
+again from there. ``max_jumps`` caps the training jumps used (evenly spaced).
 """
 
 from __future__ import annotations
