@@ -1,7 +1,7 @@
 """The reproduction's SIM results, read from the committed record of its summary.
 
 ``benchmarks/results/reproduce_summary.json`` is written by
-``python benchmarks/sim_experiment.py a1_sim --run RUN`` (reproduce's functions and
+``python benchmarks/sim_experiment.py a1_sim go1_sim --run RUN`` (reproduce's functions and
 settings, docs/results.md). The counts are recomputed here from the stored test RMSE and the
 paper's Table 2, not read from the record's own lists.
 """
@@ -58,3 +58,13 @@ def test_sim_a1_is_compact_does_not_diverge_and_meets_the_paper_over_whole_jumps
 def test_sim_a1_meets_the_paper_with_resets():
     met, missed = meets_paper_but_hx("0.1")
     assert met, missed
+
+
+@pytest.mark.parametrize("horizon", ["full", "0.1"])
+def test_sim_go1_keeps_its_five_terms_and_meets_the_paper_on_every_component(horizon):
+    go1 = experiment("go1_sim")
+    assert go1["config"]["max_terms"] == ReproduceConfig().selection.max_terms  # selected under the budget
+    assert go1["active_terms"] <= 5
+    hz = go1["horizons"][horizon]
+    assert hz["diverged_jumps"] == 0
+    assert at_or_below_paper("go1_sim", horizon, hz["rmse"]) == set(TABLE2_COMPONENTS)
