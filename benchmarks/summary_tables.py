@@ -60,8 +60,9 @@ def selections(summary: dict) -> list[str]:
         c = exp.get("config", {})
         if "encoder" not in c:
             continue
+        refined = "no" if not c["refine"] else f"yes, budget {c['max_terms']} terms" if c.get("max_terms") else "yes"
         lines.append(f"| {name} | {c['encoder']} | {c['latent_dim']} | {c['library']} | {c['threshold']:g} | "
-                     f"{'yes' if c['refine'] else 'no'} | {sum(exp['active_terms'].values())} | {c['candidates']} |")
+                     f"{refined} | {sum(exp['active_terms'].values())} | {c['candidates']} |")
     return lines
 
 

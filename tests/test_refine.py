@@ -89,3 +89,30 @@ def test_refine_settings_are_checked():
         Refine(STLSQ(), velocity_weight=0.0)
     with pytest.raises(ValueError, match="window"):
         Refine(STLSQ(), windows=())
+
+
+def test_budget_prunes_a_dense_model_to_the_planted_support(planted_axis):
+    # Every term kept by least squares (threshold 0): 44 coefficients, 19 of them planted.
+    # Pruned by rollout saliency to a budget of 19, the refinement must keep exactly the planted
+    # terms (pruning by any other order, e.g. the largest first, would not) and their values.
+    ds, truth = planted_axis
+    planted = truth.Xi != 0
+    dense = train(ds, TrainConfig(latent_dim=2, poly_order=1, threshold=0.0))
+    assert dense.mask.sum() > planted.sum() + 10
+    pruned = train(ds, TrainConfig(latent_dim=2, poly_order=1, threshold=0.0, refine=True,
+                                   max_terms=int(planted.sum())))
+    np.testing.assert_array_equal(pruned.mask, planted)
+    rel = np.abs(pruned.Xi[planted] - truth.Xi[planted]) / np.abs(truth.Xi[planted])
+    assert rel.max() <= 0.05
+    rounds = pruned.phase_info["contact"].report["refinement"]["prunings"]
+    assert len(rounds) >= 2 and rounds[-1]["active_after"] == planted.sum()
+    assert pruned.info["training"]["max_terms"] == planted.sum()
+
+
+def test_budget_settings_are_checked():
+    with pytest.raises(ValueError, match="max_terms"):
+        Refine(STLSQ(), max_terms=0)
+    with pytest.raises(ValueError, match="prune_share"):
+        Refine(STLSQ(), prune_share=0.0)
+    with pytest.raises(ValueError, match="needs refine"):
+        TrainConfig(max_terms=10)

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.experiments.select import SelectionConfig, choose, parse_library, select
+from symrom.experiments.select import SelectionConfig, choose, parse_library, select, selection_rule
 from conftest import one_line_error
 
 GRID = SelectionConfig(encoders=("all", "base_position"), latent_dims=(2,), libraries=("poly1+trig+inputs",),
@@ -68,6 +68,27 @@ def test_rule_rejects_diverged_and_prefers_sparse():
     assert choose(rows, 0.05, reference=True) == 1
     assert choose(rows, 0.05) == 3  # without: the best score (no other within 5 %)
     assert choose([_r(0.3, 8, (1.4, 0.5))], 0.05, reference=True) == 0  # none meets it: the tolerance rule
+
+
+def test_budget_limits_the_choice_to_candidates_within_it():
+    rows = [_r(0.5, 188, (0.9, 0.8)),   # meets the reference, far over the budget
+            _r(0.9, 70, (0.9, 0.95)),   # meets it, just over
+            _r(0.62, 60, (1.2, 0.9)),   # at the budget, misses the reference
+            _r(0.6, 45, (1.1, 1.3))]    # within it, misses the reference, best score among those within
+    assert choose(rows, 0.05, reference=True) == 1  # no budget: the sparsest that meets the reference
+    assert choose(rows, 0.05, reference=True, max_terms=70) == 1  # the budget is inclusive
+    assert choose(rows, 0.05, reference=True, max_terms=60) == 3  # none within meets: tolerance among them
+    assert choose(rows, 0.0, reference=True, max_terms=60) == 3
+    assert choose(rows[:3], 0.05, reference=True, max_terms=60) == 2
+    # No candidate within the budget stands: all compete.
+    assert choose(rows[:2] + [_r(None, 30)], 0.05, reference=True, max_terms=60) == 1
+    # The budget reaches the refinement through the training configuration, and only there.
+    cfg = replace(GRID, max_terms=12)
+    assert cfg.train_config("all", 2, "poly1+inputs", 1e-3, refine=True).regressor().max_terms == 12
+    assert cfg.train_config("all", 2, "poly1+inputs", 1e-3).max_terms is None
+    assert "at most 12 active terms" in selection_rule(cfg)
+    with pytest.raises(ValueError, match="max_terms"):
+        replace(GRID, max_terms=0)
 
 
 def test_bad_grids_are_named():

@@ -100,6 +100,11 @@ class ExperimentSpec:
         return TrainConfig(latent_dim=self.paper_latent_dim, poly_order=1, seed=seed)
 
 
+# The term budget of every SIM selection (``SelectionConfig.max_terms``): a model whose
+# equations one can read, as the paper's (17 terms on Go1).
+MAX_TERMS = 60
+
+
 @dataclass
 class ReproduceConfig:
     """What ``symrom reproduce`` runs; ``quick()`` gives the reduced version."""
@@ -117,7 +122,7 @@ class ReproduceConfig:
         ExperimentSpec("go1_sim", "go1_sim", 2, (2, 3, 4)),
         ExperimentSpec("a1_sim", "a1_sim", 4, (4, 5, 6)),
     )
-    selection: SelectionConfig = field(default_factory=SelectionConfig)
+    selection: SelectionConfig = field(default_factory=lambda: SelectionConfig(max_terms=MAX_TERMS))
     paper_reference: bool = True
     finetune: FineTuneConfig = field(default_factory=FineTuneConfig)
     sweep_dims: tuple[int, ...] = tuple(range(1, 19))
@@ -267,6 +272,7 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
     entry = _experiment_entry(model, metrics, run, data, d / "model.json")
     chosen = table["rows"][table["chosen"]]
     entry["config"] = {**{k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")},
+                       "max_terms": chosen.get("max_terms"),
                        **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight")},
                        "selection_score": chosen["score"], "candidates": len(table["rows"])}
     say(f"{exp.name}: training with the paper's defaults")

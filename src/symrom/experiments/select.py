@@ -17,7 +17,15 @@ and 0.1 s resets). The grid spans
   exact grid (it costs a thousand times more than an exact fit): the best by
   score, those diverging at the full horizon ranked by their 0.1 s score; with
   a reference, first the sparsest that meet it with 0.1 s resets (the
-  refinement is what may make them meet it over the full jump too).
+  refinement is what may make them meet it over the full jump too);
+- a term budget, ``max_terms`` (None: none): every refinement prunes its
+  candidate to at most that many active terms (``Refine.max_terms``: the
+  coefficients least needed by the training rollouts go, a share at a time,
+  and the rest are refined again), and only candidates within the budget
+  compete in the rule below, unless none of them stands (then all do, and the
+  selection says so in its notes). The exact candidates keep their thresholds'
+  supports; a dense candidate that meets the reference at 0.1 s is thus turned
+  into one within the budget, rather than a sparse one refined as it is.
 
 Score of a candidate: at each horizon, the mean over the components of the
 validation RMSE divided by a yardstick; the score is the mean of the two
@@ -155,6 +163,7 @@ class SelectionConfig:
     workers: int = 1
     substeps: int = 2
     reference: dict[str, dict[str, float]] | None = None
+    max_terms: int | None = None
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]
@@ -172,6 +181,8 @@ class SelectionConfig:
             raise ValueError(f"workers must be at least 1, got {self.workers}")
         if self.refine_top < 0:
             raise ValueError(f"refine_top must be >= 0, got {self.refine_top}")
+        if self.max_terms is not None and self.max_terms < 1:
+            raise ValueError(f"max_terms must be at least 1, got {self.max_terms}")
         if self.reference is not None:
             keys = {"full", "0.1"}
             if set(self.reference) != keys:
@@ -204,7 +215,8 @@ class SelectionConfig:
         return TrainConfig(latent_dim=latent_dim, **parse_library(library), threshold=threshold,
                            measure=self.measure, collinearity=self.collinearity, alpha=self.alpha,
                            decoded_weight=self.decoded_weight, **ENCODERS[encoder].settings(latent_dim),
-                           contact_phase=self.contact_phase, refine=refine)
+                           contact_phase=self.contact_phase, refine=refine,
+                           max_terms=self.max_terms if refine else None)
 
 
 def component_spread(ds: Dataset, floor: float) -> np.ndarray:
@@ -242,8 +254,9 @@ def meets(row: dict, horizons: tuple[str, ...] = ("full", "0.1")) -> bool:
 
 def _row(cfg: SelectionConfig, encoder: str, l: int, library: str, threshold: float, refine: bool,
          model: HybridModel, scored: dict, seconds: float) -> dict[str, Any]:
+    budget = {"max_terms": cfg.max_terms} if refine and cfg.max_terms is not None else {}
     return {"encoder": encoder, "latent_dim": l, "library": library, "threshold": threshold, "refine": refine,
-            "active_terms": int(model.mask.sum()), "active_per_phase": model.active_terms(),
+            **budget, "active_terms": int(model.mask.sum()), "active_per_phase": model.active_terms(),
             "fast_unstable_phases": [s.phase for s in model.stability() if s.fast_unstable],
             "seconds": round(seconds, 3), **scored}
 
@@ -291,12 +304,17 @@ def run_refined(ds: Dataset, cfg: SelectionConfig, row: dict) -> tuple[dict[str,
                 time.perf_counter() - t0), model
 
 
-def choose(rows: list[dict], tolerance: float, reference: bool = False) -> int | None:
+def choose(rows: list[dict], tolerance: float, reference: bool = False,
+           max_terms: int | None = None) -> int | None:
     """Index of the chosen row: with a ``reference``, the sparsest that meets it at both
-    horizons if any; else the sparsest with a score within ``tolerance`` of the best."""
+    horizons if any; else the sparsest with a score within ``tolerance`` of the best.
+    With ``max_terms``, only the rows within that many active terms compete, unless none
+    of them stands (then all rows do)."""
     ok = [i for i, r in enumerate(rows) if r["score"] is not None]
     if not ok:
         return None
+    within = [i for i in ok if max_terms is None or rows[i]["active_terms"] <= max_terms]
+    ok = within or ok
     sparsest = lambda idx: min(idx, key=lambda i: (rows[i]["active_terms"], rows[i]["score"]))  # noqa: E731
     meeting = [i for i in ok if meets(rows[i])] if reference else []
     if meeting:
@@ -321,12 +339,15 @@ def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
 def selection_rule(cfg: SelectionConfig) -> str:
     """The score and the choice of ``choose`` under ``cfg``, in words."""
     tol = f"the sparsest within {cfg.tolerance:.0%} of the best score"
+    budget = ("" if cfg.max_terms is None else
+              f"; refinements pruned to at most {cfg.max_terms} active terms, and only candidates within "
+              f"{cfg.max_terms} terms compete (all if none stands)")
     if cfg.reference is None:
         return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
-                f"a diverged val jump rejected; {tol} chosen")
+                f"a diverged val jump rejected; {tol} chosen" + budget)
     return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / reference_c; candidates with a "
             "diverged val jump rejected; the sparsest at or below the reference on every component at both "
-            f"horizons chosen, else {tol}")
+            f"horizons chosen, else {tol}" + budget)
 
 
 @dataclass
@@ -404,8 +425,10 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
         say(len(cells) + k + 1, total, f"refined {row['encoder']} l={row['latent_dim']} {row['library']}")
     if not picks:
         say(total, total, "no candidate to refine")
-    chosen = choose(rows, cfg.tolerance, cfg.reference is not None)
+    chosen = choose(rows, cfg.tolerance, cfg.reference is not None, cfg.max_terms)
     notes = [] if chosen is not None else ["every candidate diverged on a validation jump: none chosen"]
+    if chosen is not None and cfg.max_terms is not None and rows[chosen]["active_terms"] > cfg.max_terms:
+        notes.append(f"no candidate within the budget of {cfg.max_terms} active terms stood: chosen among all")
     model = None
     if chosen is not None:
         r = rows[chosen]

@@ -61,7 +61,9 @@ class TrainConfig:
     ``coefficient`` (the paper) or ``contribution``; ``collinearity``: leave out
     terms whose |correlation| with a simpler one exceeds it on a phase's rows
     (None = keep all, the paper); ``refine``: refine the coefficients on rollout
-    error (``symrom.learn.regressors.refine``); ``path``: thresholds of a sparsity
+    error (``symrom.learn.regressors.refine``); ``max_terms``: with ``refine``, the
+    refinement prunes the model to at most this many active terms (``Refine.max_terms``;
+    None = the support STLSQ chose); ``path``: thresholds of a sparsity
     path to record with validation errors (None = none).
     """
 
@@ -81,6 +83,7 @@ class TrainConfig:
     measure: str = "coefficient"
     collinearity: float | None = None
     refine: bool = False
+    max_terms: int | None = None
     path: tuple[float, ...] | None = None
     adam: AdamConfig = field(default_factory=AdamConfig)
 
@@ -105,6 +108,9 @@ class TrainConfig:
             self.path = tuple(float(t) for t in self.path)
         if self.refine and self.solver != "exact":
             raise ValueError("refine applies to the exact solver")
+        if self.max_terms is not None and (not self.refine or self.max_terms < 1):
+            raise ValueError(f"max_terms ({self.max_terms}) is a budget of the refinement: needs refine and "
+                             "at least 1")
 
     def regressor(self) -> Regressor:
         """The step (c) plug-in these settings describe."""
@@ -115,7 +121,7 @@ class TrainConfig:
         if self.refine:
             from symrom.learn.regressors.refine import Refine
 
-            return Refine(base)
+            return Refine(base, max_terms=self.max_terms)
         return base
 
     def estimator(self, progress: Progress | None = None) -> SymbolicROM:

@@ -29,7 +29,8 @@ def _stat(r: dict, horizon: str, field: str) -> str:
 
 def _row(r: dict, chosen: bool) -> list[str]:
     h = r["horizons"]
-    return [r["encoder"], str(r["latent_dim"]), r["library"], f"{r['threshold']:g}", "yes" if r["refine"] else "no",
+    refined = "no" if not r["refine"] else f"yes, ≤ {r['max_terms']} terms" if r.get("max_terms") else "yes"
+    return [r["encoder"], str(r["latent_dim"]), r["library"], f"{r['threshold']:g}", refined,
             str(r["active_terms"]), _stat(r, "full", "score"), _stat(r, "0.1", "score"),
             f"{h['full']['diverged_jumps']}, {h['0.1']['diverged_jumps']}", "★" if chosen else ""]
 

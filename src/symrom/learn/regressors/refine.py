@@ -22,8 +22,11 @@ the training jumps, by multiple shooting:
   higher cost, or with windows outside the bound, keeps the previous result
   and ends the schedule.
 
-The support never changes: refinement moves the coefficients STLSQ chose,
-never adds terms. ``max_jumps`` caps the training jumps used (evenly spaced).
+Refinement moves the coefficients STLSQ chose and never adds terms. With a
+term budget, ``max_terms``, it then removes terms while the model has more:
+``prune_share`` of them at a time (never below the budget), the least needed
+first by their saliency on the rollout costs (``prune``), and runs the schedule
+again from there. ``max_jumps`` caps the training jumps used (evenly spaced).
 """
 
 from __future__ import annotations
@@ -62,6 +65,8 @@ class Refine(Regressor):
     bound: float = 5.0
     substeps: int = 1
     stride: int = 4
+    max_terms: int | None = None
+    prune_share: float = 0.25
 
     needs_trajectories = True
 
@@ -70,6 +75,10 @@ class Refine(Regressor):
             raise ValueError(f"velocity_weight must be > 0, got {self.velocity_weight}")
         if not self.windows:
             raise ValueError("refinement needs at least one window length")
+        if self.max_terms is not None and self.max_terms < 1:
+            raise ValueError(f"max_terms must be at least 1, got {self.max_terms}")
+        if not 0 < self.prune_share <= 1:
+            raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
 
     @property
     def collinearity(self) -> float | None:  # the support is the initial regressor's
@@ -79,7 +88,7 @@ class Refine(Regressor):
         return {"kind": self.kind, "initial": self.initial.to_dict(), "windows": list(self.windows),
                 "velocity_weight": self.velocity_weight, "max_jumps": self.max_jumps,
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
-                "stride": self.stride}
+                "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
@@ -94,37 +103,92 @@ class Refine(Regressor):
         # dxi errors count velocity_weight times as much as xi errors, each per its spread.
         spread = np.r_[np.maximum(xi.std(0), 1e-12), np.maximum(dxi.std(0), 1e-12) / self.velocity_weight]
         limit = self.bound * np.maximum(np.r_[np.abs(xi).max(0), np.abs(dxi).max(0)], 1e-6)
-        params = Parameters.of(start.mask)
-        shape = start.Xi.shape
-        theta = params.vector(start.Xi)
         lengths = [None if w is None else max(2, int(round(w / problem.dt))) for w in self.windows]
-        short = cut_windows(trajs, lengths[0]) if lengths else None
-        stages = []
-        lib = problem.library
-        for length in lengths:
-            wins = [cut_windows(trajs, length)] + ([short] if length != lengths[0] else [])
+        short = cut_windows(trajs, lengths[0])
+        windows = [[cut_windows(trajs, n)] + ([short] if n != lengths[0] else []) for n in lengths]
 
-            def normal(th, sens, wins=wins):
-                """(cost, dead windows, J^T J, J^T r) at th; the last two only with ``sens``."""
-                Xi = params.matrix(th, shape)
-                parts = [_normal_equations(lib, Xi, params, w, problem.dt, limit, spread, self.substeps,
-                                           self.stride, sens) for w in wins]
+        def cost(mask: np.ndarray, wins: list[Windows]):
+            """normal(th, sens) -> (cost, dead windows, J^T J, J^T r) of the parameters of
+            ``mask`` on ``wins``; the last two only with ``sens``."""
+            params = Parameters.of(mask)
+
+            def normal(th, sens):
+                Xi = params.matrix(th, mask.shape)
+                parts = [_normal_equations(problem.library, Xi, params, w, problem.dt, limit, spread,
+                                           self.substeps, self.stride, sens) for w in wins]
                 return (sum(p[0] for p in parts), sum(p[1] for p in parts),
                         sum(p[2] for p in parts) if sens else None, sum(p[3] for p in parts) if sens else None)
+            return normal
 
-            record = {"window_s": None if length is None else length * problem.dt}
-            new, info = levenberg_marquardt(normal, theta, self.max_nfev)
+        Xi, mask = start.Xi * start.mask, start.mask.copy()
+        Xi, stages, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
+        prunings = []
+        while self.max_terms is not None and mask.sum() > self.max_terms:
+            n = int(mask.sum())
+            drop = min(n - self.max_terms, max(1, int(np.ceil(self.prune_share * n))))
+            Xi, mask, record = prune(Xi, mask, [cost(mask, [w]) for w in windows[last]], drop)
+            Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
+            prunings.append({**record, "stages": more})
+        report = {name: {**start.report.get(name, {}), "refinement": {
+            "stages": stages, "jumps": len(trajs), **({"prunings": prunings} if self.max_terms is not None else {})}}
+            for name in problem.phase_names}
+        return Coefficients(Xi, mask, report)
+
+    def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[Windows]], lengths: list,
+                  dt: float, cost) -> tuple[np.ndarray, list[dict], int]:
+        """The growing-window schedule from ``Xi`` on the support ``mask``: the result, a
+        record per stage and the index of the last stage whose result was kept (0 if none)."""
+        params = Parameters.of(mask)
+        theta = params.vector(Xi)
+        stages, last = [], 0
+        for i, (length, wins) in enumerate(zip(lengths, windows)):
+            record = {"window_s": None if length is None else length * dt}
+            new, info = levenberg_marquardt(cost(mask, wins), theta, self.max_nfev)
             record.update(info)
             if info["dead_after"] or not info["cost_after"] <= info["cost_before"]:
                 record["stopped"] = "no improvement without divergence; previous result kept"
                 stages.append(record)
                 break
-            theta = new
+            theta, last = new, i
             stages.append(record)
-        Xi = params.matrix(theta, shape)
-        report = {name: {**start.report.get(name, {}), "refinement": {"stages": stages, "jumps": len(trajs)}}
-                  for name in problem.phase_names}
-        return Coefficients(Xi, start.mask.copy(), report)
+        return params.matrix(theta, mask.shape), stages, last
+
+
+def prune(Xi: np.ndarray, mask: np.ndarray, normals: list, drop: int) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Remove ``drop`` active coefficients of ``Xi`` (P, p, l) on ``mask``, the least
+    needed first, by their saliency on rollout costs ``normals`` (each as
+    ``levenberg_marquardt`` takes it: the stage's windows, and its shortest windows).
+    With H = sum_k J_k^T J_k / c_k (each cost relative to its value, so that the short
+    windows count as much as the long ones), the relative cost rises by about
+    theta_i^2 / (2 (H^-1)_ii) when entry i goes and the rest move to make up for it
+    (optimal brain surgeon: the ``explained`` measure of STLSQ, on the rollout error).
+    One at a time, each removal updating the others and H^-1 (the Schur complement).
+    Returns the new Xi and mask and a record (costs before, terms removed, predicted rise)."""
+    params = Parameters.of(mask)
+    theta = params.vector(Xi)
+    parts = [normal(theta, True) for normal in normals]
+    H = sum(A / max(c, 1e-300) for c, _, A, _ in parts)
+    d = np.sqrt(np.maximum(np.diag(H), 1e-300))
+    Hs = H / d[:, None] / d[None, :] + 1e-10 * np.eye(theta.size)  # equilibrated, as STLSQ's
+    M = np.linalg.pinv(Hs, hermitian=True) / d[:, None] / d[None, :]
+    keep = np.ones(theta.size, dtype=bool)
+    rise = 0.0
+    for _ in range(drop):
+        live = np.flatnonzero(keep)
+        sal = theta[live] ** 2 / np.maximum(np.diag(M)[live], 1e-300) / 2
+        i = live[int(np.argmin(sal))]
+        rise += float(sal.min())
+        mi = M[:, i].copy()
+        theta = theta - mi * (theta[i] / M[i, i])
+        M = M - np.outer(mi, mi) / M[i, i]
+        keep[i], theta[i] = False, 0.0
+    new_mask = mask.copy()
+    new_mask[params.phase[~keep], params.term[~keep], params.latent[~keep]] = False
+    out = np.zeros_like(Xi)
+    out[new_mask] = Parameters.of(mask).matrix(theta, mask.shape)[new_mask]
+    return out, new_mask, {"costs_before": [float(c) for c, *_ in parts],
+                           "dead_before": int(sum(d for _, d, *_ in parts)), "removed": int(drop),
+                           "active_after": int(new_mask.sum()), "predicted_rise": rise}
 
 
 def levenberg_marquardt(normal, theta: np.ndarray, max_evaluations: int,
