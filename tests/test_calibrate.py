@@ -106,3 +106,34 @@ def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):
         finetune(bare, target, config=FineTuneConfig(refit_decoder=False))
     with pytest.raises(ValueError, match="calibrate"):
         FineTuneConfig(threshold=0.1)
+
+
+def test_an_offset_in_every_equation_recovers_a_planted_bias(source, target):
+    """A source whose contact equations lack their constant (a bias of the target domain the
+    source never had): ``offsets="every"`` adds the constant as a calibration term and recovers
+    it (the constants of the full source, calibrated), the gain still within 2 %; ``support``
+    cannot, and neither touches the flight equations."""
+    names = source.library.feature_names
+    one, k, f = names.index("1"), source.phase_names.index("contact"), source.phase_names.index("flight")
+    assert source.mask[k, one].all()
+    mask = source.mask.copy()
+    mask[k, one] = False
+    bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
+    full = finetune(source, target)  # the reference: the full source, calibrated
+    every = finetune(bare, target, config=FineTuneConfig(offsets="every"))
+    rec = every.info["finetune"]["calibration"]
+    assert rec["offsets"] == "every" and rec["phases"]["contact"]["offset_added"] == [True, True]
+    np.testing.assert_array_equal(every.mask, source.mask)  # the constant back, nothing else
+    np.testing.assert_array_equal(every.Xi[f], source.Xi[f])
+    np.testing.assert_allclose(rec["phases"]["contact"]["gain"], GAIN, rtol=0.02)
+    # the recovered constants, decoded to accelerations of q (m/s^2, rad/s^2)
+    W_d = full.autoencoder.W_d
+    planted = W_d @ full.Xi[k, one]
+    np.testing.assert_allclose(every.autoencoder.W_d @ every.Xi[k, one], planted,
+                               atol=0.03 * np.abs(planted).max())
+    support = finetune(bare, target, config=FineTuneConfig(offsets="support"))
+    srec = support.info["finetune"]["calibration"]["phases"]["contact"]
+    assert srec["offset"] == [None, None] and srec["offset_added"] == [False, False]
+    np.testing.assert_array_equal(support.mask, bare.mask)
+    with pytest.raises(ValueError, match="offsets"):
+        FineTuneConfig(offsets="all")

@@ -48,6 +48,7 @@ from symrom.names import Q_NAMES
 FLIGHT_PHASE = "flight"
 FLIGHT_TOLERANCE = 0.05  # of g: the flight residual that would move gravity by more than 5 %
 FLIGHT_T = 3.0  # standard errors (over jumps) the flight residual must also exceed
+CALIBRATION_OFFSETS = ("support", "every")  # where an offset is fitted (``calibrate``)
 Z = Q_NAMES.index("z")
 
 
@@ -107,16 +108,23 @@ def flight_gravity(model: HybridModel, ds: Dataset, rows: np.ndarray) -> dict | 
 
 
 def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.ndarray,
-              prior_weight: float) -> tuple[np.ndarray, dict]:
-    """The calibrated coefficients Xi (P, p, l) of ``model`` on ``rows`` (N,) bool of ``ds``,
-    with the (kept) encoder of ``ae``, and the record: per phase its rows, whether it was
-    calibrated and its ``gain``, ``offset`` and ``damping`` per latent equation (None where
-    the equation lacks the term); the flight test; ``parameters``, how many were fitted."""
+              prior_weight: float, offsets: str = "support") -> tuple[np.ndarray, np.ndarray, dict]:
+    """The calibrated coefficients Xi (P, p, l) and support mask (P, p, l) of ``model`` on
+    ``rows`` (N,) bool of ``ds``, with the (kept) encoder of ``ae``, and the record: per phase
+    its rows, whether it was calibrated and its ``gain``, ``offset`` and ``damping`` per latent
+    equation (None where the equation lacks the term) and ``offset_added`` (the calibration
+    terms, below); the flight test; ``parameters``, how many were fitted.
+
+    offsets: ``support``, an offset only where the source's equation has a constant;
+    ``every``, an offset in every equation of every calibrated non-flight phase, the constant
+    ``1`` added to the support where the source has none (a calibration term)."""
+    if offsets not in CALIBRATION_OFFSETS:
+        raise ValueError(f"calibration offsets must be one of {CALIBRATION_OFFSETS}, got {offsets!r}")
     names = model.library.feature_names
     inputs = input_terms(model)
     one = names.index("1") if "1" in names else None
     flight = flight_residual(model, ae, ds, rows)
-    Xi = model.Xi.copy()
+    Xi, mask = model.Xi.copy(), model.mask.copy()
     record: dict = {"phases": {}, "flight_test": flight}
     fitted = 0
     for k, name in enumerate(model.phase_names):
@@ -130,14 +138,15 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
             entry["why"] = "gravity kept: the rows do not contradict the source's flight equations"
             continue
         theta, dxi, ddxi = latent_terms(model, ae, ds, r)
-        gains, offsets, damping = [], [], []
+        gains, offs, damping, added = [], [], [], []
         for j in range(model.latent_dim):
             act = model.mask[k, :, j]
             cols, kinds = [], []
             if (act & inputs).any():
                 cols.append(theta[:, act & inputs] @ model.Xi[k, act & inputs, j])
                 kinds.append("gain")
-            if one is not None and act[one]:
+            add = offsets == "every" and name != FLIGHT_PHASE and one is not None and not act[one]
+            if one is not None and (act[one] or add):
                 cols.append(np.ones(theta.shape[0]))
                 kinds.append("offset")
             vel = f"dxi{j + 1}"
@@ -161,15 +170,18 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
                     found["gain"] = 1.0 + found["gain"]
                 if found["offset"] is not None:
                     Xi[k, one, j] += found["offset"]
+                    mask[k, one, j] = True
                 if found["damping"] is not None:
                     Xi[k, names.index(vel), j] += found["damping"]
                 fitted += len(cols)
             gains.append(found["gain"])
-            offsets.append(found["offset"])
+            offs.append(found["offset"])
             damping.append(found["damping"])
-        entry.update(calibrated=True, gain=gains, offset=offsets, damping=damping)
+            added.append(bool(add and found["offset"] is not None))
+        entry.update(calibrated=True, gain=gains, offset=offs, damping=damping, offset_added=added)
+    record["offsets"] = offsets
     record["parameters"] = fitted
-    return Xi, record
+    return Xi, mask, record
 
 
 def nothing_to_adapt() -> CalibrationError:
