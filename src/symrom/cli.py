@@ -541,6 +541,9 @@ def finetune_cmd(
                                                          "rollout-aware refinement from the source coefficients).")] = "calibrate",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
+    calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate: every (an offset and a "
+                                                                               "damping in every non-flight equation) or support "
+                                                                               "(only where the source has the term).")] = "every",
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
     force: Force = False,
 ) -> None:
@@ -554,7 +557,8 @@ def finetune_cmd(
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator("val", integrator)
     check = FineTuneCheck(FineTuneConfig(prior_weight=prior_weight, threshold=threshold,
-                                         refit_decoder=not keep_decoder, method=method),
+                                         refit_decoder=not keep_decoder, method=method,
+                                         calibration_terms=calibration_terms),
                           tolerance=tolerance,
                           integrator=integrator)
     model = load_model(model_path)

@@ -48,7 +48,7 @@ from symrom.names import Q_NAMES
 FLIGHT_PHASE = "flight"
 FLIGHT_TOLERANCE = 0.05  # of g: the flight residual that would move gravity by more than 5 %
 FLIGHT_T = 3.0  # standard errors (over jumps) the flight residual must also exceed
-CALIBRATION_OFFSETS = ("support", "every")  # where an offset is fitted (``calibrate``)
+CALIBRATION_TERMS = ("support", "every")  # where an offset and a damping are fitted (``calibrate``)
 Z = Q_NAMES.index("z")
 
 
@@ -108,18 +108,20 @@ def flight_gravity(model: HybridModel, ds: Dataset, rows: np.ndarray) -> dict | 
 
 
 def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.ndarray,
-              prior_weight: float, offsets: str = "support") -> tuple[np.ndarray, np.ndarray, dict]:
+              prior_weight: float, terms: str = "every") -> tuple[np.ndarray, np.ndarray, dict]:
     """The calibrated coefficients Xi (P, p, l) and support mask (P, p, l) of ``model`` on
     ``rows`` (N,) bool of ``ds``, with the (kept) encoder of ``ae``, and the record: per phase
     its rows, whether it was calibrated and its ``gain``, ``offset`` and ``damping`` per latent
-    equation (None where the equation lacks the term) and ``offset_added`` (the calibration
-    terms, below); the flight test; ``parameters``, how many were fitted.
+    equation (None where the equation lacks the term), ``offset_added`` and ``damping_added``
+    (the calibration terms, below); the flight test; ``terms``; ``parameters``, how many
+    were fitted.
 
-    offsets: ``support``, an offset only where the source's equation has a constant;
-    ``every``, an offset in every equation of every calibrated non-flight phase, the constant
-    ``1`` added to the support where the source has none (a calibration term)."""
-    if offsets not in CALIBRATION_OFFSETS:
-        raise ValueError(f"calibration offsets must be one of {CALIBRATION_OFFSETS}, got {offsets!r}")
+    terms: ``support``, an offset and a damping only where the source's equation has the
+    constant ``1`` and its own velocity ``dxi_j``; ``every``, both in every equation of every
+    calibrated non-flight phase, the term added to the support where the source lacks it (a
+    calibration term: a torque bias and joint damping act in every contact equation)."""
+    if terms not in CALIBRATION_TERMS:
+        raise ValueError(f"calibration terms must be one of {CALIBRATION_TERMS}, got {terms!r}")
     names = model.library.feature_names
     inputs = input_terms(model)
     one = names.index("1") if "1" in names else None
@@ -138,19 +140,21 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
             entry["why"] = "gravity kept: the rows do not contradict the source's flight equations"
             continue
         theta, dxi, ddxi = latent_terms(model, ae, ds, r)
-        gains, offs, damping, added = [], [], [], []
+        gains, offs, damping, added, added_d = [], [], [], [], []
+        every = terms == "every" and name != FLIGHT_PHASE
         for j in range(model.latent_dim):
             act = model.mask[k, :, j]
             cols, kinds = [], []
             if (act & inputs).any():
                 cols.append(theta[:, act & inputs] @ model.Xi[k, act & inputs, j])
                 kinds.append("gain")
-            add = offsets == "every" and name != FLIGHT_PHASE and one is not None and not act[one]
+            add = every and one is not None and not act[one]
             if one is not None and (act[one] or add):
                 cols.append(np.ones(theta.shape[0]))
                 kinds.append("offset")
             vel = f"dxi{j + 1}"
-            if vel in names and act[names.index(vel)]:
+            add_d = every and vel in names and not act[names.index(vel)]
+            if vel in names and (act[names.index(vel)] or add_d):
                 cols.append(dxi[:, j])
                 kinds.append("damping")
             found = {"gain": None, "offset": None, "damping": None}
@@ -173,13 +177,16 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
                     mask[k, one, j] = True
                 if found["damping"] is not None:
                     Xi[k, names.index(vel), j] += found["damping"]
+                    mask[k, names.index(vel), j] = True
                 fitted += len(cols)
             gains.append(found["gain"])
             offs.append(found["offset"])
             damping.append(found["damping"])
             added.append(bool(add and found["offset"] is not None))
-        entry.update(calibrated=True, gain=gains, offset=offs, damping=damping, offset_added=added)
-    record["offsets"] = offsets
+            added_d.append(bool(add_d and found["damping"] is not None))
+        entry.update(calibrated=True, gain=gains, offset=offs, damping=damping, offset_added=added,
+                     damping_added=added_d)
+    record["terms"] = terms
     record["parameters"] = fitted
     return Xi, mask, record
 
