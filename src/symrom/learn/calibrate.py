@@ -3,8 +3,9 @@
 With a dozen jumps, relearning every coefficient (fine-tuning ``acceleration``) or
 refining all of them on rollouts (``rollout``) fits the new jumps with equations
 that lose the source's physics (a flight phase falling at 4 m/s^2). ``calibrate``
-keeps the encoder, every phase's term support and every coefficient of the
-source, and fits per phase k and latent equation j at most three numbers:
+keeps the encoder, every phase's term support (but for two calibration terms,
+below) and every coefficient of the source, and fits per phase k and latent
+equation j at most three numbers:
 
     ddxi_j = Theta Xi_kj + (g_kj - 1) * Theta_in Xi_kj,in + o_kj + d_kj * dxi_j
 
@@ -15,8 +16,16 @@ source, and fits per phase k and latent equation j at most three numbers:
 - d_kj, added to the coefficient of the equation's own velocity dxi_j (joint
   damping).
 
-A parameter exists only where the source's equation has the term (input terms,
-the constant ``1``, ``dxi_j``): no term is added or removed. The parameters are
+The gain exists only where the source's equation has input terms. The offset and
+the damping exist in every equation of every non-flight phase (``terms="every"``,
+the default): where the source's equation lacks the constant ``1`` or its own
+velocity ``dxi_j``, the term is added to the support as a calibration term
+(``offset_added``, ``damping_added`` in the record; it shows in the equations). On
+one robot a torque bias and joint damping act in every stance equation, and a
+source trained on simulation may have neither in an equation (its forward
+equation was the input alone), so they could not be fitted otherwise; chosen on
+the sim-to-real targets' val jumps (docs/results.md). ``terms="support"`` fits
+them only where the source has the term, adding nothing. The parameters are
 the least squares fit to the new rows' latent accelerations (the encoder is the
 source's, so these are the data's own), pulled towards the source (g = 1,
 o = d = 0) by a ridge of ``prior_weight`` times each column's sum of squares.
