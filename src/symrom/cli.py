@@ -600,10 +600,18 @@ def _calibration_lines(record: dict) -> None:
     cal = record.get("calibration")
     for name, p in (cal or {}).get("phases", {}).items():
         if p["calibrated"]:
+            def values(kind: str, added: list[bool]) -> str:  # "*": a calibration term the source lacked
+                return ", ".join("-" if x is None else f"{x:+.3g}" + ("*" if new else "")
+                                 for x, new in zip(p[kind], added))
+
+            n = len(p["gain"])
             g = ", ".join("-" if x is None else f"{x:.3g}" for x in p["gain"])
-            d = ", ".join("-" if x is None else f"{x:+.3g}" for x in p["damping"])
-            out_console.print(f"calibrated {name}: input gains [{g}], damping [{d}] 1/s", highlight=False,
-                              soft_wrap=True)
+            o = values("offset", p.get("offset_added", [False] * n))
+            d = values("damping", p.get("damping_added", [False] * n))
+            added = any(p.get("offset_added", [])) or any(p.get("damping_added", []))
+            out_console.print(f"calibrated {name}: input gains [{g}], offsets [{o}] latent units/s², damping [{d}] 1/s"
+                              + (" (*: a calibration term the source's equation lacked)" if added else ""),
+                              highlight=False, soft_wrap=True)
     test = (cal or {}).get("flight_test")
     if test:
         se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump
