@@ -128,8 +128,9 @@ TORQUE_LOGS = ("applied", "commanded", "measured")
 
 @dataclass(frozen=True)
 class ProxyRanges:
-    """Uniform ranges (low, high) one jump's ``ProxyConfig`` is drawn from, and the fixed
-    sensor noise (standard deviations). Units as in ``ProxyConfig``; per-joint-kind fields
+    """Uniform ranges (low, high) a ``ProxyConfig`` is drawn from (the hardware constants,
+    ``ROBOT_FIELDS``, once per robot for the proxy target, per jump for randomised data; the
+    rest per jump), and the fixed sensor noise (standard deviations). Units as in ``ProxyConfig``; per-joint-kind fields
     (damping, armature, friction_loss, torque_bias) draw each kind on its own;
     no_load_speed_scale multiplies the Go1's no-load speeds (30.1, 30.1, 20.06) rad/s;
     contact_stiffness / contact_damping None keep the engine's rigid contact; drift_vel_std
