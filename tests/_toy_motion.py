@@ -35,7 +35,7 @@ class StandController:
 
 
 class StandMotion(PlainMotion):
-    def sample_params(self, rng, robot, proxy):
+    def sample_params(self, rng, robot, proxy, dataset_rng=None):
         return StandParams(stiffness=float(rng.uniform(150.0, 250.0)))
 
     def make_controller(self, robot, params):

@@ -103,6 +103,46 @@ def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):
     mask[:, drop] = False
     bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
     with pytest.raises(CalibrationError, match="--method acceleration"):
-        finetune(bare, target, config=FineTuneConfig(refit_decoder=False))
+        finetune(bare, target, config=FineTuneConfig(refit_decoder=False, calibration_terms="support"))
+    # by default an offset and a damping are calibration terms of every contact equation
+    tuned = finetune(bare, target, config=FineTuneConfig(refit_decoder=False))
+    assert tuned.info["finetune"]["calibration"]["parameters"] == 2 * source.latent_dim
     with pytest.raises(ValueError, match="calibrate"):
         FineTuneConfig(threshold=0.1)
+
+
+def test_every_equation_calibrated_recovers_a_planted_bias_and_damping(source, target):
+    """A source whose contact equations lack their constant and their own velocity term (a
+    torque bias and joint damping of the target domain the source never had): the default
+    (``calibration_terms="every"``) adds both as calibration terms and recovers them (the
+    full source's, calibrated), the gain still within 2 %; ``support`` cannot; neither touches
+    the flight equations."""
+    names = source.library.feature_names
+    k, f = source.phase_names.index("contact"), source.phase_names.index("flight")
+    one, vel = names.index("1"), [names.index(f"dxi{j + 1}") for j in range(source.latent_dim)]
+    assert source.mask[k, one].all() and all(source.mask[k, v, j] for j, v in enumerate(vel))
+    mask = source.mask.copy()
+    mask[k, one] = False
+    for j, v in enumerate(vel):
+        mask[k, v, j] = False
+    bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
+    full = finetune(source, target)  # the reference: the full source, calibrated
+    every = finetune(bare, target)
+    rec = every.info["finetune"]["calibration"]
+    contact = rec["phases"]["contact"]
+    assert rec["terms"] == "every" and contact["offset_added"] == [True, True] == contact["damping_added"]
+    np.testing.assert_array_equal(every.mask, source.mask)  # the terms back, nothing else
+    np.testing.assert_array_equal(every.Xi[f], source.Xi[f])
+    np.testing.assert_allclose(contact["gain"], GAIN, rtol=0.02)
+    # the recovered constants, decoded to accelerations of q (m/s^2, rad/s^2), and dampings (1/s)
+    planted = full.autoencoder.W_d @ full.Xi[k, one]
+    np.testing.assert_allclose(every.autoencoder.W_d @ every.Xi[k, one], planted,
+                               atol=0.03 * np.abs(planted).max())
+    for j, v in enumerate(vel):
+        assert every.Xi[k, v, j] == pytest.approx(full.Xi[k, v, j], rel=0.05)
+    support = finetune(bare, target, config=FineTuneConfig(calibration_terms="support"))
+    srec = support.info["finetune"]["calibration"]["phases"]["contact"]
+    assert srec["offset"] == [None, None] == srec["damping"] and srec["offset_added"] == [False, False]
+    np.testing.assert_array_equal(support.mask, bare.mask)
+    with pytest.raises(ValueError, match="calibration_terms"):
+        FineTuneConfig(calibration_terms="all")

@@ -117,7 +117,10 @@ def test_val_is_never_worse_than_the_tolerance(files, config):
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), 0.05)
     before = val_score(evaluate(source, ds, "val", HORIZONS, RolloutOptions("rk4"))[0], spread)
     try:
-        res = run_finetune(source, ds, FineTuneCheck())
+        try:
+            res = run_finetune(source, ds, FineTuneCheck())
+        except DecoderRefitError:  # flights of one robot may not span the paper source's latents
+            res = run_finetune(source, ds, FineTuneCheck(FineTuneConfig(refit_decoder=False)))
     except FineTuneRefused as e:
         assert "worse at every prior weight" in str(e)
         return

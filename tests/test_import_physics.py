@@ -233,7 +233,9 @@ def test_a_continuous_five_jump_recording_is_cut_into_five_jumps(tmp_path):
     rec, starts = _continuous(ds, range(5))
     log = write_hardware(tmp_path / "rec.csv", [rec], accelerations=False)  # Time never restarts
     out = tmp_path / "d.h5"
-    r = _import(log, "--robot", "go1", "--out", out, "--split", "3,1,1")
+    # --lenient: the proxy's sensor noise can move the time-scale check's median a little past its
+    # 5 % on a quiet jump (the times here are exact); what is tested is the cutting
+    r = _import(log, "--robot", "go1", "--out", out, "--split", "3,1,1", "--lenient")
     assert r.exit_code == 0, r.output
     text = " ".join(r.output.split())
     assert "segments: rec.csv jump 0 holds 5 flights, cut into 5 jumps" in text

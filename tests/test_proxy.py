@@ -12,8 +12,8 @@ from _simdata import tmp_path
 from symrom.names import BASE_POS, JOINTS
 from symrom.robots import ActuatorEffects
 from symrom.sim.engine import make_world
-from symrom.sim.proxy import (PROXY_RANGES, RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, for_engine,
-                              sample_proxy)
+from symrom.sim.proxy import (JUMP_FIELDS, PROXY_RANGES, RANDOMIZED_RANGES, ROBOT_FIELDS, ProxyConfig, ProxyWorld,
+                              for_engine, robot_constants, sample_proxy, sample_robot)
 
 ENGINES = ("pybullet", "mujoco")
 KNEE = 2  # FR knee
@@ -162,6 +162,33 @@ def test_randomized_variant_recorded_and_reproducible():
     lo, hi = RANDOMIZED_MOTION.t_push_rear
     assert all(p.randomized and p.proxy is not None and lo <= p.t_push_rear <= hi for p in rear)
     assert np.ptp([p.t_push_rear for p in rear]) > 0.3 * (hi - lo)
+
+
+def test_proxy_is_one_robot_per_dataset():
+    """The proxy target's hardware constants are drawn once from the generation seed (the same in
+    every jump and recorded once); ground friction, latency, noise and drift vary per jump; the
+    randomised source still draws its hardware per jump."""
+    from symrom.sim.generate import GenerateConfig, generate
+    from symrom.sim.runner import dataset_seed
+
+    assert set(ROBOT_FIELDS).isdisjoint(JUMP_FIELDS)
+    assert set(ROBOT_FIELDS) | set(JUMP_FIELDS) == set(ProxyConfig.__dataclass_fields__)
+    robot = sample_robot(np.random.default_rng(5))
+    rng = np.random.default_rng(6)
+    jumps = [sample_proxy(rng, robot=robot) for _ in range(3)]
+    assert all(robot_constants(c) == robot_constants(robot) for c in jumps)
+    assert len({c.friction for c in jumps}) == 3 and len({c.seed for c in jumps}) == 3
+    free = [sample_proxy(rng) for _ in range(2)]  # without a robot: hardware per jump
+    assert free[0].damping != free[1].damping and free[0].torque_bias != free[1].torque_bias
+
+    ds = generate(GenerateConfig("go1", "pronk", 2, seed=4, proxy=True, splits=(1, 0, 1)), tmp_path("one_robot.h5"))
+    recs = [r["params"]["proxy"] for r in ds.generator["jumps"]]
+    expected = robot_constants(for_engine(sample_robot(np.random.default_rng(dataset_seed(4))), "pybullet"))
+    assert ds.generator["proxy_robot"] == expected
+    assert all({f: r[f] for f in ROBOT_FIELDS} == expected for r in recs)
+    assert recs[0]["friction"] != recs[1]["friction"] and recs[0]["seed"] != recs[1]["seed"]
+    other = sample_robot(np.random.default_rng(dataset_seed(5)))  # another seed: another robot
+    assert robot_constants(other)["torque_bias"] != expected["torque_bias"]
 
 
 def test_sim2real_checks():

@@ -541,6 +541,9 @@ def finetune_cmd(
                                                          "rollout-aware refinement from the source coefficients).")] = "calibrate",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
+    calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate: every (an offset and a "
+                                                                               "damping in every non-flight equation) or support "
+                                                                               "(only where the source has the term).")] = "every",
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
     force: Force = False,
 ) -> None:
@@ -554,7 +557,8 @@ def finetune_cmd(
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator("val", integrator)
     check = FineTuneCheck(FineTuneConfig(prior_weight=prior_weight, threshold=threshold,
-                                         refit_decoder=not keep_decoder, method=method),
+                                         refit_decoder=not keep_decoder, method=method,
+                                         calibration_terms=calibration_terms),
                           tolerance=tolerance,
                           integrator=integrator)
     model = load_model(model_path)
@@ -596,10 +600,18 @@ def _calibration_lines(record: dict) -> None:
     cal = record.get("calibration")
     for name, p in (cal or {}).get("phases", {}).items():
         if p["calibrated"]:
+            def values(kind: str, added: list[bool]) -> str:  # "*": a calibration term the source lacked
+                return ", ".join("-" if x is None else f"{x:+.3g}" + ("*" if new else "")
+                                 for x, new in zip(p[kind], added))
+
+            n = len(p["gain"])
             g = ", ".join("-" if x is None else f"{x:.3g}" for x in p["gain"])
-            d = ", ".join("-" if x is None else f"{x:+.3g}" for x in p["damping"])
-            out_console.print(f"calibrated {name}: input gains [{g}], damping [{d}] 1/s", highlight=False,
-                              soft_wrap=True)
+            o = values("offset", p.get("offset_added", [False] * n))
+            d = values("damping", p.get("damping_added", [False] * n))
+            added = any(p.get("offset_added", [])) or any(p.get("damping_added", []))
+            out_console.print(f"calibrated {name}: input gains [{g}], offsets [{o}] latent units/s², damping [{d}] 1/s"
+                              + (" (*: a calibration term the source's equation lacked)" if added else ""),
+                              highlight=False, soft_wrap=True)
     test = (cal or {}).get("flight_test")
     if test:
         se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump

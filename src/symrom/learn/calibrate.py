@@ -3,8 +3,9 @@
 With a dozen jumps, relearning every coefficient (fine-tuning ``acceleration``) or
 refining all of them on rollouts (``rollout``) fits the new jumps with equations
 that lose the source's physics (a flight phase falling at 4 m/s^2). ``calibrate``
-keeps the encoder, every phase's term support and every coefficient of the
-source, and fits per phase k and latent equation j at most three numbers:
+keeps the encoder, every phase's term support (but for two calibration terms,
+below) and every coefficient of the source, and fits per phase k and latent
+equation j at most three numbers:
 
     ddxi_j = Theta Xi_kj + (g_kj - 1) * Theta_in Xi_kj,in + o_kj + d_kj * dxi_j
 
@@ -15,8 +16,16 @@ source, and fits per phase k and latent equation j at most three numbers:
 - d_kj, added to the coefficient of the equation's own velocity dxi_j (joint
   damping).
 
-A parameter exists only where the source's equation has the term (input terms,
-the constant ``1``, ``dxi_j``): no term is added or removed. The parameters are
+The gain exists only where the source's equation has input terms. The offset and
+the damping exist in every equation of every non-flight phase (``terms="every"``,
+the default): where the source's equation lacks the constant ``1`` or its own
+velocity ``dxi_j``, the term is added to the support as a calibration term
+(``offset_added``, ``damping_added`` in the record; it shows in the equations). On
+one robot a torque bias and joint damping act in every stance equation, and a
+source trained on simulation may have neither in an equation (its forward
+equation was the input alone), so they could not be fitted otherwise; chosen on
+the sim-to-real targets' val jumps (docs/results.md). ``terms="support"`` fits
+them only where the source has the term, adding nothing. The parameters are
 the least squares fit to the new rows' latent accelerations (the encoder is the
 source's, so these are the data's own), pulled towards the source (g = 1,
 o = d = 0) by a ridge of ``prior_weight`` times each column's sum of squares.
@@ -48,6 +57,7 @@ from symrom.names import Q_NAMES
 FLIGHT_PHASE = "flight"
 FLIGHT_TOLERANCE = 0.05  # of g: the flight residual that would move gravity by more than 5 %
 FLIGHT_T = 3.0  # standard errors (over jumps) the flight residual must also exceed
+CALIBRATION_TERMS = ("support", "every")  # where an offset and a damping are fitted (``calibrate``)
 Z = Q_NAMES.index("z")
 
 
@@ -107,16 +117,25 @@ def flight_gravity(model: HybridModel, ds: Dataset, rows: np.ndarray) -> dict | 
 
 
 def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.ndarray,
-              prior_weight: float) -> tuple[np.ndarray, dict]:
-    """The calibrated coefficients Xi (P, p, l) of ``model`` on ``rows`` (N,) bool of ``ds``,
-    with the (kept) encoder of ``ae``, and the record: per phase its rows, whether it was
-    calibrated and its ``gain``, ``offset`` and ``damping`` per latent equation (None where
-    the equation lacks the term); the flight test; ``parameters``, how many were fitted."""
+              prior_weight: float, terms: str = "every") -> tuple[np.ndarray, np.ndarray, dict]:
+    """The calibrated coefficients Xi (P, p, l) and support mask (P, p, l) of ``model`` on
+    ``rows`` (N,) bool of ``ds``, with the (kept) encoder of ``ae``, and the record: per phase
+    its rows, whether it was calibrated and its ``gain``, ``offset`` and ``damping`` per latent
+    equation (None where the equation lacks the term), ``offset_added`` and ``damping_added``
+    (the calibration terms, below); the flight test; ``terms``; ``parameters``, how many
+    were fitted.
+
+    terms: ``support``, an offset and a damping only where the source's equation has the
+    constant ``1`` and its own velocity ``dxi_j``; ``every``, both in every equation of every
+    calibrated non-flight phase, the term added to the support where the source lacks it (a
+    calibration term: a torque bias and joint damping act in every contact equation)."""
+    if terms not in CALIBRATION_TERMS:
+        raise ValueError(f"calibration terms must be one of {CALIBRATION_TERMS}, got {terms!r}")
     names = model.library.feature_names
     inputs = input_terms(model)
     one = names.index("1") if "1" in names else None
     flight = flight_residual(model, ae, ds, rows)
-    Xi = model.Xi.copy()
+    Xi, mask = model.Xi.copy(), model.mask.copy()
     record: dict = {"phases": {}, "flight_test": flight}
     fitted = 0
     for k, name in enumerate(model.phase_names):
@@ -130,18 +149,21 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
             entry["why"] = "gravity kept: the rows do not contradict the source's flight equations"
             continue
         theta, dxi, ddxi = latent_terms(model, ae, ds, r)
-        gains, offsets, damping = [], [], []
+        gains, offs, damping, added, added_d = [], [], [], [], []
+        every = terms == "every" and name != FLIGHT_PHASE
         for j in range(model.latent_dim):
             act = model.mask[k, :, j]
             cols, kinds = [], []
             if (act & inputs).any():
                 cols.append(theta[:, act & inputs] @ model.Xi[k, act & inputs, j])
                 kinds.append("gain")
-            if one is not None and act[one]:
+            add = every and one is not None and not act[one]
+            if one is not None and (act[one] or add):
                 cols.append(np.ones(theta.shape[0]))
                 kinds.append("offset")
             vel = f"dxi{j + 1}"
-            if vel in names and act[names.index(vel)]:
+            add_d = every and vel in names and not act[names.index(vel)]
+            if vel in names and (act[names.index(vel)] or add_d):
                 cols.append(dxi[:, j])
                 kinds.append("damping")
             found = {"gain": None, "offset": None, "damping": None}
@@ -161,15 +183,21 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
                     found["gain"] = 1.0 + found["gain"]
                 if found["offset"] is not None:
                     Xi[k, one, j] += found["offset"]
+                    mask[k, one, j] = True
                 if found["damping"] is not None:
                     Xi[k, names.index(vel), j] += found["damping"]
+                    mask[k, names.index(vel), j] = True
                 fitted += len(cols)
             gains.append(found["gain"])
-            offsets.append(found["offset"])
+            offs.append(found["offset"])
             damping.append(found["damping"])
-        entry.update(calibrated=True, gain=gains, offset=offsets, damping=damping)
+            added.append(bool(add and found["offset"] is not None))
+            added_d.append(bool(add_d and found["damping"] is not None))
+        entry.update(calibrated=True, gain=gains, offset=offs, damping=damping, offset_added=added,
+                     damping_added=added_d)
+    record["terms"] = terms
     record["parameters"] = fitted
-    return Xi, record
+    return Xi, mask, record
 
 
 def nothing_to_adapt() -> CalibrationError:

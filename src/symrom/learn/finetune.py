@@ -52,7 +52,7 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.learn.calibrate import calibrate, flight_gravity, nothing_to_adapt
+from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
 
 
@@ -71,19 +71,25 @@ class FineTuneConfig:
     the source's own threshold); refit_decoder: False keeps the source decoder;
     decoder_min_spread: the least spread, as a fraction of the source's, the new rows
     must have along every latent direction for the decoder to be refit; method:
-    ``calibrate``, ``acceleration`` or ``rollout`` (module docstring)."""
+    ``calibrate``, ``acceleration`` or ``rollout`` (module docstring); calibration_terms
+    (``calibrate`` only): ``every`` (chosen on val), an offset and a damping in every
+    non-flight equation, or ``support``, only where the source's equation has the term
+    (``learn.calibrate``)."""
 
     prior_weight: float = 0.01
     threshold: float | None = None
     refit_decoder: bool = True
     decoder_min_spread: float = 0.05
     method: str = "calibrate"
+    calibration_terms: str = "every"
 
     def __post_init__(self) -> None:
         if not self.prior_weight >= 0:
             raise ValueError(f"prior_weight must be >= 0, got {self.prior_weight}")
         if not 0 <= self.decoder_min_spread < 1:
             raise ValueError(f"decoder_min_spread must lie in [0, 1), got {self.decoder_min_spread}")
+        if self.calibration_terms not in CALIBRATION_TERMS:
+            raise ValueError(f"calibration_terms must be one of {CALIBRATION_TERMS}, got {self.calibration_terms!r}")
         if self.method not in FINETUNE_METHODS:
             raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
         if self.method == "rollout" and self.threshold is not None:
@@ -192,10 +198,10 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
     calibration = None
     if config.method == "calibrate":
-        Xi, calibration = calibrate(model, ae, ds, rows, config.prior_weight)
+        Xi, mask, calibration = calibrate(model, ae, ds, rows, config.prior_weight, config.calibration_terms)
         if not calibration["parameters"] and not config.refit_decoder:
             raise nothing_to_adapt()
-        return _finetuned(model, ds, rows, config, ae, Xi, model.mask.copy(), phases, decoder, calibration)
+        return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, calibration)
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
     if config.method == "rollout":  # Refine rolls the new jumps out, in the model's phase numbering
         index = np.zeros(ds.n_samples, dtype=int)

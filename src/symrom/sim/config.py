@@ -18,9 +18,10 @@ from symrom.sim.world import WorldConfig
 # choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2); 4: feet
 # under the hips where straight legs are not plumb (the Laikago's stance), froggy crouches level
 # on robots other than the A1, MuJoCo's state read compiled (its jumps those of 3 to ~1e-9); the
-# proxy draws joint damping, armature, friction loss, a soft contact and a measured torque (its
-# jumps change), the randomized variant; the A1's and Go1's nominal and noisy PyBullet jumps
-# bitwise those of 3
+# proxy draws joint damping, armature, friction loss, a soft contact and a measured torque, and
+# is one robot per file (its hardware constants drawn once from the generation seed, only the
+# per-jump effects per jump; its jumps change), the randomized variant (all per jump); the A1's
+# and Go1's nominal and noisy PyBullet jumps bitwise those of 3
 GENERATOR_VERSION = 4
 
 

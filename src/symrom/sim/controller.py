@@ -4,7 +4,7 @@ A motion's registry entry (``symrom.motions``) names its plug-in as
 ``"module:attribute"``; ``load_motion`` imports it only here, in the
 simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
 
-    params = motion.sample_params(rng, robot, variant) # a dataclass with max_time (s)
+    params = motion.sample_params(rng, robot, variant, dataset_rng)  # a dataclass with max_time (s)
     world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engine.World
     ctrl = motion.make_controller(robot, params)
     q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
@@ -50,9 +50,13 @@ class Controller(Protocol):
 class Motion(Protocol):
     """A kind of jump, as its plug-in module exports it."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> Any:
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None,
+                      dataset_rng: np.random.Generator | None = None) -> Any:
         """One jump's parameters: a dataclass (recorded with ``asdict``) with ``max_time`` s.
-        variant: one of the motion's registered variants (e.g. ``proxy``, ``randomized``) or None."""
+        variant: one of the motion's registered variants (e.g. ``proxy``, ``randomized``) or None.
+        dataset_rng: a generator seeded by the generation seed alone, so it draws the same in
+        every jump of a file: for what a dataset's jumps share (the proxy's one robot); None
+        draws that per jump too."""
 
     def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
         """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a

@@ -405,7 +405,8 @@ class FroggyMotion(PlainMotion):
 
     checks: FroggyChecks = FroggyChecks()
 
-    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> FroggyParams:
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None,
+                      dataset_rng: np.random.Generator | None = None) -> FroggyParams:
         return sample_randomized(rng, robot) if variant == "randomized" else sample_params(rng, robot)
 
     def make_world(self, robot: str, config: WorldConfig, params: FroggyParams, engine: str) -> World:

@@ -105,12 +105,30 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
     }
     split = (split_labels(cfg.n_jumps, cfg.motion, cfg.proxy) if cfg.splits is None
              else np.repeat(np.array(SPLITS, dtype=object), counts))
+    if cfg.variant == "proxy":  # one robot: its hardware constants, once (each jump's record has them too)
+        generator["proxy_robot"] = proxy_robot(records)
     if cfg.robot not in ROBOTS:  # a description file: keep its text with the data
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
                     t=cat["t"], q=cat["q"], dq=cat["dq"], tau=cat["tau"], contact=cat["contact"],
                     foot_pos=cat["foot_pos"], contact_force=cat["contact_force"], split=split,
                     dt=dt, generator=generator)
+
+
+def proxy_robot(records: list[dict]) -> dict:
+    """The hardware constants (``proxy.ROBOT_FIELDS``) the proxy jumps ``records`` share, as
+    simulated; ``GenerationError`` naming the first jump that differs."""
+    from symrom.sim.proxy import ROBOT_FIELDS
+
+    def of(r: dict) -> dict:
+        return {f: r["params"]["proxy"][f] for f in ROBOT_FIELDS}
+
+    first = of(records[0])
+    for r in records[1:]:
+        if of(r) != first:
+            raise GenerationError(f"jump {r['jump']}: its proxy hardware differs from jump "
+                                  f"{records[0]['jump']}'s; a proxy dataset is one robot")
+    return first
 
 
 def _preload(cfg: GenerateConfig) -> list[str]:

@@ -62,7 +62,7 @@ from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
-from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy, sample_robot
 from symrom.sim.engine import World, make_world
 from symrom.sim.world import WorldConfig
 
@@ -167,13 +167,15 @@ RANDOMIZED_MOTION = PronkRanges()
 
 
 def sample_params(rng: np.random.Generator, proxy: bool = False, robot: str = REFERENCE_ROBOT,
-                  randomized: bool = False) -> PronkParams:
+                  randomized: bool = False, proxy_robot: ProxyConfig | None = None) -> PronkParams:
     """A random jump: for the Go1 a distance of 0.1-0.4 m, apex 0.41-0.45 m, small
     crouch/timing spread; lengths scale with the robot's leg length (``scales``).
 
     With ``proxy`` the hardware-like perturbations are drawn too (see
-    ``symrom.sim.proxy``). ``randomized``: domain randomisation of source data, the motion
-    from ``RANDOMIZED_MOTION`` and the world from ``proxy.RANDOMIZED_RANGES``.
+    ``symrom.sim.proxy``): the hardware constants of ``proxy_robot`` (``proxy.sample_robot``,
+    one per dataset) and the per-jump rest; without ``proxy_robot`` all per jump.
+    ``randomized``: domain randomisation of source data, the motion from
+    ``RANDOMIZED_MOTION`` and the world from ``proxy.RANDOMIZED_RANGES`` (all per jump).
     """
     length = scales(robot)[1]
     if randomized:
@@ -190,7 +192,7 @@ def sample_params(rng: np.random.Generator, proxy: bool = False, robot: str = RE
         crouch_height=float(rng.uniform(0.205, 0.225)) * length,
         takeoff_height=PronkParams.takeoff_height * length,
         crouch_time=float(rng.uniform(0.35, 0.45)),
-        proxy=sample_proxy(rng) if proxy else None,
+        proxy=sample_proxy(rng, robot=proxy_robot) if proxy else None,
     )
 
 
@@ -443,8 +445,11 @@ class PronkMotion(PlainMotion):
     """The pronk plug-in (registry entry ``pronk``); variant ``proxy``: a hardware-like world;
     ``randomized``: domain-randomised source jumps (motion and world drawn per jump)."""
 
-    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None) -> PronkParams:
-        return sample_params(rng, proxy=variant == "proxy", robot=robot, randomized=variant == "randomized")
+    def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None,
+                      dataset_rng: np.random.Generator | None = None) -> PronkParams:
+        one = variant == "proxy" and dataset_rng is not None  # the proxy target: one robot per dataset
+        return sample_params(rng, proxy=variant == "proxy", robot=robot, randomized=variant == "randomized",
+                             proxy_robot=sample_robot(dataset_rng) if one else None)
 
     def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
         world = make_world(engine, robot, config)

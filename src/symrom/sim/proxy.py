@@ -31,6 +31,16 @@ target, ``RANDOMIZED_RANGES`` (wider, covering the proxy's and the nominal
 world) for randomised source data; ``sample_proxy(rng, ranges)`` draws one jump's
 ``ProxyConfig``. ``ProxyConfig()`` is the nominal world (no effect at all).
 
+Per robot and per jump. A proxy target is ONE robot: its hardware constants
+(``ROBOT_FIELDS``: masses and inertias, the foot's contact stiffness and damping,
+joint damping, armature and friction loss, the motors' torque-speed limit, the
+torque sensor's bias and scale) are drawn once per dataset (``sample_robot`` from
+a generator seeded by the generation seed alone) and are the same in all its
+jumps; what differs between jumps of one robot (``JUMP_FIELDS``: the ground
+friction patch, the latency's jitter, the sensor noise stream and the estimator's
+drift) is drawn per jump (``sample_proxy(rng, robot=...)``). Randomised source
+data draws everything per jump (``robot=None``): that is domain randomisation.
+
 Use, in this order (what a runner does)::
 
     cfg = sample_proxy(rng)                      # or PronkParams.proxy
@@ -118,8 +128,9 @@ TORQUE_LOGS = ("applied", "commanded", "measured")
 
 @dataclass(frozen=True)
 class ProxyRanges:
-    """Uniform ranges (low, high) one jump's ``ProxyConfig`` is drawn from, and the fixed
-    sensor noise (standard deviations). Units as in ``ProxyConfig``; per-joint-kind fields
+    """Uniform ranges (low, high) a ``ProxyConfig`` is drawn from (the hardware constants,
+    ``ROBOT_FIELDS``, once per robot for the proxy target, per jump for randomised data; the
+    rest per jump), and the fixed sensor noise (standard deviations). Units as in ``ProxyConfig``; per-joint-kind fields
     (damping, armature, friction_loss, torque_bias) draw each kind on its own;
     no_load_speed_scale multiplies the Go1's no-load speeds (30.1, 30.1, 20.06) rad/s;
     contact_stiffness / contact_damping None keep the engine's rigid contact; drift_vel_std
@@ -165,8 +176,33 @@ RANDOMIZED_RANGES = ProxyRanges(
     torque_log="measured", torque_bias=(-0.5, 0.5), torque_scale=(0.85, 1.15))
 
 
-def sample_proxy(rng: np.random.Generator, ranges: ProxyRanges = PROXY_RANGES) -> ProxyConfig:
-    """Draw one jump's perturbations from ``ranges`` (``PROXY_RANGES``: the proxy target)."""
+# What is fixed on one robot (drawn once per dataset) and what varies between its jumps.
+ROBOT_FIELDS = ("trunk_mass_scale", "leg_mass_scale", "inertia_scale", "no_load_speed", "knee_speed_frac",
+                "damping", "armature", "friction_loss", "contact_stiffness", "contact_damping", "torque_log",
+                "torque_bias", "torque_scale")
+JUMP_FIELDS = ("friction", "latency", "noise_q", "noise_dq", "noise_pos", "noise_rpy", "noise_vel",
+               "noise_omega", "drift_vel", "drift_yaw_rate", "seed")
+
+
+def robot_constants(cfg: ProxyConfig) -> dict:
+    """The per-robot fields (``ROBOT_FIELDS``) of ``cfg``, JSON-ready."""
+    return {f: (list(v) if isinstance(v := getattr(cfg, f), tuple) else v) for f in ROBOT_FIELDS}
+
+
+def sample_robot(rng: np.random.Generator, ranges: ProxyRanges = PROXY_RANGES) -> ProxyConfig:
+    """Draw one robot from ``ranges``: a ``ProxyConfig`` whose ``ROBOT_FIELDS`` are the robot's
+    hardware constants (its other fields are not used: ``sample_proxy(rng, ranges, robot)``
+    draws them per jump)."""
+    return sample_proxy(rng, ranges)
+
+
+def sample_proxy(rng: np.random.Generator, ranges: ProxyRanges = PROXY_RANGES,
+                 robot: ProxyConfig | None = None) -> ProxyConfig:
+    """Draw one jump's perturbations from ``ranges`` (``PROXY_RANGES``: the proxy target).
+
+    robot: the hardware constants (``ROBOT_FIELDS``) of the robot the jump runs on
+    (``sample_robot``), kept; None draws them for this jump too (domain randomisation).
+    The rng is consumed alike either way."""
     r, u = ranges, rng.uniform
     kinds = lambda lo_hi: tuple(float(v) for v in u(*lo_hi, 3))  # noqa: E731 (one per joint kind)
     cfg = dict(
@@ -188,6 +224,8 @@ def sample_proxy(rng: np.random.Generator, ranges: ProxyRanges = PROXY_RANGES) -
     if r.contact_stiffness is not None:
         cfg.update(contact_stiffness=float(np.exp(u(*np.log(r.contact_stiffness)))),  # log-uniform
                    contact_damping=float(u(*r.contact_damping)))
+    if robot is not None:
+        cfg.update({f: getattr(robot, f) for f in ROBOT_FIELDS})
     return ProxyConfig(**cfg)
 
 

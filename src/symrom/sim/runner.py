@@ -33,6 +33,12 @@ def jump_seed(seed: int, jump: int, attempt: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(jump, attempt))
 
 
+def dataset_seed(seed: int) -> np.random.SeedSequence:
+    """The seed of what all jumps of a file share (the proxy's robot): the generation seed
+    alone (a spawn key of one entry, never a jump's)."""
+    return np.random.SeedSequence(seed, spawn_key=(0,))
+
+
 def _noisy(s: RobotState, noise: NoiseConfig, rng: np.random.Generator) -> RobotState:
     """A reading of ``s`` with Gaussian noise on q and dq (other fields exact)."""
     q, dq = s.q.copy(), s.dq.copy()
@@ -56,7 +62,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     """
     params_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     motion = load_motion(cfg.motion)
-    params = motion.sample_params(params_rng, cfg.robot, cfg.variant)
+    params = motion.sample_params(params_rng, cfg.robot, cfg.variant, np.random.default_rng(dataset_seed(cfg.seed)))
     world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
     ctrl = motion.make_controller(cfg.robot, params)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
