@@ -1,11 +1,11 @@
 """One SIM experiment of ``symrom reproduce`` on its own, and the record of its result.
 
-    python benchmarks/sim_experiment.py a1_sim --run runs/paper --workers 1 \\
+    python benchmarks/sim_experiment.py a1_sim go1_sim --run runs/compact --max-terms 60 --workers 1 \\
         --out benchmarks/results/reproduce_summary.json
 
 Runs into ``--run`` what ``symrom reproduce`` runs for the experiment, with the same
 functions and settings (``ReproduceConfig``: the dataset's spec and seed, the validation
-selection with its term budget, the evaluation on the test split, the paper's defaults and
+selection (with ``--max-terms``, as ``reproduce --max-terms``), the evaluation on the test split, the paper's defaults and
 the baselines), each step skipped when its output exists, as ``reproduce`` skips it: on a
 finished ``reproduce`` run directory it only reads. Then it writes, per experiment, the
 facts the tests check (``tests/test_reproduce_summary.py``): the selected settings, the
@@ -55,9 +55,12 @@ def main() -> None:
     ap.add_argument("experiments", nargs="+", help="names of reproduce's SIM experiments (go1_sim, a1_sim)")
     ap.add_argument("--run", type=Path, required=True, help="run directory (reproduce's layout)")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--max-terms", type=int, default=None, help="term budget of the selection (reproduce --max-terms)")
     ap.add_argument("--out", type=Path, default=Path("benchmarks/results/reproduce_summary.json"))
     args = ap.parse_args()
     cfg = replace(ReproduceConfig(), workers=args.workers)
+    if args.max_terms is not None:
+        cfg = replace(cfg, selection=replace(cfg.selection, max_terms=args.max_terms))
     known = {e.name: e for e in cfg.experiments}
     unknown = [n for n in args.experiments if n not in known]
     if unknown:

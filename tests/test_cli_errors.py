@@ -270,3 +270,9 @@ def test_reproduce_only_an_unknown_part_is_refused_before_any_work(tmp_path):
     out = tmp_path / "run"
     one_line_error(_run("reproduce", "--out", out, "--only", "sweep"), "--only", "'sweep'", "sim2real")
     assert not out.exists()
+
+
+def test_reproduce_a_term_budget_below_one_is_refused_before_any_work(tmp_path):
+    out = tmp_path / "run"
+    one_line_error(_run("reproduce", "--out", out, "--max-terms", "0"), "--max-terms", "0")
+    assert not out.exists()

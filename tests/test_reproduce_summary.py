@@ -1,8 +1,9 @@
 """The reproduction's SIM results, read from the committed record of its summary.
 
 ``benchmarks/results/reproduce_summary.json`` is written by
-``python benchmarks/sim_experiment.py a1_sim go1_sim --run RUN`` (reproduce's functions and
-settings, docs/results.md). The counts are recomputed here from the stored test RMSE and the
+``python benchmarks/sim_experiment.py a1_sim go1_sim --run RUN --max-terms 60`` (reproduce's
+functions and settings with the compact term budget, ``reproduce --max-terms 60``;
+docs/results.md). The counts are recomputed here from the stored test RMSE and the
 paper's Table 2, not read from the record's own lists.
 """
 
@@ -12,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from symrom.evaluate.paper import implied_rmse, paper_row
-from symrom.experiments.reproduce import ReproduceConfig
+from symrom.experiments.reproduce import MAX_TERMS
 from symrom.names import TABLE2_COMPONENTS
 
 RECORD = Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "reproduce_summary.json"
@@ -42,9 +43,8 @@ def meets_paper_but_hx(h: str) -> tuple[bool, list[str]]:
 
 def test_sim_a1_is_compact_does_not_diverge_and_meets_the_paper_over_whole_jumps():
     a1 = experiment("a1_sim")
-    budget = ReproduceConfig().selection.max_terms
-    assert budget is not None and budget <= 60
-    assert a1["config"]["max_terms"] == budget
+    assert MAX_TERMS <= 60
+    assert a1["config"]["max_terms"] == MAX_TERMS
     assert a1["active_terms"] == sum(a1["active_per_phase"].values())
     assert a1["active_terms"] <= 60
     for h in ("full", "0.1"):
@@ -63,7 +63,7 @@ def test_sim_a1_meets_the_paper_with_resets():
 @pytest.mark.parametrize("horizon", ["full", "0.1"])
 def test_sim_go1_keeps_its_five_terms_and_meets_the_paper_on_every_component(horizon):
     go1 = experiment("go1_sim")
-    assert go1["config"]["max_terms"] == ReproduceConfig().selection.max_terms  # selected under the budget
+    assert go1["config"]["max_terms"] == MAX_TERMS  # selected under the budget
     assert go1["active_terms"] <= 5
     hz = go1["horizons"][horizon]
     assert hz["diverged_jumps"] == 0

@@ -704,6 +704,9 @@ def reproduce_cmd(
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     only: Annotated[Optional[str], typer.Option(
         "--only", help="Run one part only: sim2real (with the SIM Go1 selection it needs).")] = None,
+    max_terms: Annotated[Optional[int], typer.Option(
+        "--max-terms", help="Term budget of the SIM selections: refinements pruned to at most N active terms "
+                            "(compact models; e.g. 60). Default: none.")] = None,
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     import shlex
@@ -714,12 +717,16 @@ def reproduce_cmd(
 
     if only is not None and only not in PARTS:
         raise ValueError(f"--only {only!r}: not a part of the run; one of: {', '.join(PARTS)}")
+    if max_terms is not None and max_terms < 1:
+        raise ValueError(f"--max-terms must be a positive number of terms, got {max_terms}")
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
     from symrom.sim.engine import check_engine
 
     cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=runner.workers, seed=seed,
                   backend=backend, address=getattr(runner, "address", None), engine=check_engine(engine))
+    if max_terms is not None:
+        cfg = replace(cfg, selection=replace(cfg.selection, max_terms=max_terms))
     command = "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     with console.status("reproduce") as status:
         def say(msg: str, transient: bool = False) -> None:
