@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 import symrom
 from symrom.cli import app
 from symrom.data.io import write_dataset
+from symrom.model.persistence import load_model
 from symrom.testing import make_planted_dataset
 from conftest import one_line_error
 
@@ -267,3 +268,21 @@ def test_readme_is_a_front_page_with_the_details_in_docs():
     for img in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", results):
         assert (ROOT / "docs" / img).is_file(), img
     assert "python benchmarks/bench_learner.py" in (ROOT / "docs" / "benchmarks.md").read_text()
+
+
+# ----------------------------------------------------------------- the selection's term budget
+def test_train_term_budget_is_a_selection_option(data, tmp_path):
+    out = tmp_path / "m"
+    one_line_error(_run("train", data[1], "--max-terms", 4, "--out", out), "--max-terms", "--select")
+    one_line_error(_run("train", data[1], "--select", "--max-terms", 0, "--out", out), "--max-terms", "0")
+    assert not out.exists()
+
+
+def test_train_select_keeps_the_chosen_model_within_its_term_budget(data, tmp_path):
+    out = tmp_path / "m"
+    r = _run("train", data[1], "--select", "--select-dims", "2", "--max-terms", 4, "--out", out)
+    assert r.exit_code == 0, r.output
+    table = json.loads((out / "selection.json").read_text())
+    chosen = table["rows"][table["chosen"]]
+    assert chosen["active_terms"] <= 4 and "within 4 terms" in table["rule"]
+    assert int(load_model(out / "model.json").mask.sum()) == chosen["active_terms"]

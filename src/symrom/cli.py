@@ -351,6 +351,9 @@ def train_cmd(
                          "split (it refuses the options above, which it would not use).")] = False,
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
     workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
+    max_terms: Annotated[Optional[int], typer.Option(
+        "--max-terms", help="--select: a term budget; refinements pruned to at most N active terms, and only "
+                            "candidates within it compete (default: none).")] = None,
     resume: Annotated[bool, typer.Option(
         "--resume", help="--select: continue an interrupted selection (its finished cells are in OUT.parts).")] = False,
     backend: BackendName = "local",
@@ -370,10 +373,14 @@ def train_cmd(
     adam = AdamConfig() if epochs is None else AdamConfig(epochs=epochs)
     comps = None if encoder_components is None else tuple(
         c.strip() for c in encoder_components.split(",") if c.strip())
+    if max_terms is not None and max_terms < 1:
+        raise ValueError(f"--max-terms must be a positive number of terms, got {max_terms}")
     if select:
-        return _train_select(data, out, select_dims, workers, backend, address, resume, force)
+        return _train_select(data, out, select_dims, workers, backend, address, resume, force, max_terms)
     if backend != "local" or address is not None or resume:
         raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
+    if max_terms is not None:
+        raise ValueError("--max-terms applies to --select (the budget of its refinements)")
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
@@ -395,7 +402,7 @@ def train_cmd(
 
 
 def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, backend: str,
-                  address: str | None, resume: bool, force: bool) -> None:
+                  address: str | None, resume: bool, force: bool, max_terms: int | None = None) -> None:
     """``train --select``: the validation selection, its table and the chosen model. Each
     finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
     that ``--resume`` continues an interrupted selection."""
@@ -403,7 +410,8 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     from symrom.experiments.select import SelectionConfig, check_parts, check_splits, select_into
     from symrom.experiments.sweep import parse_latent_dims
 
-    cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers)
+    cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers,
+                          max_terms=max_terms)
     check_parts(out, resume, force)
     ds = read_dataset(data)
     check_splits(ds)
