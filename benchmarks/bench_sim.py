@@ -174,6 +174,26 @@ def side_by_side(motion: str, n: int, seed: int, against: Path, repeats: int, en
     return out
 
 
+def machine() -> dict:
+    """The facts of this machine a result is read beside."""
+    return {"python": platform.python_version(), "cpu": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(), "load_1min": os.getloadavg()[0]}
+
+
+def against_row(motion: str, r: dict) -> str:
+    """One row of the side-by-side table (``side_by_side``'s result)."""
+    return (f"| {ROBOT_OF_MOTION[motion]} {motion} | {r['this_rtf_wall']:.2f} / {r['this_rtf_cpu']:.2f} "
+            f"| {r['against_rtf_wall']:.2f} / {r['against_rtf_cpu']:.2f} "
+            f"| {r['ratio_wall']:.2f} / {r['ratio_cpu']:.2f} |")
+
+
+def write(out: Path | None, res: dict) -> None:
+    """The results JSON, if asked for."""
+    if out:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(res, indent=1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jumps", type=int, default=6)
@@ -188,8 +208,7 @@ def main() -> None:
     motions = [m for m in args.motions.split(",") if m]
     if args.against is not None and args.engine:
         res = {"jumps": args.jumps, "seed": args.seed, "engine": args.engine,
-               "machine": {"python": platform.python_version(), "cpu": platform.processor() or platform.machine(),
-                           "cpus": os.cpu_count(), "load_1min": os.getloadavg()[0]},
+               "machine": machine(),
                "against": {"src": str(args.against), "repeats": args.repeats, "motions": {}}}
         print(f"{args.engine}: side by side with {args.against}, one worker, medians of {args.repeats} "
               f"alternating runs of {args.jumps} jumps (load {os.getloadavg()[0]:.1f}):\n")
@@ -198,18 +217,13 @@ def main() -> None:
         for motion in motions:
             r = side_by_side(motion, args.jumps, args.seed, args.against, args.repeats, args.engine)
             res["against"]["motions"][motion] = r
-            print(f"| {ROBOT_OF_MOTION[motion]} {motion} | {r['this_rtf_wall']:.2f} / {r['this_rtf_cpu']:.2f} "
-                  f"| {r['against_rtf_wall']:.2f} / {r['against_rtf_cpu']:.2f} "
-                  f"| {r['ratio_wall']:.2f} / {r['ratio_cpu']:.2f} |", flush=True)
-        if args.out:
-            args.out.parent.mkdir(parents=True, exist_ok=True)
-            args.out.write_text(json.dumps(res, indent=1))
+            print(against_row(motion, r), flush=True)
+        write(args.out, res)
         return
     if args.engines:
         engines = args.engines.split(",")
         res = {"jumps": args.jumps, "seed": args.seed, "repeats": args.repeats, "engines": engines,
-               "machine": {"python": platform.python_version(), "cpu": platform.processor() or platform.machine(),
-                           "cpus": os.cpu_count(), "load_1min": os.getloadavg()[0]}, "motions": {}}
+               "machine": machine(), "motions": {}}
         print(f"Engines side by side, one worker, medians of {args.repeats} alternating runs of {args.jumps} "
               f"jumps (load {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs):\n")
         print("| jumps | engine | real-time factor (wall) | per CPU second | the world's state + step alone "
@@ -226,9 +240,7 @@ def main() -> None:
                       f"{100 * x['leg_gravity_share']:.0f} / "
                       f"{100 * (1 - x['world_share'] - x['mpc_share'] - x['leg_gravity_share']):.0f} % "
                       f"| {x['rtf_stand']:.1f} |", flush=True)
-        if args.out:
-            args.out.parent.mkdir(parents=True, exist_ok=True)
-            args.out.write_text(json.dumps(res, indent=1))
+        write(args.out, res)
         return
     t0 = time.perf_counter()
     from symrom.sim.compiled import warm_up
@@ -273,12 +285,8 @@ def main() -> None:
                 continue
             r = side_by_side(motion, args.jumps, args.seed, args.against, args.repeats)
             res["against"]["motions"][motion] = r
-            print(f"| {ROBOT_OF_MOTION[motion]} {motion} | {r['this_rtf_wall']:.2f} / {r['this_rtf_cpu']:.2f} "
-                  f"| {r['against_rtf_wall']:.2f} / {r['against_rtf_cpu']:.2f} "
-                  f"| {r['ratio_wall']:.2f} / {r['ratio_cpu']:.2f} |", flush=True)
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=1))
+            print(against_row(motion, r), flush=True)
+    write(args.out, res)
 
 
 if __name__ == "__main__":
