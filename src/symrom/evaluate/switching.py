@@ -39,7 +39,7 @@ def predicted_rollout(model, ds: Dataset, jumps: np.ndarray, options: RolloutOpt
         ph, d = logged[a:b].copy(), -1
         for s, e in zip(starts[:-1], starts[1:]):
             p0 = int(logged[a + s])
-            stay = s - max((k for k in range(s, -1, -1) if logged[a + k] != p0), default=-1) - 1
+            stay = s - next((k for k in range(s, -1, -1) if logged[a + k] != p0), -1) - 1  # samples already in p0
             p = model.predict_path(ds.q[a + s], ds.dq[a + s], ds.u[a + s:a + e], ds.dt,
                                    phase0=model.phase_names[p0], options=options, dwell0=stay * ds.dt)
             X[s:e], V[s:e], ph[s:e] = p.xi, p.dxi, p.phase

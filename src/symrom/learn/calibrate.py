@@ -176,8 +176,9 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
                 if keep.any():
                     G = gram[np.ix_(keep, keep)]
                     p[keep] = np.linalg.solve(G + prior_weight * np.diag(np.diag(G)), X[:, keep].T @ y)
-                for kind, v in zip(kinds, p):
-                    found[kind] = float(v)
+                new = {"offset": add, "damping": add_d}
+                for kind, v, moves in zip(kinds, p, keep):  # a term to add that never moves here is not added
+                    found[kind] = None if new.get(kind) and not moves else float(v)
                 if found["gain"] is not None:
                     Xi[k, act & inputs, j] *= 1.0 + found["gain"]
                     found["gain"] = 1.0 + found["gain"]
@@ -187,7 +188,7 @@ def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.n
                 if found["damping"] is not None:
                     Xi[k, names.index(vel), j] += found["damping"]
                     mask[k, names.index(vel), j] = True
-                fitted += len(cols)
+                fitted += sum(v is not None for v in found.values())
             gains.append(found["gain"])
             offs.append(found["offset"])
             damping.append(found["damping"])

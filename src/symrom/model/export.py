@@ -37,10 +37,11 @@ from symrom.model.expressions import latent_expressions
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import symbols
 from symrom.model.persistence import model_hash
+from symrom.rollout.integrate import RolloutOptions
 
 TARGETS = ("c", "casadi", "python")
 PREFIX = "symrom_model"
-BOUND = 50.0  # divergence bound of the exported predict_path, x the model's yardstick (RolloutOptions.bound)
+BOUND = RolloutOptions.bound  # divergence bound of the exported predict_path, x the model's yardstick
 
 
 def export(model: HybridModel, target: str, out: str | os.PathLike) -> list[Path]:

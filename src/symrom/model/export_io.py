@@ -76,7 +76,7 @@ def _c_init(a) -> str:
 def c_source(model: HybridModel, bound: float) -> str:
     """C of the guards, free prediction and (with a robot) the input map; after the dynamics."""
     l = model.latent_dim
-    limit = bound * (np.asarray(model.latent_scale) + 1e-3)
+    limit = bound * model.yardstick
     cases = []
     for i, (src, tgt, dwell, bias, terms) in enumerate(guard_terms(model)):
         sum_ = " + ".join(f"{w!r} * z[{c}]" for c, w in terms)
@@ -299,7 +299,7 @@ def casadi_extras(model: HybridModel, fns: dict, ca) -> None:
 def python_source(model: HybridModel, bound: float) -> str:
     """NumPy source of ``guard_switch``, ``predict_path`` and (with a robot) ``input_from_torques``,
     appended to the Python export (which defines encode, decode, accel, rk4_step)."""
-    limit = bound * (np.asarray(model.latent_scale) + 1e-3)
+    limit = bound * model.yardstick
     cases = []
     for src, tgt, dwell, bias, terms in guard_terms(model):
         sum_ = " + ".join(f"{w!r} * z[{c}]" for c, w in terms)

@@ -149,6 +149,12 @@ class HybridModel:
     def latent_dim(self) -> int:
         return self.autoencoder.latent_dim
 
+    @property
+    def yardstick(self) -> np.ndarray:
+        """(2l,) what a rollout's divergence bound multiplies (``RolloutOptions.bound``): the
+        largest |xi|, |dxi| seen in training, plus 1e-3 so a latent that never moved has a bound."""
+        return np.asarray(self.latent_scale) + 1e-3
+
     def active_terms(self) -> dict[str, int]:
         """Number of nonzero coefficients per phase."""
         return {n: int(self.mask[i].sum()) for i, n in enumerate(self.phase_names)}
@@ -234,7 +240,7 @@ class HybridModel:
         nu, ph = encode_inputs(ae, ds.u, phase, bounds)
         full = functools.cache(lambda: encode_states(ae, ds.q, ds.dq, bounds))
         x, v = JumpViews(lambda: full()[0], lens), JumpViews(lambda: full()[1], lens)
-        scale = np.broadcast_to(self.latent_scale + 1e-3, (len(jumps), 2 * self.latent_dim))
+        scale = np.broadcast_to(self.yardstick, (len(jumps), 2 * self.latent_dim))
         padded = Padded(lambda rows: encode_states(ae, ds.q, ds.dq, bounds, rows), {"nu": nu, "phase": ph}, lens)
         return self.latent_system(x, v, JumpViews(lambda: nu, lens), JumpViews(lambda: ph, lens), scale, padded)
 

@@ -27,8 +27,6 @@ import numpy as np
 from symrom.model.guards import first_switch, switch
 from symrom.names import N_Q
 
-PREDICTED = "predicted"
-
 
 class NoGuardsError(ValueError):
     """Predicted phases were asked of a model without guards."""
@@ -144,7 +142,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
         p0 = names.index(start)
     k_enter0 = -int(round(dwell0 / dt))  # the sample at which phase0 was entered
     x0, v0 = ae.encode(q0[None])[0], ae.encode_derivative(dq0[None])[0]
-    limit = options.bound * (model.latent_scale + 1e-3)
+    limit = options.bound * model.yardstick
     if callable(inputs):
         if n is None or int(n) < 1:
             raise ValueError("n: the number of samples to predict is needed with an input callable")
@@ -159,7 +157,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
         raise ValueError(f"inputs: non-finite value at row {r}")
     n = u.shape[0]
     nu = ae.encode_input(u)
-    scale = (model.latent_scale + 1e-3)[None]
+    scale = model.yardstick[None]
 
     def run(x, v, ph):
         sysm = model.latent_system([np.broadcast_to(x, (len(ph), l)).copy()],

@@ -26,6 +26,7 @@ import numpy as np
 from symrom.motions import get_motion
 from symrom.sim.checks import FlightWatch, one_main_flight
 from symrom.sim.engine import World, make_world
+from symrom.sim.proxy import ProxyWorld
 from symrom.sim.world import RobotState, WorldConfig
 
 
@@ -85,11 +86,15 @@ class _NoWatch:
 
 @dataclass(frozen=True)
 class PlainMotion:
-    """Defaults for a ``Motion`` of one main flight: the nominal world, source ``sim``, the
-    one-flight check (``checks.one_main_flight``) and its watcher (``checks.FlightWatch``)."""
+    """Defaults for a ``Motion`` of one main flight: the nominal world, seen through the
+    proxy's motors and sensors when the jump's parameters hold a ``proxy`` configuration
+    (``sim.proxy.ProxyWorld``), source ``sim``, the one-flight check
+    (``checks.one_main_flight``) and its watcher (``checks.FlightWatch``)."""
 
     def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
-        return make_world(engine, robot, config)
+        world = make_world(engine, robot, config)
+        proxy = getattr(params, "proxy", None)
+        return world if proxy is None else ProxyWorld(world, proxy)
 
     def source(self, params: Any) -> str:
         return "sim"

@@ -37,9 +37,9 @@ from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim import compiled
 from symrom.sim.checks import longest_run
 from symrom.sim.controller import PlainMotion
-from symrom.sim.engine import World, make_world
-from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy
-from symrom.sim.world import RobotState, WorldConfig
+from symrom.sim.engine import World
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy
+from symrom.sim.world import RobotState
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
@@ -408,10 +408,6 @@ class FroggyMotion(PlainMotion):
     def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None,
                       dataset_rng: np.random.Generator | None = None) -> FroggyParams:
         return sample_randomized(rng, robot) if variant == "randomized" else sample_params(rng, robot)
-
-    def make_world(self, robot: str, config: WorldConfig, params: FroggyParams, engine: str) -> World:
-        world = make_world(engine, robot, config)
-        return world if params.proxy is None else ProxyWorld(world, params.proxy)
 
     def make_controller(self, robot: str, params: FroggyParams) -> FroggyController:
         return FroggyController(robot, params)

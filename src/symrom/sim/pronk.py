@@ -62,9 +62,8 @@ from symrom.sim.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controller import PlainMotion
 from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
 from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
-from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, ProxyWorld, sample_proxy, sample_robot
-from symrom.sim.engine import World, make_world
-from symrom.sim.world import WorldConfig
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
+from symrom.sim.engine import World
 
 REFERENCE_ROBOT = "go1"  # the robot the gains and heights were tuned on
 
@@ -450,10 +449,6 @@ class PronkMotion(PlainMotion):
         one = variant == "proxy" and dataset_rng is not None  # the proxy target: one robot per dataset
         return sample_params(rng, proxy=variant == "proxy", robot=robot, randomized=variant == "randomized",
                              proxy_robot=sample_robot(dataset_rng) if one else None)
-
-    def make_world(self, robot: str, config: WorldConfig, params: PronkParams, engine: str) -> World:
-        world = make_world(engine, robot, config)
-        return world if params.proxy is None else ProxyWorld(world, params.proxy)
 
     def make_controller(self, robot: str, params: PronkParams) -> PronkController:
         return PronkController(robot, params)

@@ -327,6 +327,7 @@ class ProxyWorld:
         apply_to_world(world, self.cfg)
         self.motors = TorqueChannel(cfg, world.torque_limit, world.config.dt)
         self.sensors = SensorModel(cfg)
+        self._bias = np.tile(np.asarray(self.cfg.torque_bias, dtype=float), N_LEGS)  # (12,) N m, once: read every tick
 
     def __getattr__(self, name):
         return getattr(self.world, name)
@@ -356,7 +357,7 @@ class ProxyWorld:
         for ``measured`` |bias| + scale x limit)."""
         c, limit = self.cfg, self.world.torque_limit
         if c.torque_log == "measured":
-            return np.tile(np.abs(np.asarray(c.torque_bias, dtype=float)), N_LEGS) + c.torque_scale * limit
+            return np.abs(self._bias) + c.torque_scale * limit
         return limit
 
     def logged_torque(self, tau_cmd: np.ndarray, applied: np.ndarray) -> np.ndarray:
@@ -367,7 +368,7 @@ class ProxyWorld:
             return np.minimum(np.maximum(np.asarray(tau_cmd, dtype=float), -self.world.torque_limit),
                               self.world.torque_limit)
         if c.torque_log == "measured":
-            return np.tile(np.asarray(c.torque_bias, dtype=float), N_LEGS) + c.torque_scale * applied
+            return self._bias + c.torque_scale * applied
         return applied
 
     def apply_base_force(self, force_world: np.ndarray) -> None:

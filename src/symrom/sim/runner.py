@@ -69,9 +69,9 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
     if isinstance(world, ProxyWorld):  # what the engine simulates of the drawn perturbations
         info["params"]["proxy"] = jsonable(asdict(world.cfg))
-    bound = getattr(world, "logged_torque_bound", None)  # a measured torque may pass the limits
-    if bound is not None and not np.array_equal(bound, world.torque_limit):
-        info["torque_bound"] = np.asarray(bound).tolist()
+        bound = world.logged_torque_bound  # a measured torque may pass the limits
+        if not np.array_equal(bound, world.torque_limit):
+            info["torque_bound"] = np.asarray(bound).tolist()
     force = None
     if cfg.noise is not None:
         n = cfg.noise
