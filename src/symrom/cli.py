@@ -474,8 +474,10 @@ def evaluate_cmd(
 
     check_output_file(out, force, inputs=(model_path, data))
     _check_split_and_integrator(split, integrator)
-    if phases not in ("logged", "predicted"):
-        raise ValueError(f"--phases must be logged or predicted, got {phases!r}")
+    from symrom.evaluate.switching import PHASE_SOURCES
+
+    if phases not in PHASE_SOURCES:
+        raise ValueError(f"--phases must be {' or '.join(PHASE_SOURCES)}, got {phases!r}")
     if phases == "predicted" and integrator != "rk4":
         raise ValueError("--phases predicted rolls out with rk4: add --integrator rk4")
     resets = _parse_resets(reset)

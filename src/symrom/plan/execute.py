@@ -89,6 +89,7 @@ class PlannedPronk(PronkController):
         self.result: Plan | None = None
         self.push_start: tuple[float, np.ndarray] | None = None
         self.touchdown: tuple[float, np.ndarray] | None = None
+        self.airborne = False  # no foot on the ground at some tick of the flight phase
         self.liftoff: tuple[np.ndarray, np.ndarray] | None = None
         self._tau_g0 = np.zeros(N_JOINTS)
 
@@ -108,8 +109,13 @@ class PlannedPronk(PronkController):
         if self.phase != "push" or state.t >= self.plan.t_push + self.plan.push_time:
             if self.phase == "push" and self.liftoff is None:  # the push ends at this tick
                 self.liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+            if was_flight and not state.contact.any():
+                self.airborne = True
             tau = super().torque(state)
-            if was_flight and self.phase == "land" and self.touchdown is None:
+            # a touchdown is a foot meeting the ground after the robot flew: the pronk's flight also
+            # ends on its time-out or on a foot that never left the ground, which are no landing
+            if (was_flight and self.phase == "land" and self.touchdown is None and self.airborne
+                    and state.contact.any()):
                 self.touchdown = (state.t, state.q[BASE_POS].copy())
             return tau
         return self._push_torque(state)
@@ -188,8 +194,8 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
     if ctrl.result is None or ctrl.push_start is None:
         raise ExecutionError("the jump ended before its push began")
     if ctrl.touchdown is None:
-        raise ExecutionError(f"no touchdown after the planned push (the robot {'never left the ground' if ctrl.phase == 'push' else 'did not land'}"
-                             f" by {params.max_time} s)")
+        what = "did not land within its flight time" if ctrl.airborne else "never left the ground"
+        raise ExecutionError(f"no touchdown after the planned push: the robot {what}")
     t0, p0 = ctrl.push_start
     t_td, p_td = ctrl.touchdown
     e = ctrl._e
