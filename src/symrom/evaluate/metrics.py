@@ -190,7 +190,7 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
     jumps = ds.jumps_in(split)
     if jumps.size == 0:
         raise ValueError(f"the dataset has no {split!r} jumps")
-    horizons, rollouts = {}, {}
+    horizons, rollouts, full = {}, {}, None
     limits = DriftLimits.of(ds)
     total = len(resets) * int(jumps.size)
     for h, reset in enumerate(resets):
@@ -200,7 +200,7 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
         if phases == "predicted":
             ro, predicted = predicted_rollout(model, ds, jumps, replace(options, reset=reset), tick)
             if reset is None:
-                switching = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
+                full = ro, predicted
         else:
             ro = rollout(model, ds, jumps, replace(options, reset=reset), tick)
         rollouts[key] = ro
@@ -208,9 +208,7 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
     metrics = {"format_version": METRICS_VERSION, "model": model_name, "data": data_name, "split": split,
                "n_jumps": int(jumps.size), "integrator": options.method, "drift_limits": limits.to_dict(),
                "phases": phases, "horizons": horizons}
-    if phases == "predicted":
-        if None not in resets:
-            ro, predicted = predicted_rollout(model, ds, jumps, replace(options, reset=None))
-            switching = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
-        metrics["switching"] = switching
+    if phases == "predicted":  # switching times from the full horizon, rolled out for them if not asked
+        ro, predicted = full or predicted_rollout(model, ds, jumps, replace(options, reset=None))
+        metrics["switching"] = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
     return metrics, rollouts

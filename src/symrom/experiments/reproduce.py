@@ -201,8 +201,12 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
 
 def _evaluate_into(model: HybridModel, ds: Dataset, out: Path, cfg: ReproduceConfig, title: str,
                    split: str = "test") -> dict:
+    """The metrics of ``model`` on ``split`` at both horizons, written into ``out``; read back
+    when an earlier run finished them (a run resumes)."""
     from symrom.rollout.integrate import RolloutOptions
 
+    if _done(out / "metrics.json"):
+        return json.loads((out / "metrics.json").read_text())
     metrics, rollouts = evaluate(model, ds, split, (None, 0.1), RolloutOptions(method=cfg.integrator),
                                  model_name=str(out.parent / "model.json"), data_name=title)
     write_evaluation(out, metrics, rollouts, ds, [int(ds.jumps_in(split)[0])], title=title)
@@ -231,10 +235,8 @@ def _train_evaluate(ds: Dataset, d: Path, tc: TrainConfig, cfg: ReproduceConfig,
                     say: Say) -> tuple[HybridModel, dict]:
     d.mkdir(parents=True, exist_ok=True)
     model, _ = _train_or_load(d / "model.json", ds, tc)
-    mpath = d / "eval" / "metrics.json"
-    if _done(mpath):
-        return model, json.loads(mpath.read_text())
-    say(f"{title}: evaluating on the test split")
+    if not _done(d / "eval" / "metrics.json"):
+        say(f"{title}: evaluating on the test split")
     return model, _evaluate_into(model, ds, d / "eval", cfg, title)
 
 
@@ -264,12 +266,9 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
     d.mkdir(parents=True, exist_ok=True)
     say(f"{exp.name}: selecting the settings on the validation split")
     model, table = _selected(run, exp, ds, cfg, say)
-    mpath = d / "eval" / "metrics.json"
-    if _done(mpath):
-        metrics = json.loads(mpath.read_text())
-    else:
+    if not _done(d / "eval" / "metrics.json"):
         say(f"{exp.name}: evaluating on the test split")
-        metrics = _evaluate_into(model, ds, d / "eval", cfg, f"SIM {exp.name}")
+    metrics = _evaluate_into(model, ds, d / "eval", cfg, f"SIM {exp.name}")
     entry = _experiment_entry(model, metrics, run, data, d / "model.json")
     chosen = table["rows"][table["chosen"]]
     entry["config"] = {**{k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")},
@@ -472,16 +471,12 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
         write_model_files(model, d)
         write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))
     title = {"go1_proxy": "proxy Go1"}.get(name, name.replace("_", " "))
-    mpath = d / "eval" / "metrics.json"
-    metrics = (json.loads(mpath.read_text()) if _done(mpath)
-               else _evaluate_into(model, ds, d / "eval", cfg, f"{title} (chosen on val)"))
+    metrics = _evaluate_into(model, ds, d / "eval", cfg, f"{title} (chosen on val)")
     entry = _experiment_entry(model, metrics, run, target, d / "model.json")
     chosen = choice["rows"][choice["chosen"]]
 
     def as_is(key: str) -> dict:  # a source evaluated on the test jumps as it was trained
-        path = d / "sources_eval" / key / "metrics.json"
-        return (json.loads(path.read_text()) if _done(path)
-                else _evaluate_into(sources[key], ds, path.parent, cfg, f"{title} ({key} source as is)"))
+        return _evaluate_into(sources[key], ds, d / "sources_eval" / key, cfg, f"{title} ({key} source as is)")
 
     entry["before_finetune"] = as_is(chosen["source"])
     entry["finetune"] = {**asdict(cfg.finetune), "source": chosen["source"], "method": chosen["finetune"]}
@@ -504,16 +499,11 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
         ft = _default_finetune(source, ds, fdir, cfg, table, f"{name}: fine-tuning the {src_key} source", say)
     if ft is not None:
         table["prior_weight"] = ft.info["finetune"]["config"]["prior_weight"]  # accepted on val
-        fpath = fdir / "eval" / "metrics.json"
-        fm = (json.loads(fpath.read_text()) if _done(fpath)
-              else _evaluate_into(ft, ds, fdir / "eval", cfg, f"{title} (fine-tuned, {DEFAULT_METHOD})"))
+        fm = _evaluate_into(ft, ds, fdir / "eval", cfg, f"{title} (fine-tuned, {DEFAULT_METHOD})")
         table["fine_tuned"] = _side_entry(ft, fm, ds)
     say(f"{name}: training on the target's train jumps alone")
     tc = settings if src_key.endswith("/refined") else replace(settings, refine=False)
-    alone, _ = _train_or_load(d / "target_alone" / "model.json", ds, tc)
-    apath = d / "target_alone" / "eval" / "metrics.json"
-    am = (json.loads(apath.read_text()) if _done(apath)
-          else _evaluate_into(alone, ds, d / "target_alone" / "eval", cfg, f"{title} (target alone)"))
+    alone, am = _train_evaluate(ds, d / "target_alone", tc, cfg, f"{title} (target alone)", say)
     table["target_alone"] = _side_entry(alone, am, ds)
     table["checks"] = sim2real_checks(table)
     return entry, table
@@ -567,9 +557,7 @@ def run_solvers(run: Path, data: Path, settings: TrainConfig, cfg: ReproduceConf
               replace(settings, solver="adam", refine=False, threshold=0.01, adam=cfg.adam))
         model, wall = _train_or_load(d / "model.json", ds, tc)
         wall = model.info.get("wall_time_s", wall)
-        mpath = d / "eval" / "metrics.json"
-        metrics = (json.loads(mpath.read_text()) if _done(mpath)
-                   else _evaluate_into(model, ds, d / "eval", cfg, f"SIM Go1 ({solver})"))
+        metrics = _evaluate_into(model, ds, d / "eval", cfg, f"SIM Go1 ({solver})")
         out[solver] = {"wall_time_s": wall, "active_terms": model.active_terms(), "metrics": metrics,
                        "config": asdict(tc)}
     return out
