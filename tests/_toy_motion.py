@@ -38,7 +38,7 @@ class StandMotion(PlainMotion):
     def sample_params(self, rng, robot, proxy, dataset_rng=None):
         return StandParams(stiffness=float(rng.uniform(150.0, 250.0)))
 
-    def make_controller(self, robot, params):
+    def make_controller(self, robot, params, mpc_solver="osqp"):
         return StandController(robot, params)
 
     def check(self, log, dt, checks):

@@ -7,8 +7,8 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
-from symrom.sim.mpc import (ConvexMPC, MPCConfig, condense, continuous_dynamics, discretize,
-                            srb_state)
+from symrom.sim.mpc import (MOVING, QP_SOLVERS, ConvexMPC, MPCConfig, condense, continuous_dynamics,
+                            discretize, srb_state)
 
 MASS = 13.1
 INERTIA = np.diag([0.05, 0.18, 0.20])
@@ -45,8 +45,9 @@ def test_discretisation_is_exact():
     np.testing.assert_allclose(B, E[:13, 13:], atol=1e-12)
 
 
-def test_planted_body_holds_a_standing_reference():
-    mpc = ConvexMPC(MASS, INERTIA)
+@pytest.mark.parametrize("solver", QP_SOLVERS)
+def test_planted_body_holds_a_standing_reference(solver):
+    mpc = ConvexMPC(MASS, INERTIA, MPCConfig(solver=solver))
     x_stand = srb_state(np.zeros(3), np.array([0.0, 0.0, 0.28]), np.zeros(3), np.zeros(3))
     # start a little off: 2 cm low, tilted, drifting
     x0 = srb_state(np.array([0.03, -0.04, 0.02]), np.array([0.01, -0.01, 0.26]),
@@ -61,8 +62,9 @@ def test_planted_body_holds_a_standing_reference():
     assert np.median(mpc.solve_times) < 0.05
 
 
-def test_friction_pyramid_and_bounds_hold():
-    cfg = MPCConfig(mu=0.3, fz_max=120.0)
+@pytest.mark.parametrize("solver", QP_SOLVERS)
+def test_friction_pyramid_and_bounds_hold(solver):
+    cfg = MPCConfig(mu=0.3, fz_max=120.0, solver=solver)
     mpc = ConvexMPC(MASS, INERTIA, cfg)
     x0 = srb_state(np.zeros(3), np.array([0.0, 0.0, 0.28]), np.zeros(3), np.zeros(3))
     # demand a hard sideways-forward lunge and a jump: constraints must bind
@@ -84,9 +86,10 @@ def test_friction_pyramid_and_bounds_hold():
     assert np.max(np.abs(plan[..., 0]) / np.maximum(fz, 1e-9)) > 0.95 * cfg.mu
 
 
-def test_osqp_matches_a_dense_solve():
+@pytest.mark.parametrize("solver", QP_SOLVERS)
+def test_solvers_match_a_dense_solve(solver):
     cfg = MPCConfig(horizon=3, dt=0.03, mu=0.5, fz_max=80.0, eps_abs=1e-8, eps_rel=1e-8,
-                    max_iter=20000)
+                    max_iter=20000, solver=solver)
     mpc = ConvexMPC(MASS, INERTIA, cfg)
     x0 = srb_state(np.array([0.02, -0.05, 0.1]), np.array([0.0, 0.0, 0.27]),
                    np.array([0.2, -0.1, 0.0]), np.array([0.1, 0.0, -0.2]))
@@ -117,11 +120,60 @@ def test_osqp_matches_a_dense_solve():
         constraints=[{"type": "ineq", "fun": lambda u: -G @ u, "jac": lambda u: -G}],
         options={"ftol": 1e-12, "maxiter": 1000})
     assert dense.success
-    u_osqp = res.plan.reshape(-1)
+    u = res.plan.reshape(-1)
     scale = np.max(np.abs(dense.x))
-    np.testing.assert_allclose(u_osqp, dense.x, atol=2e-3 * scale)
+    np.testing.assert_allclose(u, dense.x, atol=2e-3 * scale)
     cost = lambda u: 0.5 * u @ H @ u + g @ u  # noqa: E731
-    assert cost(u_osqp) == pytest.approx(cost(dense.x), rel=1e-4, abs=1e-6)
+    assert cost(u) == pytest.approx(cost(dense.x), rel=1e-4, abs=1e-6)
+
+
+def _lunge(cfg: MPCConfig, rng: np.random.Generator):
+    """A demanding problem: off-level start, a reference far away, some feet off the ground."""
+    x0 = srb_state(rng.normal(0, 0.05, 3), np.array([0.0, 0.0, 0.27]) + rng.normal(0, 0.01, 3),
+                   rng.normal(0, 0.2, 3), rng.normal(0, 0.2, 3))
+    x_ref = np.tile(srb_state(np.zeros(3), np.array([0.2, 0.05, 0.4]), np.zeros(3),
+                              np.array([1.5, 0.2, 1.8])), (cfg.horizon, 1))
+    contact = np.ones((cfg.horizon, 4))
+    contact[cfg.horizon // 2:, rng.integers(0, 4)] = 0.0
+    contact[-2:] = 0.0
+    return x0, x_ref, FEET - x0[3:6] + rng.normal(0, 0.01, (4, 3)), contact
+
+
+def test_quick_condensed_form_is_the_condensed_qp():
+    # H and g from the kept per-yaw parts (one compiled call) equal those stacked from A^i B
+    mpc = ConvexMPC(MASS, INERTIA + 0.01 * np.ones((3, 3)), MPCConfig(solver="daqp"))
+    rng = np.random.default_rng(3)
+    for yaw in (0.0, 0.4, -1.2):
+        x0, x_ref, r, _ = _lunge(mpc.config, rng)
+        H, g = mpc.condensed_qp(x0, x_ref, r, yaw)
+        H2, g2 = mpc.condensed_form(yaw).qp(mpc._input_map(r, yaw)[MOVING], x0, x_ref, mpc.config.alpha)
+        np.testing.assert_allclose(H2, H, rtol=0, atol=1e-12 * np.abs(H).max())
+        np.testing.assert_allclose(g2, g, rtol=0, atol=1e-12 * np.abs(g).max())
+        assert np.array_equal(H2, H2.T)
+
+
+def test_daqp_reaches_the_optimum_osqp_approaches():
+    # the same QPs: DAQP's forces cost no more than OSQP's (which stop at 1e-3), the feet off the
+    # ground carry exactly nothing, and a warm start from the last active set changes nothing
+    rng = np.random.default_rng(7)
+    osqp_mpc, daqp_mpc = ConvexMPC(MASS, INERTIA), ConvexMPC(MASS, INERTIA, MPCConfig(solver="daqp"))
+    for _ in range(6):
+        x0, x_ref, r, contact = _lunge(osqp_mpc.config, rng)
+        a = osqp_mpc.solve(x0, x_ref, r, contact).plan.reshape(-1)
+        res = daqp_mpc.solve(x0, x_ref, r, contact)
+        b = res.plan.reshape(-1)
+        assert res.status == "solved"
+        H, g = osqp_mpc.condensed_qp(x0, x_ref, r, 0.0)
+        cost = lambda u: 0.5 * u @ H @ u + g @ u  # noqa: E731
+        assert cost(b) <= cost(a) + 1e-9 * abs(cost(a))
+        assert np.all(res.plan[contact == 0.0] == 0.0)
+        cold = ConvexMPC(MASS, INERTIA, MPCConfig(solver="daqp")).solve(x0, x_ref, r, contact).plan
+        np.testing.assert_allclose(res.plan, cold, atol=1e-6 * np.abs(cold).max())
+
+
+def test_unknown_solver_is_refused():
+    with pytest.raises(ValueError, match="MPC solver must be one of"):
+        MPCConfig(solver="qpoases")
 
 
 def test_condensed_prediction_matches_stepping():

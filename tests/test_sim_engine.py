@@ -174,6 +174,20 @@ def test_the_engine_is_part_of_the_fingerprint():
     assert cfg.to_dict()["engine"] == "pybullet"
 
 
+def test_the_mpc_solver_is_the_engines_unless_named(tmp_path):
+    """PyBullet keeps OSQP (its files bitwise as before), MuJoCo takes DAQP; a named solver wins,
+    the file records the one used, and an unknown one is refused in one line before any work."""
+    assert GenerateConfig("go1", "pronk", 3).mpc_solver == "osqp"
+    assert GenerateConfig("go1", "pronk", 3, engine="mujoco").mpc_solver == "daqp"
+    named = GenerateConfig("go1", "pronk", 3, mpc_solver="daqp")
+    assert named.to_dict()["mpc_solver"] == "daqp"
+    assert named.fingerprint() != GenerateConfig("go1", "pronk", 3).fingerprint()
+    out = tmp_path / "bad.h5"
+    res = CliRunner().invoke(app, ["generate", "--robot", "go1", "--motion", "pronk", "--jumps", "1",
+                                   "--mpc-solver", "qpoases", "--out", str(out)])
+    assert res.exit_code != 0 and "unknown MPC solver 'qpoases'" in res.output and not out.exists()
+
+
 ROBOTS_DIR = __import__("pathlib").Path(__file__).parent / "robots"
 
 

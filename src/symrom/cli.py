@@ -1020,6 +1020,9 @@ def generate_cmd(
                                             "masses, latency, friction, contact, joint damping, armature, "
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
+    mpc_solver: Annotated[Optional[str], typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
+                                                      "to 1e-3) or daqp (active set, exact, about twice as fast); "
+                                                      "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
     workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
@@ -1037,7 +1040,8 @@ def generate_cmd(
     check_writable(out)
     _check_workers(workers)
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy, randomize=randomize,
-                                         noise=NoiseConfig() if noise else None, engine=engine))
+                                         noise=NoiseConfig() if noise else None, engine=engine,
+                                         mpc_solver=mpc_solver))
     runner = _start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion} ({engine})"
     with progress_bar() as bar:

@@ -241,6 +241,54 @@ FROGGY_PARAMS = ("stand_height", "crouch_height", "crouch_shift", "crouch_pitch"
 
 
 @njit
+def condensed_qp(W4, VA, V, Bm, x0, x_ref, alpha, H, g):
+    """The condensed MPC's H (12 h, 12 h) and g (12 h,) (``mpc.CondensedForm``), in place.
+
+    W4 (h, m, h, m), VA (m h, 13), V (m h, 13 h): the yaw's parts; Bm (m, 12) the input map's
+    moving rows; x0 (13,); x_ref (h * 13,); alpha 1/N^2. H = 2 (D^T W D + alpha I),
+    g = 2 D^T (VA x0 - V x_ref), D = blkdiag(Bm): only the blocks on and above the diagonal
+    are computed, the rest mirrored.
+    """
+    h, m, nu = W4.shape[0], W4.shape[1], Bm.shape[1]
+    T = np.empty((m, nu))
+    for j in range(h):
+        for k in range(j, h):
+            T[:, :] = 0.0
+            for a in range(m):  # T = W_jk Bm, rows at a time (the inner loops run along rows)
+                for b in range(m):
+                    w = W4[j, a, k, b]
+                    for c in range(nu):
+                        T[a, c] += w * Bm[b, c]
+            for r in range(nu):  # H_jk = Bm^T T
+                row = j * nu + r
+                for c in range(nu):
+                    H[row, k * nu + c] = 0.0
+                for a in range(m):
+                    w = 2.0 * Bm[a, r]
+                    for c in range(nu):
+                        H[row, k * nu + c] += w * T[a, c]
+    n = h * nu
+    for i in range(n):
+        H[i, i] += 2.0 * alpha
+        for c in range(i):  # the lower blocks mirror the upper ones
+            H[i, c] = H[c, i]
+    v = np.empty(h * m)
+    for i in range(h * m):
+        acc = 0.0
+        for c in range(VA.shape[1]):
+            acc += VA[i, c] * x0[c]
+        for c in range(x_ref.shape[0]):
+            acc -= V[i, c] * x_ref[c]
+        v[i] = acc
+    for j in range(h):
+        for c in range(nu):
+            acc = 0.0
+            for a in range(m):
+                acc += Bm[a, c] * v[j * m + a]
+            g[j * nu + c] = 2.0 * acc
+
+
+@njit
 def smooth(s):
     """Cosine blend 0 -> 1 on s in [0, 1] (clipped), zero slope at both ends."""
     s = min(max(s, 0.0), 1.0)
@@ -363,6 +411,9 @@ def warm_up(froggy: bool = True) -> None:
     pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
                         np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
     clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
+    h, m = 2, 6
+    condensed_qp(np.zeros((h, m, h, m)), np.zeros((h * m, 13)), np.zeros((h * m, 13 * h)), np.zeros((m, 12)),
+                 np.zeros(13), np.zeros(13 * h), 1.0, np.empty((12 * h, 12 * h)), np.empty(12 * h))
     _warm_mujoco()
     if not froggy:
         return

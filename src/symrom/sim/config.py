@@ -21,8 +21,15 @@ from symrom.sim.world import WorldConfig
 # proxy draws joint damping, armature, friction loss, a soft contact and a measured torque, and
 # is one robot per file (its hardware constants drawn once from the generation seed, only the
 # per-jump effects per jump; its jumps change), the randomized variant (all per jump); the A1's
-# and Go1's nominal and noisy PyBullet jumps bitwise those of 3
-GENERATOR_VERSION = 4
+# and Go1's nominal and noisy PyBullet jumps bitwise those of 3; 5: the MPC's QP solver is a
+# choice (``mpc_solver``), DAQP by default in MuJoCo (its pronk jumps change), OSQP in PyBullet
+# (its jumps bitwise those of 4)
+GENERATOR_VERSION = 5
+
+# The MPC's QP solver when a config names none, per engine. PyBullet keeps OSQP: every PyBullet
+# dataset behind the documented results was made with it, and stays reproducible bit for bit.
+# MuJoCo takes DAQP, exact and about twice as fast per solve (docs/engines.md, "Speed").
+MPC_SOLVER = {"pybullet": "osqp", "mujoco": "daqp"}
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,9 @@ class GenerateConfig:
     variant or None; world, checks: physics and the kept-jump checks;
     max_attempts: tries per jump before generation fails; engine: the physics engine
     (``symrom.sim.engine.ENGINES``); splits: (train, val, test) jump counts, None for the
-    motion's (``generate.split_counts``).
+    motion's (``generate.split_counts``); mpc_solver: the QP solver of a motion's MPC
+    (``symrom.sim.mpc.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
+    None for the engine's (``MPC_SOLVER``), which is what the file records.
     """
 
     robot: str
@@ -77,6 +86,11 @@ class GenerateConfig:
     engine: str = "pybullet"
     randomize: bool = False
     splits: tuple[int, int, int] | None = None
+    mpc_solver: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.mpc_solver is None:  # an unknown engine is refused by ``generate.check_config``
+            object.__setattr__(self, "mpc_solver", MPC_SOLVER.get(self.engine, "osqp"))
 
     @property
     def variant(self) -> str | None:

@@ -6,7 +6,7 @@ simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
 
     params = motion.sample_params(rng, robot, variant, dataset_rng)  # a dataclass with max_time (s)
     world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engine.World
-    ctrl = motion.make_controller(robot, params)
+    ctrl = motion.make_controller(robot, params, mpc_solver="osqp")
     q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
     watch = motion.watch()                             # sees a certain failure while it runs
     while not ctrl.done(s := world.state()):
@@ -63,8 +63,9 @@ class Motion(Protocol):
         """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a
         hardware-like proxy of it)."""
 
-    def make_controller(self, robot: str, params: Any) -> Controller:
-        """A fresh controller for one jump."""
+    def make_controller(self, robot: str, params: Any, mpc_solver: str = "osqp") -> Controller:
+        """A fresh controller for one jump; mpc_solver: the QP solver of its MPC, if it has one
+        (``symrom.sim.mpc.QP_SOLVERS``; ``GenerateConfig.mpc_solver``)."""
 
     def source(self, params: Any) -> str:
         """The dataset's ``source`` for jumps with ``params``: ``sim`` or ``proxy``."""

@@ -409,7 +409,8 @@ class FroggyMotion(PlainMotion):
                       dataset_rng: np.random.Generator | None = None) -> FroggyParams:
         return sample_randomized(rng, robot) if variant == "randomized" else sample_params(rng, robot)
 
-    def make_controller(self, robot: str, params: FroggyParams) -> FroggyController:
+    def make_controller(self, robot: str, params: FroggyParams, mpc_solver: str = "osqp") -> FroggyController:
+        """A froggy controller (a Cartesian PD: no MPC, ``mpc_solver`` is not used)."""
         return FroggyController(robot, params)
 
     def check(self, log: dict[str, np.ndarray], dt: float, checks) -> list[str]:

@@ -35,6 +35,7 @@ from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
 from symrom.sim.engine import ENGINES, UnknownEngineError, check_engine
+from symrom.sim.mpc import QP_SOLVERS
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
 from symrom.sim.runner import GenerationError, jump_seed, run_checked_jump
@@ -161,6 +162,8 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
             raise GenerationError(f"{flag} is not a variant of {cfg.motion!r}; motions with it: {offered}")
     if cfg.n_jumps < 1:
         raise GenerationError(f"need at least one jump, got {cfg.n_jumps}")
+    if cfg.mpc_solver not in QP_SOLVERS:
+        raise GenerationError(f"unknown MPC solver {cfg.mpc_solver!r}; known: {', '.join(QP_SOLVERS)}")
     if cfg.splits is not None and (len(cfg.splits) != 3 or min(cfg.splits) < 0 or sum(cfg.splits) != cfg.n_jumps):
         raise GenerationError(f"splits {tuple(cfg.splits)} must be three jump counts (train, val, test) "
                               f"summing to the {cfg.n_jumps} jumps")

@@ -19,9 +19,19 @@ The quadratic program
     min_U (X - Xref)^T L (X - Xref) + alpha |U|^2
     s.t.  |f_x|, |f_y| <= mu f_z,   fz_min c_k <= f_z <= fz_max c_k
 
-(``c_k`` in {0, 1} the planned contact of foot k at each step) is solved with
-OSQP. Its sparsity pattern never changes, so the solver is set up once and
-only the numbers are updated per solve (warm-started).
+(``c_k`` in {0, 1} the planned contact of foot k at each step) is solved by one
+of two solvers (``MPCConfig.solver``):
+
+- ``osqp``: OSQP on the sparse form (states and forces as variables, the
+  dynamics as equality rows). Its sparsity pattern never changes, so the solver
+  is set up once and only the numbers are updated per solve (warm-started). It
+  stops at its tolerances (1e-3), a few newtons from the optimum.
+- ``daqp``: the dual active-set solver DAQP on the condensed form (forces only,
+  ``H`` (12 h, 12 h) dense), warm-started with the last solve's active set. It
+  returns the optimum to DAQP's tolerances (1e-6), in a fifth of OSQP's time
+  here: with the yaw fixed, ``H = 2 (D^T W D + alpha I)`` needs only the
+  moment arms per solve (``D`` block diagonal, the input map's six rows that move),
+  ``W`` being kept per yaw (``CondensedForm``).
 """
 
 from __future__ import annotations
@@ -30,21 +40,25 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+import daqp
 import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
-from symrom.sim.compiled import clip_forces
+from symrom.sim.compiled import clip_forces, condensed_qp
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
+QP_SOLVERS = ("osqp", "daqp")
+MOVING = np.arange(6, 12)  # the rows of Bc that hold the inputs (omega and v); the rest are 0
 
 
 @dataclass
 class MPCConfig:
     """Horizon, weights and limits of the MPC.
 
-    horizon: number of steps; dt: step length, s; mu: friction coefficient of
+    solver: ``osqp`` or ``daqp`` (module docstring; eps_abs to check_termination are
+    OSQP's); horizon: number of steps; dt: step length, s; mu: friction coefficient of
     the pyramid; fz_min / fz_max: normal-force bounds of a foot in contact, N;
     weights: per-state weights (13,) on [rpy, p, omega, v, g]; alpha: weight on
     the forces, 1/N^2; eps_abs / eps_rel / max_iter: OSQP's stopping tolerances
@@ -68,6 +82,11 @@ class MPCConfig:
     eps_rel: float = 1e-3
     max_iter: int = 4000
     check_termination: int = 25
+    solver: str = "osqp"
+
+    def __post_init__(self) -> None:
+        if self.solver not in QP_SOLVERS:
+            raise ValueError(f"MPC solver must be one of {QP_SOLVERS}, got {self.solver!r}")
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -155,6 +174,47 @@ def friction_matrix(mu: float, horizon: int) -> sp.csc_matrix:
     return sp.csc_matrix(sp.block_diag([block] * (4 * horizon)))
 
 
+class CondensedForm:
+    """The condensed QP's parts that depend on the yaw alone, for quick ``H`` and ``g``.
+
+    With ``G_m = A^m F`` (B = F Bc, ``nilpotent_hold``) the stacked states are
+    ``X = Aqp x0 + Gqp blkdiag(Bc) U``; ``Bc`` is zero but in its rows ``MOVING``
+    (``Bc'`` (6, 12)), so with ``V = Gqp[:, moving]^T L`` (6 h, 13 h):
+
+        H = 2 (D^T W D + alpha I),  W = V Gqp[:, moving] (6 h, 6 h),
+        g = 2 D^T (V Aqp x0 - V Xref),  D = blkdiag_h(Bc').
+
+    yaw rad; A (13, 13), F (13, 13) of that yaw; L (13 h,) the state weights.
+    """
+
+    def __init__(self, A: np.ndarray, F: np.ndarray, L: np.ndarray, horizon: int):
+        h = horizon
+        G = [F]
+        for _ in range(h - 1):
+            G.append(A @ G[-1])
+        Gqp = np.zeros((N_X * h, N_X * h))
+        Apow = [np.eye(N_X)]
+        for i in range(h):
+            Apow.append(A @ Apow[-1])
+            for j in range(i + 1):
+                Gqp[N_X * i:N_X * (i + 1), N_X * j:N_X * (j + 1)] = G[i - j]
+        cols = (N_X * np.arange(h)[:, None] + MOVING).ravel()
+        V = Gqp[:, cols].T * L  # (6 h, 13 h)
+        self.horizon = h
+        self.W4 = np.ascontiguousarray((V @ Gqp[:, cols]).reshape(h, MOVING.size, h, MOVING.size))
+        self.VA = V @ np.vstack(Apow[1:])  # (6 h, 13): V Aqp
+        self.V = V
+
+    def qp(self, Bc_moving: np.ndarray, x0: np.ndarray, x_ref: np.ndarray, alpha: float
+           ) -> tuple[np.ndarray, np.ndarray]:
+        """H (12 h, 12 h), g (12 h,) for Bc' (6, 12), x0 (13,), x_ref (h, 13): one compiled call."""
+        n = N_U * self.horizon
+        H, g = np.empty((n, n)), np.empty(n)
+        condensed_qp(self.W4, self.VA, self.V, np.ascontiguousarray(Bc_moving), x0,
+                     np.ascontiguousarray(x_ref).reshape(-1), alpha, H, g)
+        return H, g
+
+
 @dataclass
 class MPCResult:
     """One solve: forces (4, 3) N for the first step (world, ground on foot),
@@ -235,7 +295,10 @@ class ConvexMPC:
         self._fz_rows = nx + 5 * np.arange(n_fric // 5)
         self._q_scale = -2.0 * self._L  # linear cost of the states is q_scale * x_ref
         self._solver: osqp.OSQP | None = None
-        self._yaw_model: tuple | None = None  # (yaw, A, F, I_w^-1, Bc) of the last yaw
+        self._yaw_model: tuple | None = None  # ``_yaw_parts`` of the last yaw
+        self._daqp_cache: dict[int, tuple] = {}  # ``_daqp_parts`` by the number of foot-steps down
+        self._sense: np.ndarray | None = None  # DAQP's last active set, and the feet down then
+        self._sense_down = b""
         self.solve_times: list[float] = []
 
     def _matrix_data(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
@@ -260,18 +323,19 @@ class ConvexMPC:
         hi[self._fz_rows] = cfg.fz_max * c
         return lo, hi
 
-    def model(self, r_feet: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-        """Discrete model A (13, 13), B (13, 12) for feet r_feet (4, 3) m and yaw rad.
-
-        Only the inputs' moment arms change from solve to solve: A and the map F of
-        B = F Bc (``nilpotent_hold``) depend on the yaw alone and are kept for the last yaw.
-        """
+    def _yaw_parts(self, yaw: float) -> tuple:
+        """(yaw, A, F, I_w^-1, Bc, condensed form or None) of ``yaw``, kept for the last yaw."""
         if self._yaw_model is None or self._yaw_model[0] != yaw:
-            Ac, Bc = continuous_dynamics(self.mass, self.inertia_body, yaw, r_feet)
+            Ac, Bc = continuous_dynamics(self.mass, self.inertia_body, yaw, np.zeros((4, 3)))
             A, F = nilpotent_hold(Ac, self.config.dt)  # nilpotent by its structure, whatever the yaw
             Rz = rot_z(yaw)
-            self._yaw_model = (yaw, A, F, np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc)
-        _, A, F, Iw_inv, Bc = self._yaw_model
+            self._yaw_model = (yaw, A, F, np.linalg.inv(Rz @ self.inertia_body @ Rz.T), Bc, None)
+        return self._yaw_model
+
+    def _input_map(self, r_feet: np.ndarray, yaw: float) -> np.ndarray:
+        """Continuous input map Bc (13, 12) for feet r_feet (4, 3) m: only the moment arms
+        (rows 6-8) change from solve to solve."""
+        _, _, _, Iw_inv, Bc, _ = self._yaw_parts(yaw)
         r = np.asarray(r_feet, dtype=float)
         S = np.zeros((4, 3, 3))  # skew(r_k) per foot
         S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -r[:, 2], r[:, 1], -r[:, 0]
@@ -279,7 +343,25 @@ class ConvexMPC:
         Bc = Bc.copy()
         # one stacked product, the same 3 x 3 products as foot by foot
         Bc[6:9] = (Iw_inv @ S).transpose(1, 0, 2).reshape(3, 3 * 4)
+        return Bc
+
+    def model(self, r_feet: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+        """Discrete model A (13, 13), B (13, 12) for feet r_feet (4, 3) m and yaw rad.
+
+        Only the inputs' moment arms change from solve to solve: A and the map F of
+        B = F Bc (``nilpotent_hold``) depend on the yaw alone and are kept for the last yaw.
+        """
+        Bc = self._input_map(r_feet, yaw)
+        _, A, F, _, _, _ = self._yaw_model
         return A, F @ Bc
+
+    def condensed_form(self, yaw: float) -> CondensedForm:
+        """The ``CondensedForm`` of ``yaw`` (kept for the last yaw)."""
+        parts = self._yaw_parts(yaw)
+        if parts[5] is None:
+            self._yaw_model = parts = parts[:5] + (CondensedForm(parts[1], parts[2], self._L,
+                                                                  self.config.horizon),)
+        return parts[5]
 
     def condensed_qp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray, yaw: float
                      ) -> tuple[np.ndarray, np.ndarray]:
@@ -295,6 +377,73 @@ class ConvexMPC:
         g = 2.0 * LB.T @ (Aqp @ x0 - np.asarray(x_ref).reshape(-1))
         return H, g
 
+    def _solve_osqp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray,
+                    contact: np.ndarray, yaw: float) -> tuple[np.ndarray, str]:
+        """Forces U (12 h,) N and OSQP's status, from the sparse form."""
+        cfg = self.config
+        A, B = self.model(r_feet, yaw)
+        data = self._matrix_data(A, B)
+        lo, hi = self._bounds(x0, A, contact)
+        q = np.zeros(self._nx + self._nu)
+        np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
+        if self._solver is None:
+            self._solver = osqp.OSQP()
+            M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
+                              shape=self._M_template.shape)
+            self._solver.setup(self._P, q, M, lo, hi, eps_abs=cfg.eps_abs, eps_rel=cfg.eps_rel,
+                               max_iter=cfg.max_iter, polishing=False, verbose=False,
+                               warm_starting=True, check_termination=cfg.check_termination)
+        else:
+            self._solver.update(Ax=data, q=q, l=lo, u=hi)
+        res = self._solver.solve(raise_error=False)
+        z = res.x
+        U = np.zeros(self._nu) if z is None or not np.all(np.isfinite(z)) else z[self._nx:]
+        return U, str(res.info.status)
+
+    def _solve_daqp(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray,
+                    contact: np.ndarray, yaw: float) -> tuple[np.ndarray, str]:
+        """Forces U (12 h,) N and a status, from the condensed form by DAQP.
+
+        The forces of a foot off the ground are 0 and left out of the problem (DAQP would
+        take their zero bounds for equalities, at five times the cost); those kept have f_z
+        within its limits as simple bounds and the pyramid's four faces as rows. Warm-started
+        with the last active set when the same feet are down, cold if that fails.
+        """
+        cfg = self.config
+        down = np.asarray(contact, dtype=float).reshape(-1) != 0.0  # (4 h,) foot-steps on the ground
+        U = np.zeros(self._nu)
+        n_down = int(down.sum())
+        if n_down == 0:
+            self._sense = None
+            return U, "solved"
+        H, g = self.condensed_form(yaw).qp(self._input_map(r_feet, yaw)[MOVING], x0, x_ref, cfg.alpha)
+        if n_down < down.size:
+            keep = np.flatnonzero(np.repeat(down, 3))
+            H, g = H[np.ix_(keep, keep)], g[keep]
+        rows, hi, lo = self._daqp_parts(n_down)
+        warm = self._sense if self._sense is not None and self._sense_down == down.tobytes() else None
+        for sense in ((warm, None) if warm is not None else (None,)):
+            x, _, flag, info = (daqp.solve(H, g, rows, hi, lo) if sense is None
+                                else daqp.solve(H, g, rows, hi, lo, sense))
+            if flag >= 1 and np.all(np.isfinite(x)):
+                self._sense, self._sense_down = (info["lam"] != 0.0).astype(np.int32), down.tobytes()
+                U[np.repeat(down, 3)] = x
+                return U, "solved"
+        self._sense = None
+        return U, f"daqp exitflag {flag}"
+
+    def _daqp_parts(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For n feet-steps on the ground: the pyramid's faces (4 n, 3 n) (each <= 0) and the
+        upper and lower bounds (7 n,) of the forces (f_z within its limits) and the faces."""
+        if n not in self._daqp_cache:
+            cfg = self.config
+            face = np.array([[1.0, 0.0, -cfg.mu], [-1.0, 0.0, -cfg.mu], [0.0, 1.0, -cfg.mu],
+                             [0.0, -1.0, -cfg.mu]])
+            hi = np.concatenate([np.tile([np.inf, np.inf, cfg.fz_max], n), np.zeros(4 * n)])
+            lo = np.concatenate([np.tile([-np.inf, -np.inf, cfg.fz_min], n), np.full(4 * n, -np.inf)])
+            self._daqp_cache[n] = (np.kron(np.eye(n), face), hi, lo)
+        return self._daqp_cache[n]
+
     def solve(self, x0: np.ndarray, x_ref: np.ndarray, r_feet: np.ndarray,
               contact: np.ndarray, yaw: float | None = None) -> MPCResult:
         """Optimal foot forces.
@@ -309,25 +458,12 @@ class ConvexMPC:
         if x_ref.shape != (h, N_X) or np.shape(contact) != (h, 4) or np.shape(r_feet) != (4, 3):
             raise ValueError("x_ref must be (h, 13), contact (h, 4), r_feet (4, 3)")
         t0 = time.perf_counter()
-        A, B = self.model(np.asarray(r_feet, dtype=float),
-                          float(x_ref[0, 2] if yaw is None else yaw))
-        data = self._matrix_data(A, B)
-        lo, hi = self._bounds(np.asarray(x0, dtype=float), A, contact)
-        q = np.zeros(self._nx + self._nu)
-        np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
-        if self._solver is None:
-            self._solver = osqp.OSQP()
-            M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
-                              shape=self._M_template.shape)
-            self._solver.setup(self._P, q, M, lo, hi, eps_abs=cfg.eps_abs, eps_rel=cfg.eps_rel,
-                               max_iter=cfg.max_iter, polishing=False, verbose=False,
-                               warm_starting=True, check_termination=cfg.check_termination)
+        yaw = float(x_ref[0, 2] if yaw is None else yaw)
+        r_feet, x0 = np.asarray(r_feet, dtype=float), np.asarray(x0, dtype=float)
+        if cfg.solver == "daqp":
+            U, status = self._solve_daqp(x0, x_ref, r_feet, contact, yaw)
         else:
-            self._solver.update(Ax=data, q=q, l=lo, u=hi)
-        res = self._solver.solve(raise_error=False)
-        status = str(res.info.status)
-        z = res.x
-        U = np.zeros(self._nu) if z is None or not np.all(np.isfinite(z)) else z[self._nx:]
+            U, status = self._solve_osqp(x0, x_ref, r_feet, contact, yaw)
         # OSQP stops at its tolerance: clip to the exact bounds so callers can rely on them.
         U = U.reshape(h, 4, 3).copy()
         clip_forces(U, np.asarray(contact, dtype=float), cfg.fz_min, cfg.fz_max, cfg.mu)

@@ -50,7 +50,7 @@ Units: m, s, rad, N, N m. ``RobotState`` as in ``symrom.sim.world``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -450,8 +450,9 @@ class PronkMotion(PlainMotion):
         return sample_params(rng, proxy=variant == "proxy", robot=robot, randomized=variant == "randomized",
                              proxy_robot=sample_robot(dataset_rng) if one else None)
 
-    def make_controller(self, robot: str, params: PronkParams) -> PronkController:
-        return PronkController(robot, params)
+    def make_controller(self, robot: str, params: PronkParams, mpc_solver: str = "osqp") -> PronkController:
+        gains = PronkGains.scaled(*scales(robot))
+        return PronkController(robot, params, replace(gains, mpc=replace(gains.mpc, solver=mpc_solver)))
 
     def source(self, params: PronkParams) -> str:
         return "sim" if params.proxy is None or params.randomized else "proxy"

@@ -64,7 +64,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     motion = load_motion(cfg.motion)
     params = motion.sample_params(params_rng, cfg.robot, cfg.variant, np.random.default_rng(dataset_seed(cfg.seed)))
     world = motion.make_world(cfg.robot, cfg.world, params, cfg.engine)
-    ctrl = motion.make_controller(cfg.robot, params)
+    ctrl = motion.make_controller(cfg.robot, params, mpc_solver=cfg.mpc_solver)
     q0 = np.asarray(ctrl.reset(world), dtype=float).copy()
     info: dict[str, Any] = {"params": jsonable(asdict(params)), "source": motion.source(params)}
     if isinstance(world, ProxyWorld):  # what the engine simulates of the drawn perturbations
