@@ -1021,7 +1021,7 @@ def generate_cmd(
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     mpc_solver: Annotated[Optional[str], typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
-                                                      "to 1e-3) or daqp (active set, exact, about twice as fast); "
+                                                      "to 1e-3) or daqp (active set, exact, a third of the time); "
                                                       "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
     workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,

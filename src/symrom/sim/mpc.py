@@ -28,8 +28,8 @@ of two solvers (``MPCConfig.solver``):
   stops at its tolerances (1e-3), a few newtons from the optimum.
 - ``daqp``: the dual active-set solver DAQP on the condensed form (forces only,
   ``H`` (12 h, 12 h) dense), warm-started with the last solve's active set. It
-  returns the optimum to DAQP's tolerances (1e-6), in a fifth of OSQP's time
-  here: with the yaw fixed, ``H = 2 (D^T W D + alpha I)`` needs only the
+  returns the optimum to DAQP's tolerances (1e-6), in a third of OSQP's time
+  per solve here (docs/engines.md): with the yaw fixed, ``H = 2 (D^T W D + alpha I)`` needs only the
   moment arms per solve (``D`` block diagonal, the input map's six rows that move),
   ``W`` being kept per yaw (``CondensedForm``).
 """
