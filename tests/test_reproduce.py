@@ -95,7 +95,7 @@ def test_manifest_lists_every_experiment_with_its_role(run):
 
 
 def test_sim2real_table_on_both_targets(run):
-    from symrom.experiments.reproduce import sim2real_checks
+    from symrom.experiments.reproduce import DEFAULT_METHOD, PROXY_METHODS, sim2real_checks
 
     d, summary, *_ = run
     s2r = json.loads((d / "summary.json").read_text())["sim2real"]
@@ -103,9 +103,9 @@ def test_sim2real_table_on_both_targets(run):
     assert set(s2r["targets"]) == {"go1_proxy", "go1_proxy_mujoco"}
     for name, t in s2r["targets"].items():
         choice = json.loads((d / name / "finetune_choice.json").read_text())
-        assert choice["split"] == "val" and len(choice["rows"]) == 4 * 4  # 2 sources x 2 variants x 4 methods
+        assert choice["split"] == "val" and len(choice["rows"]) == 4 * len(PROXY_METHODS)  # 2 sources x 2 variants
         assert t["chosen_source"] == choice["rows"][choice["chosen"]]["source"]
-        best = min((r for r in choice["rows"] if r["finetune"] == "calibrate" and r["score"] is not None),
+        best = min((r for r in choice["rows"] if r["finetune"] == DEFAULT_METHOD and r["score"] is not None),
                    key=lambda r: r["score"])
         assert t["source_model"] == best["source"]
         for col in ("source", "fine_tuned", "target_alone", "chosen"):

@@ -332,13 +332,18 @@ def selected_config(model: HybridModel, **changes) -> TrainConfig:
 # Sim-to-real. Sources: a model trained, with the settings selected on SIM Go1 (refined and
 # not), on each source dataset; targets: hardware-like Go1 datasets whose settings no source saw
 # (the proxy in PyBullet, and in MuJoCo with armature too). Candidates: every source kept as it
-# is or fine-tuned on the target's train jumps by calibration (learn.calibrate, the default),
-# acceleration (FineTune) or rollout (Refine); chosen on the target's val jumps.
+# is or fine-tuned on the target's train jumps by calibration (learn.calibrate), acceleration
+# (FineTune), rollout (Refine) or calibration then a rollout refinement of the non-flight phases,
+# the flight phase held as calibrated (calibrate_rollout, the default); chosen on the target's
+# val jumps.
 SIM2REAL_SOURCES = {"noisy": "go1_noisy", "randomized": "go1_randomized"}  # source -> dataset
 SIM2REAL_TARGETS = ("go1_proxy", "go1_proxy_mujoco")  # target datasets, one experiment each
 PROXY_SOURCES = ("refined", "exact")
-PROXY_METHODS = ("none", "calibrate", "acceleration", "rollout")
-DEFAULT_METHOD = "calibrate"  # the fine-tuning of the side-by-side table
+PROXY_METHODS = ("none", "calibrate", "acceleration", "rollout", "calibrate_rollout")
+# The fine-tuning of the side-by-side table: calibrate_rollout, whose val score (``symrom finetune``'s
+# check) is below calibrate's from every source on both targets (randomised refined source:
+# 0.596 against 0.607 on the PyBullet proxy, 0.467 against 0.540 on the MuJoCo proxy)
+DEFAULT_METHOD = "calibrate_rollout"
 # The sim-to-real targets checked on each target's test jumps (docs/results.md)
 SOURCE_Z_MAX = 0.15  # m: the source as it is, full-horizon base-height RMSE
 FINETUNED_Z_MAX = 0.05  # m: fine-tuned
