@@ -1,6 +1,8 @@
 """Fine-tuning that calibrates (the default method): on a planted target domain whose contact
 dynamics have a known input-gain error and extra damping, 12 jumps recover the gain and
-leave the flight equations, gravity included, untouched."""
+leave the flight equations, gravity included, untouched. Calibration then a rollout
+refinement of the contact phase (``calibrate_rollout``): on a planted target domain whose
+stance spring differs, 12 jumps recover the spring, the flight equations untouched."""
 
 import copy
 from dataclasses import replace
@@ -8,31 +10,43 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from symrom.evaluate.metrics import evaluate
 from symrom.experiments.finetune import FineTuneCheck, run_finetune
 from symrom.learn.calibrate import STANDARD_GRAVITY, CalibrationError
 from symrom.learn.finetune import FineTuneConfig, finetune
 from symrom.learn.training import TrainConfig, train
 from symrom.names import Q_NAMES
+from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import PLANTED_2D, embedding_matrix, make_planted_dataset
 
 SEED = 11
 GAIN = 0.85  # the target's actuation relative to the source's
 DAMPING = 0.3  # 1/s of extra damping on both latents in contact (joint damping)
+SPRING = 0.5  # the target's stance spring of the height latent relative to the source's (a softer ground)
 Z = Q_NAMES.index("z")
 
 
-def _equations(flight_g: float = STANDARD_GRAVITY, gain: float = 1.0, damping: float = 0.0) -> dict:
-    """The planted equations with a ballistic flight: the latent that carries the base height
-    falls at ``flight_g`` m/s^2 once decoded; contact's input terms scaled by ``gain`` and its
-    velocity terms lowered by ``damping``."""
+def _height_latent() -> int:
+    """The latent that carries the base height in the planted embedding."""
     E, _ = embedding_matrix("block", 2, np.random.default_rng(SEED))
-    owner = int(np.flatnonzero(E[Z])[0])
+    return int(np.flatnonzero(E[Z])[0])
+
+
+def _equations(flight_g: float = STANDARD_GRAVITY, gain: float = 1.0, damping: float = 0.0,
+               spring: float = 1.0) -> dict:
+    """The planted equations with a ballistic flight: the latent that carries the base height
+    falls at ``flight_g`` m/s^2 once decoded; contact's input terms scaled by ``gain``, its
+    velocity terms lowered by ``damping`` and the height latent's own position term (its
+    stance spring) scaled by ``spring``."""
+    E, _ = embedding_matrix("block", 2, np.random.default_rng(SEED))
+    owner = _height_latent()
     eqs = copy.deepcopy(PLANTED_2D)
     eqs["flight"][owner] = {"1": -flight_g / E[Z, owner]}
     for j, eq in enumerate(eqs["contact"]):
         for term in [t for t in eq if t.startswith("nu")]:
             eq[term] *= gain
         eq[f"dxi{j + 1}"] -= damping
+    eqs["contact"][owner][f"xi{owner + 1}"] *= spring
     return eqs
 
 
@@ -146,3 +160,38 @@ def test_every_equation_calibrated_recovers_a_planted_bias_and_damping(source, t
     np.testing.assert_array_equal(support.mask, bare.mask)
     with pytest.raises(ValueError, match="calibration_terms"):
         FineTuneConfig(calibration_terms="all")
+
+
+def test_calibrate_rollout_recovers_a_stance_spring_and_keeps_flight(source):
+    """A target domain whose stance spring on the height latent is half the source's: no input
+    gain, offset or damping expresses it, so calibration keeps the source's spring and its
+    rollouts miss the height; ``calibrate_rollout`` refines the contact equations on rollouts of
+    the 12 train jumps from the calibrated start, recovers the spring within 2 %, and leaves the
+    flight equations bit for bit as calibration left them (gravity kept by construction)."""
+    from symrom.learn.plugins import regressor_from_dict
+
+    soft = _target(spring=SPRING)
+    owner = _height_latent()
+    names = source.library.feature_names
+    k, f = source.phase_names.index("contact"), source.phase_names.index("flight")
+    spring = names.index(f"xi{owner + 1}")
+    planted = PLANTED_2D["contact"][owner][f"xi{owner + 1}"]
+    assert source.Xi[k, spring, owner] == pytest.approx(planted, rel=0.01)
+    cal = finetune(source, soft)
+    tuned = finetune(source, soft, config=FineTuneConfig(method="calibrate_rollout"))
+    assert cal.Xi[k, spring, owner] == source.Xi[k, spring, owner]  # calibration cannot move it
+    assert tuned.Xi[k, spring, owner] == pytest.approx(SPRING * planted, rel=0.02)
+    np.testing.assert_array_equal(tuned.Xi[f], source.Xi[f])  # bit for bit
+    np.testing.assert_array_equal(tuned.Xi[f], cal.Xi[f])
+    np.testing.assert_array_equal(tuned.mask, cal.mask)  # the calibrated support, nothing added
+    np.testing.assert_array_equal(tuned.autoencoder.W_d, cal.autoencoder.W_d)
+    rec = tuned.info["finetune"]
+    assert rec["phases_rolled_out"] == ["contact"] and cal.info["finetune"]["phases_rolled_out"] == []
+    assert regressor_from_dict(rec["regressor"]).hold == ("flight",)
+    assert rec["calibration"]["phases"]["contact"]["calibrated"]  # the refinement's start
+    assert rec["flight_gravity"]["ratio"] == pytest.approx(1.0, abs=0.05)
+    z_cal, z_tuned = (evaluate(m, soft, "test", (None,), RolloutOptions(method="rk4"))[0]["horizons"]["full"]
+                      ["components"]["z"]["rmse"] for m in (cal, tuned))
+    assert z_tuned < 0.1 * z_cal
+    with pytest.raises(ValueError, match="threshold"):
+        FineTuneConfig(method="calibrate_rollout", threshold=0.1)

@@ -58,6 +58,42 @@ def test_sensitivities_match_finite_differences(planted_block):
         np.testing.assert_allclose(S[..., t], fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
 
 
+def test_coefficients_held_fixed_act_in_the_rollout(planted_block):
+    """Parameters of one phase only, the other phase's coefficients held in Xi: the same rollout
+    as with every coefficient a parameter, on both backends, and those parameters' columns of
+    the sensitivities (what ``Refine(hold=...)`` fits with)."""
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    win = cut_windows(trajectories(ds, ds.rows_of("train"), model.autoencoder)[:3], 120)
+    assert len(set(np.unique(win.phase))) == 2  # the windows cross both phases
+    limit = np.full(4, 1e9)
+    every = Parameters.of(model.mask)
+    Xi = model.Xi * model.mask
+    contact = model.mask.copy()
+    contact[model.phase_names.index("flight")] = False
+    some = Parameters.of(contact)
+    cols = np.flatnonzero(contact[model.mask])  # the contact entries among all active ones, C order
+    for backend in ("table", "numpy"):
+        X, V, S, _ = simulate(model.library, Xi, every, win, ds.dt, limit, stride=5, backend=backend)
+        Xh, Vh, Sh, _ = simulate(model.library, Xi, some, win, ds.dt, limit, stride=5, backend=backend)
+        np.testing.assert_allclose(Xh, X, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(Vh, V, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(Sh, S[..., cols], rtol=1e-10, atol=1e-10 * np.abs(S).max())
+    with pytest.raises(ValueError, match="hold: no phase named"):
+        Refine(hold=("air",)).fit(*_problem(ds, model))
+
+
+def _problem(ds, model):
+    from symrom.learn.estimator import phase_data
+    from symrom.learn.regressors.base import Coefficients, RegressionProblem
+
+    rows = ds.rows_of("train")
+    phases = phase_data(ds, rows, model.autoencoder, model.library, 1.0, model.phase_names)
+    trajs = trajectories(ds, rows, model.autoencoder)
+    return RegressionProblem(model.library, list(model.phase_names), phases, np.ones(2), ds.dt, trajs), \
+        Coefficients(model.Xi, model.mask)
+
+
 def test_least_squares_on_lagged_accelerations_is_unstable(lagged):
     ds, truth = lagged
     model = train(ds, TrainConfig())

@@ -547,11 +547,13 @@ def finetune_cmd(
     keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
     method: Annotated[str, typer.Option("--method", help="calibrate (per phase input gains, offsets and damping; flight "
                                                          "gravity kept unless the data contradict it), acceleration (every "
-                                                         "coefficient, towards the source, --prior-weight) or rollout (the "
-                                                         "rollout-aware refinement from the source coefficients).")] = "calibrate",
+                                                         "coefficient, towards the source, --prior-weight), rollout (the "
+                                                         "rollout-aware refinement from the source coefficients) or "
+                                                         "calibrate_rollout (calibrate, then refine the non-flight phases "
+                                                         "on rollouts, the flight phase held as calibrated).")] = "calibrate",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
-    calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate: every (an offset and a "
+    calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate[_rollout]: every (an offset and a "
                                                                                "damping in every non-flight equation) or support "
                                                                                "(only where the source has the term).")] = "every",
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
@@ -622,6 +624,10 @@ def _calibration_lines(record: dict) -> None:
             out_console.print(f"calibrated {name}: input gains [{g}], offsets [{o}] latent units/s², damping [{d}] 1/s"
                               + (" (*: a calibration term the source's equation lacked)" if added else ""),
                               highlight=False, soft_wrap=True)
+    rolled = record.get("phases_rolled_out") or []
+    if cal and rolled:
+        out_console.print(f"then refined on rollouts of the train jumps: {', '.join(rolled)} (from the calibrated "
+                          "coefficients; the other phases as calibrated)", highlight=False, soft_wrap=True)
     test = (cal or {}).get("flight_test")
     if test:
         se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump

@@ -12,7 +12,9 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    default (``calibrate``) only its input gains, offsets and damping, the
    flight phase's gravity kept unless the rows contradict it
    (``learn.calibrate``); with ``acceleration`` every coefficient
-   (``FineTune``: pulled towards the source coefficients).
+   (``FineTune``: pulled towards the source coefficients); with
+   ``calibrate_rollout`` the calibration, then its non-flight phases refined
+   on rollouts of the train jumps, the flight phase held as calibrated.
 3. The source and the fine-tuned model are rolled out on the ``val`` jumps at
    both horizons (the full jump, 0.1 s resets). Score: the mean over the 18
    components of RMSE / spread (the component's standard deviation on the val
@@ -26,7 +28,8 @@ The procedure (``run_finetune``; ``symrom finetune SOURCE/model.json DATA.h5 --o
    names the other methods). With
    ``method="rollout"`` (the rollout-aware refinement started from the source
    coefficients) the prior weight pulls only the decoder, not the coefficients:
-   one attempt.
+   one attempt (with ``calibrate_rollout`` it pulls the calibration the
+   refinement starts from, and is raised as for ``calibrate``).
 
 Only ``train`` and ``val`` are read, so ``symrom evaluate`` on the ``test``
 split stays an honest measure of the result.
@@ -99,7 +102,8 @@ class FineTuneResult:
                 "prior_weight": a["prior_weight"], "score_before": self.attempts[0]["score_before"],
                 "score_after": a["score"], "diverged_before": self.attempts[0]["diverged_before"],
                 "diverged_after": a["diverged"], "phases_refit": self.record["phases_refit"],
-                "phases_kept": self.record["phases_kept"], "decoder": self.record["decoder"],
+                "phases_kept": self.record["phases_kept"],
+                "phases_rolled_out": self.record.get("phases_rolled_out", []), "decoder": self.record["decoder"],
                 "flight_gravity": self.record.get("flight_gravity"),
                 **({"calibration": self.record["calibration"]} if "calibration" in self.record else {}),
                 "rule": RULE}

@@ -35,6 +35,18 @@ refinement (``Refine``) started from the source coefficients, on the new
 jumps: for a source model that was itself refined, whose coefficients an
 acceleration fit would pull away from what makes its rollouts right. Only
 the phases the new jumps hold are refit; the others keep the source's.
+
+``method="calibrate_rollout"`` calibrates first, then refines by ``Refine``,
+started from the calibrated coefficients, the coefficients of every non-flight
+phase the new jumps hold (on the calibrated support: the source's and its
+calibration terms) to the rollouts of the new jumps, with the flight phase held
+exactly as calibration leaves it (``Refine.hold``): gravity is kept by
+construction, and the contact phases may correct what an acceleration fit of a
+few parameters cannot, such as a stance spring the target's ground does not
+have, so that the jump leaves the ground with the speed the data show. The
+record holds the calibration (the refinement's start) and the refinement's
+(``regressor``, ``phases_rolled_out``). Without non-flight rows it is
+``calibrate``.
 """
 
 from __future__ import annotations
@@ -52,11 +64,11 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
+from symrom.learn.calibrate import CALIBRATION_TERMS, FLIGHT_PHASE, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
 
 
-FINETUNE_METHODS = ("calibrate", "acceleration", "rollout")
+FINETUNE_METHODS = ("calibrate", "acceleration", "rollout", "calibrate_rollout")
 
 
 class DecoderRefitError(ModelDataError):
@@ -71,10 +83,10 @@ class FineTuneConfig:
     the source's own threshold); refit_decoder: False keeps the source decoder;
     decoder_min_spread: the least spread, as a fraction of the source's, the new rows
     must have along every latent direction for the decoder to be refit; method:
-    ``calibrate``, ``acceleration`` or ``rollout`` (module docstring); calibration_terms
-    (``calibrate`` only): ``every`` (chosen on val), an offset and a damping in every
-    non-flight equation, or ``support``, only where the source's equation has the term
-    (``learn.calibrate``)."""
+    ``calibrate``, ``acceleration``, ``rollout`` or ``calibrate_rollout`` (module
+    docstring); calibration_terms (``calibrate`` and ``calibrate_rollout``): ``every``
+    (chosen on val), an offset and a damping in every non-flight equation, or
+    ``support``, only where the source's equation has the term (``learn.calibrate``)."""
 
     prior_weight: float = 0.01
     threshold: float | None = None
@@ -92,8 +104,8 @@ class FineTuneConfig:
             raise ValueError(f"calibration_terms must be one of {CALIBRATION_TERMS}, got {self.calibration_terms!r}")
         if self.method not in FINETUNE_METHODS:
             raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
-        if self.method == "rollout" and self.threshold is not None:
-            raise ValueError("threshold applies to method 'acceleration'; method 'rollout' refines the "
+        if self.method in ("rollout", "calibrate_rollout") and self.threshold is not None:
+            raise ValueError(f"threshold applies to method 'acceleration'; method {self.method!r} refines the "
                              "source's active terms and thresholds nothing")
         if self.method == "calibrate" and self.threshold is not None:
             raise ValueError("threshold applies to method 'acceleration'; method 'calibrate' keeps the "
@@ -196,17 +208,21 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
     phases = phase_data(ds, rows, ae, model.library, weight, model.phase_names)
     if all(p is None for p in phases):
         raise ModelDataError("no fine-tuning rows in any of the model's phases")
-    calibration = None
-    if config.method == "calibrate":
+    calibration, init, hold = None, Coefficients(model.Xi, model.mask), ()
+    if config.method in ("calibrate", "calibrate_rollout"):
         Xi, mask, calibration = calibrate(model, ae, ds, rows, config.prior_weight, config.calibration_terms)
-        if not calibration["parameters"] and not config.refit_decoder:
-            raise nothing_to_adapt()
-        return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, calibration)
+        # calibrate_rollout refines the other phases from here; the flight phase stays as calibration left it
+        hold = tuple(n for n, p in zip(model.phase_names, phases) if n == FLIGHT_PHASE or p is None)
+        if config.method == "calibrate" or len(hold) == len(phases):  # nothing for the rollouts to refine
+            if not calibration["parameters"] and not config.refit_decoder:
+                raise nothing_to_adapt()
+            return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, calibration)
+        init = Coefficients(Xi, mask)
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
-    if config.method == "rollout":  # Refine rolls the new jumps out, in the model's phase numbering
+    if config.method in ("rollout", "calibrate_rollout"):  # Refine rolls the new jumps out, in the model's phase numbering
         index = np.zeros(ds.n_samples, dtype=int)
         index[rows] = row_phase
-        trajs, regressor = trajectories(ds, rows, ae, index), Refine()
+        trajs, regressor = trajectories(ds, rows, ae, index), Refine(hold=hold)
     else:
         threshold, measure, alpha = source_sparsity(model)
         trajs, regressor = [], FineTune(prior_weight=config.prior_weight,
@@ -214,21 +230,24 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
                                         measure=measure, alpha=alpha)
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
                                 np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
-    fit = regressor.fit(problem, init=Coefficients(model.Xi, model.mask))
+    fit = regressor.fit(problem, init=init)
     Xi, mask = fit.Xi.copy(), fit.mask.copy()
     for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor
         if p is None:
             Xi[k], mask[k] = model.Xi[k], model.mask[k]
-    return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, regressor=regressor.to_dict())
+    return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, calibration,
+                      regressor=regressor.to_dict())
 
 
 def _finetuned(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTuneConfig,
                ae: LinearAutoencoder, Xi: np.ndarray, mask: np.ndarray, phases: list, decoder: dict,
                calibration: dict | None = None, regressor: dict | None = None) -> HybridModel:
     """The fine-tuned model and its ``info.finetune`` record (with the regressor's record, the
-    calibration's, and the decoded flight acceleration on the rows' flight rows,
-    ``flight_gravity``)."""
+    calibration's, the phases fitted to rollouts, ``phases_rolled_out``, and the decoded flight
+    acceleration on the rows' flight rows, ``flight_gravity``)."""
     held = [n for n, p in zip(model.phase_names, phases) if p is not None]
+    rolled = ([] if regressor is None or regressor["kind"] != Refine.kind else
+              [n for n in held if n not in regressor.get("hold", [])])
     refit = held if calibration is None else [n for n in held if calibration["phases"][n]["calibrated"]]
     n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
     info = dict(model.info)
@@ -237,6 +256,7 @@ def _finetuned(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTu
                         "base_data_sha256": model.info.get("data_sha256"),
                         "phases_refit": refit, "rows_per_phase": n_rows,
                         "phases_kept": [n for n in model.phase_names if n not in held],
+                        "phases_rolled_out": rolled,
                         "decoder": decoder}
     if calibration is not None:
         info["finetune"]["calibration"] = calibration

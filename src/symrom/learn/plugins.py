@@ -74,6 +74,8 @@ def regressor_from_dict(d: dict, where: str = "regressor") -> Regressor:
             body["initial"] = regressor_from_dict(body["initial"], f"{where}.initial")
         if "windows" in body:
             body["windows"] = tuple(body["windows"])
+        if "hold" in body:
+            body["hold"] = tuple(body["hold"])
     if cls is Adam and "config" in body:
         body["config"] = AdamConfig(**body["config"])
     try:

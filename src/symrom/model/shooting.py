@@ -117,7 +117,9 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
              backend: str = "auto") -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
     """Roll every window out from its true start.
 
-    Xi (P, p, l); limit (2l,) bound on |[xi, dxi]|. Returns X, V (W, L, l), the
+    Xi (P, p, l), every coefficient: the parameters' entries and any held fixed (nonzero
+    entries outside ``params``, whose sensitivities are not computed); limit (2l,) bound on
+    |[xi, dxi]|. Returns X, V (W, L, l), the
     sensitivities S (W, ceil(L / stride), 2l, n) of [xi, dxi] to the parameters
     at every ``stride``-th sample (None unless ``sensitivities``), and alive
     (W, L) bool: False from the first sample at which a window left the bound
@@ -139,7 +141,7 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
             X, V = np.zeros((W, L, l)), np.zeros((W, L, l))
             S = np.zeros((W, -(-L // stride), 2 * l, n))
             alive = np.zeros((W, L), dtype=np.bool_)
-            support = np.zeros(np.shape(Xi), dtype=bool)
+            support = np.asarray(Xi) != 0  # coefficients held fixed (not parameters) act too
             support[params.phase, params.term, params.latent] = True  # a coefficient at 0.0 still needs its term
             active, n_active = active_terms(support)
             kernels()["rk4_windows"](

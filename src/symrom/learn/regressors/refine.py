@@ -27,6 +27,8 @@ term budget, ``max_terms``, it then removes terms while the model has more:
 ``prune_share`` of them at a time (never below the budget), the least needed
 first by their saliency on the rollout costs (``prune``), and runs the schedule
 again from there. ``max_jumps`` caps the training jumps used (evenly spaced).
+``hold`` names phases whose coefficients are held at the start's values: they act
+in every rollout but are not fitted (a flight phase whose gravity must stay).
 """
 
 from __future__ import annotations
@@ -54,7 +56,8 @@ class Refine(Regressor):
     the dxi error against the xi error; max_jumps: training jumps used at most;
     max_nfev: solver evaluations per stage; bound: divergence bound in units of
     the largest |xi|, |dxi| of the training jumps; substeps: RK4 steps per sample;
-    stride: score every stride-th sample of a window."""
+    stride: score every stride-th sample of a window; hold: names of phases whose
+    coefficients are kept as the start has them (simulated, not fitted)."""
 
     kind: ClassVar[str] = "refine"
     initial: Regressor = field(default_factory=STLSQ)
@@ -67,6 +70,7 @@ class Refine(Regressor):
     stride: int = 4
     max_terms: int | None = None
     prune_share: float = 0.25
+    hold: tuple[str, ...] = ()
 
     needs_trajectories = True
 
@@ -88,13 +92,17 @@ class Refine(Regressor):
         return {"kind": self.kind, "initial": self.initial.to_dict(), "windows": list(self.windows),
                 "velocity_weight": self.velocity_weight, "max_jumps": self.max_jumps,
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
-                "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share}
+                "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share,
+                **({"hold": list(self.hold)} if self.hold else {})}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
         start = init if init is not None else self.initial.fit(problem)
         if not problem.trajectories:
             raise ValueError("refinement needs the training jumps (problem.trajectories)")
+        unknown = sorted(set(self.hold) - set(problem.phase_names))
+        if unknown:
+            raise ValueError(f"hold: no phase named {unknown} (the phases are {list(problem.phase_names)})")
         trajs = problem.trajectories
         if len(trajs) > self.max_jumps:
             trajs = [trajs[i] for i in np.linspace(0, len(trajs) - 1, self.max_jumps).round().astype(int)]
@@ -107,20 +115,25 @@ class Refine(Regressor):
         short = cut_windows(trajs, lengths[0])
         windows = [[cut_windows(trajs, n)] + ([short] if n != lengths[0] else []) for n in lengths]
 
+        held = np.array([name in self.hold for name in problem.phase_names])
+        fixed = np.where(held[:, None, None], start.Xi * start.mask, 0.0)  # the held phases' coefficients
+
         def cost(mask: np.ndarray, wins: list[Windows]):
             """normal(th, sens) -> (cost, dead windows, J^T J, J^T r) of the parameters of
-            ``mask`` on ``wins``; the last two only with ``sens``."""
+            ``mask`` on ``wins`` (the held phases' coefficients fixed); the last two only with
+            ``sens``."""
             params = Parameters.of(mask)
 
             def normal(th, sens):
-                Xi = params.matrix(th, mask.shape)
+                Xi = fixed + params.matrix(th, mask.shape)
                 parts = [_normal_equations(problem.library, Xi, params, w, problem.dt, limit, spread,
                                            self.substeps, self.stride, sens) for w in wins]
                 return (sum(p[0] for p in parts), sum(p[1] for p in parts),
                         sum(p[2] for p in parts) if sens else None, sum(p[3] for p in parts) if sens else None)
             return normal
 
-        Xi, mask = start.Xi * start.mask, start.mask.copy()
+        mask = start.mask & ~held[:, None, None]
+        Xi = start.Xi * mask
         Xi, stages, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
         prunings = []
         while self.max_terms is not None and mask.sum() > self.max_terms:
@@ -129,6 +142,7 @@ class Refine(Regressor):
             Xi, mask, record = prune(Xi, mask, [cost(mask, [w]) for w in windows[last]], drop)
             Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
             prunings.append({**record, "stages": more})
+        Xi, mask = Xi + fixed, mask | (start.mask & held[:, None, None])
         report = {name: {**start.report.get(name, {}), "refinement": {
             "stages": stages, "jumps": len(trajs), **({"prunings": prunings} if self.max_terms is not None else {})}}
             for name in problem.phase_names}
