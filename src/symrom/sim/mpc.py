@@ -228,14 +228,17 @@ class MPCResult:
 
 @dataclass
 class ConvexMPC:
-    """Single-rigid-body MPC solved with OSQP; see the module docstring.
+    """Single-rigid-body MPC solved with OSQP or DAQP (``config.solver``); see the module
+    docstring.
 
     mass kg, inertia_body (3, 3) kg m^2 (about the CoM, base frame).
     The QP handed to OSQP is the sparse (non-condensed) form: variables
     ``z = [x_1 .. x_h, u_0 .. u_{h-1}]`` (25 h,), the dynamics as equality
     rows. Its cost is constant and only the dynamics' numbers and the bounds
     change between solves, which keeps each solve cheap (no large dense
-    products). ``condensed_qp`` gives the same problem in the condensed form.
+    products). DAQP gets the condensed form, from ``condensed_form`` (per yaw) and
+    the moment arms; ``condensed_qp`` builds the same by stacking ``A^i B``, the
+    reference it is tested against.
     """
 
     mass: float
