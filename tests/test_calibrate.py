@@ -25,6 +25,8 @@ DAMPING = 0.3  # 1/s of extra damping on both latents in contact (joint damping)
 SPRING = 0.5  # the target's stance spring of the height latent relative to the source's (a softer ground)
 Z = Q_NAMES.index("z")
 
+CALIBRATE = FineTuneConfig(method="calibrate")  # what these tests are about (the default refines too)
+
 
 def _height_latent() -> int:
     """The latent that carries the base height in the planted embedding."""
@@ -69,8 +71,7 @@ def target():
 
 def test_calibration_recovers_the_input_gain_and_keeps_flight(source, target):
     assert target.jumps_in("train").size == 12
-    assert FineTuneConfig().method == "calibrate"
-    tuned = finetune(source, target)
+    tuned = finetune(source, target, config=CALIBRATE)
     rec = tuned.info["finetune"]
     contact = rec["calibration"]["phases"]["contact"]
     np.testing.assert_allclose(contact["gain"], GAIN, rtol=0.02)
@@ -93,7 +94,7 @@ def test_calibration_recovers_the_input_gain_and_keeps_flight(source, target):
 
 def test_calibration_follows_data_that_contradict_the_flight_gravity(source):
     low = _target(flight_g=0.8 * STANDARD_GRAVITY)  # the data fall at 7.8 m/s^2, clearly not g
-    tuned = finetune(source, low)
+    tuned = finetune(source, low, config=CALIBRATE)
     rec = tuned.info["finetune"]
     test = rec["calibration"]["flight_test"]
     assert test["contradicted"] and test["mean"] == pytest.approx(0.2 * STANDARD_GRAVITY, rel=0.05)
@@ -102,7 +103,7 @@ def test_calibration_follows_data_that_contradict_the_flight_gravity(source):
 
 
 def test_the_val_check_applies_to_calibration(source, target):
-    res = run_finetune(source, target, FineTuneCheck())
+    res = run_finetune(source, target, FineTuneCheck(config=CALIBRATE))
     a = res.attempts[-1]
     assert a["accepted"] and a["score"] < a["score_before"]  # the gain error made the source worse
     record = res.to_dict()
@@ -117,9 +118,10 @@ def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):
     mask[:, drop] = False
     bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
     with pytest.raises(CalibrationError, match="--method acceleration"):
-        finetune(bare, target, config=FineTuneConfig(refit_decoder=False, calibration_terms="support"))
+        finetune(bare, target, config=FineTuneConfig(method="calibrate", refit_decoder=False,
+                                                     calibration_terms="support"))
     # by default an offset and a damping are calibration terms of every contact equation
-    tuned = finetune(bare, target, config=FineTuneConfig(refit_decoder=False))
+    tuned = finetune(bare, target, config=FineTuneConfig(method="calibrate", refit_decoder=False))
     assert tuned.info["finetune"]["calibration"]["parameters"] == 2 * source.latent_dim
     with pytest.raises(ValueError, match="calibrate"):
         FineTuneConfig(threshold=0.1)
@@ -140,8 +142,8 @@ def test_every_equation_calibrated_recovers_a_planted_bias_and_damping(source, t
     for j, v in enumerate(vel):
         mask[k, v, j] = False
     bare = replace(source, mask=mask, Xi=np.where(mask, source.Xi, 0.0))
-    full = finetune(source, target)  # the reference: the full source, calibrated
-    every = finetune(bare, target)
+    full = finetune(source, target, config=CALIBRATE)  # the reference: the full source, calibrated
+    every = finetune(bare, target, config=CALIBRATE)
     rec = every.info["finetune"]["calibration"]
     contact = rec["phases"]["contact"]
     assert rec["terms"] == "every" and contact["offset_added"] == [True, True] == contact["damping_added"]
@@ -154,7 +156,7 @@ def test_every_equation_calibrated_recovers_a_planted_bias_and_damping(source, t
                                atol=0.03 * np.abs(planted).max())
     for j, v in enumerate(vel):
         assert every.Xi[k, v, j] == pytest.approx(full.Xi[k, v, j], rel=0.05)
-    support = finetune(bare, target, config=FineTuneConfig(calibration_terms="support"))
+    support = finetune(bare, target, config=FineTuneConfig(method="calibrate", calibration_terms="support"))
     srec = support.info["finetune"]["calibration"]["phases"]["contact"]
     assert srec["offset"] == [None, None] == srec["damping"] and srec["offset_added"] == [False, False]
     np.testing.assert_array_equal(support.mask, bare.mask)
@@ -177,8 +179,9 @@ def test_calibrate_rollout_recovers_a_stance_spring_and_keeps_flight(source):
     spring = names.index(f"xi{owner + 1}")
     planted = PLANTED_2D["contact"][owner][f"xi{owner + 1}"]
     assert source.Xi[k, spring, owner] == pytest.approx(planted, rel=0.01)
-    cal = finetune(source, soft)
-    tuned = finetune(source, soft, config=FineTuneConfig(method="calibrate_rollout"))
+    cal = finetune(source, soft, config=CALIBRATE)
+    assert FineTuneConfig().method == "calibrate_rollout"  # the default
+    tuned = finetune(source, soft)
     assert cal.Xi[k, spring, owner] == source.Xi[k, spring, owner]  # calibration cannot move it
     assert tuned.Xi[k, spring, owner] == pytest.approx(SPRING * planted, rel=0.02)
     np.testing.assert_array_equal(tuned.Xi[f], source.Xi[f])  # bit for bit

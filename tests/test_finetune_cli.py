@@ -199,7 +199,7 @@ def test_default_calibration_keeps_gravity_on_a_flight_only_set(files, tmp_path)
         assert "--method acceleration or --method rollout" in text, text
         return
     rec = json.loads((out / "finetune.json").read_text())
-    assert rec["check"]["config"]["method"] == "calibrate"
+    assert rec["check"]["config"]["method"] == "calibrate_rollout"
     fg = rec["flight_gravity"]  # these short rebased flight segments fall at ~10.4 m/s^2 once differentiated
     assert abs(fg["model"] / fg["data"] - 1.0) < 0.05
     assert f"flight gravity: {rec['flight_gravity']['model']:.3g} m/s²" in text and "flight test:" in text

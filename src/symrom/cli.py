@@ -545,12 +545,12 @@ def finetune_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
     prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
     keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
-    method: Annotated[str, typer.Option("--method", help="calibrate (per phase input gains, offsets and damping; flight "
-                                                         "gravity kept unless the data contradict it), acceleration (every "
-                                                         "coefficient, towards the source, --prior-weight), rollout (the "
-                                                         "rollout-aware refinement from the source coefficients) or "
-                                                         "calibrate_rollout (calibrate, then refine the non-flight phases "
-                                                         "on rollouts, the flight phase held as calibrated).")] = "calibrate",
+    method: Annotated[str, typer.Option("--method", help="calibrate_rollout (calibrate, then refine the non-flight phases "
+                                                         "on rollouts, the flight phase held as calibrated), calibrate (per "
+                                                         "phase input gains, offsets and damping; flight gravity kept unless "
+                                                         "the data contradict it), acceleration (every coefficient, towards "
+                                                         "the source, --prior-weight) or rollout (the rollout-aware "
+                                                         "refinement from the source coefficients).")] = "calibrate_rollout",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
     threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
     calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate[_rollout]: every (an offset and a "
