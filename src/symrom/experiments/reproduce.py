@@ -59,7 +59,7 @@ from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SO
 from symrom.execution import Backend, make_backend
 from symrom.experiments.select import (Selection, SelectionConfig, encoder_name, library_name, select, selection_rule,
                                       write_selection)
-from symrom.learn.finetune import FineTuneConfig, finetune
+from symrom.learn.finetune import ROLLOUT_METHODS, FineTuneConfig, finetune
 from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, write_model_files
@@ -340,7 +340,6 @@ SIM2REAL_SOURCES = {"noisy": "go1_noisy", "randomized": "go1_randomized"}  # sou
 SIM2REAL_TARGETS = ("go1_proxy", "go1_proxy_mujoco")  # target datasets, one experiment each
 PROXY_SOURCES = ("refined", "exact")
 PROXY_METHODS = ("none", "calibrate", "acceleration", "rollout", "calibrate_rollout")
-ROLLOUT_METHODS = ("rollout", "calibrate_rollout")  # fine-tunings that refine on rollouts
 # The fine-tuning of the side-by-side table: the default one (``FineTuneConfig``'s, calibrate_rollout),
 # whose val score (``symrom finetune``'s check) is below calibrate's from every source on both
 # targets (randomised refined source: 0.596 against 0.607 on the PyBullet proxy, 0.467 against

@@ -71,6 +71,7 @@ from symrom.model.hybrid import HybridModel, ModelDataError
 
 
 FINETUNE_METHODS = ("calibrate", "acceleration", "rollout", "calibrate_rollout")
+ROLLOUT_METHODS = ("rollout", "calibrate_rollout")  # the methods that refine on rollouts (``Refine``)
 
 
 class DecoderRefitError(ModelDataError):
@@ -106,7 +107,7 @@ class FineTuneConfig:
             raise ValueError(f"calibration_terms must be one of {CALIBRATION_TERMS}, got {self.calibration_terms!r}")
         if self.method not in FINETUNE_METHODS:
             raise ValueError(f"fine-tuning method must be one of {FINETUNE_METHODS}, got {self.method!r}")
-        if self.method in ("rollout", "calibrate_rollout") and self.threshold is not None:
+        if self.method in ROLLOUT_METHODS and self.threshold is not None:
             raise ValueError(f"threshold applies to method 'acceleration'; method {self.method!r} refines the "
                              "source's active terms and thresholds nothing")
         if self.method == "calibrate" and self.threshold is not None:
@@ -221,7 +222,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
             return _finetuned(model, ds, rows, config, ae, Xi, mask, phases, decoder, calibration)
         init = Coefficients(Xi, mask)
     all_ddxi = ae.encode_derivative(ds.ddq[rows])
-    if config.method in ("rollout", "calibrate_rollout"):  # Refine rolls the new jumps out, in the model's phase numbering
+    if config.method in ROLLOUT_METHODS:  # Refine rolls the new jumps out, in the model's phase numbering
         index = np.zeros(ds.n_samples, dtype=int)
         index[rows] = row_phase
         trajs, regressor = trajectories(ds, rows, ae, index), Refine(hold=hold)

@@ -151,16 +151,20 @@ def nilpotent_hold(Ac: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray] |
 
 
 def condense(A: np.ndarray, B: np.ndarray, horizon: int) -> tuple[np.ndarray, np.ndarray]:
-    """Stacked prediction X = Aqp x0 + Bqp U: Aqp (13 h, 13), Bqp (13 h, 12 h)."""
+    """Stacked prediction X = Aqp x0 + Bqp U: Aqp (13 h, 13), Bqp (13 h, m h) for B (13, m)
+    (the forces' B, m = 12, or any other input map)."""
+    m = B.shape[1]
     Apow = [np.eye(N_X)]
     for _ in range(horizon):
         Apow.append(A @ Apow[-1])
     Aqp = np.vstack(Apow[1:])
-    AB = [Apow[i] @ B for i in range(horizon)]  # A^i B
-    Bqp = np.zeros((N_X * horizon, N_U * horizon))
+    AB = [B]  # A^i B, one step at a time: A (A^(i-1) B)
+    for _ in range(horizon - 1):
+        AB.append(A @ AB[-1])
+    Bqp = np.zeros((N_X * horizon, m * horizon))
     for i in range(horizon):
         for j in range(i + 1):
-            Bqp[N_X * i:N_X * (i + 1), N_U * j:N_U * (j + 1)] = AB[i - j]
+            Bqp[N_X * i:N_X * (i + 1), m * j:m * (j + 1)] = AB[i - j]
     return Aqp, Bqp
 
 
@@ -189,20 +193,12 @@ class CondensedForm:
 
     def __init__(self, A: np.ndarray, F: np.ndarray, L: np.ndarray, horizon: int):
         h = horizon
-        G = [F]
-        for _ in range(h - 1):
-            G.append(A @ G[-1])
-        Gqp = np.zeros((N_X * h, N_X * h))
-        Apow = [np.eye(N_X)]
-        for i in range(h):
-            Apow.append(A @ Apow[-1])
-            for j in range(i + 1):
-                Gqp[N_X * i:N_X * (i + 1), N_X * j:N_X * (j + 1)] = G[i - j]
+        Aqp, Gqp = condense(A, F, h)  # Gqp (13 h, 13 h): the stacked A^(i-j) F
         cols = (N_X * np.arange(h)[:, None] + MOVING).ravel()
         V = Gqp[:, cols].T * L  # (6 h, 13 h)
         self.horizon = h
         self.W4 = np.ascontiguousarray((V @ Gqp[:, cols]).reshape(h, MOVING.size, h, MOVING.size))
-        self.VA = V @ np.vstack(Apow[1:])  # (6 h, 13): V Aqp
+        self.VA = V @ Aqp  # (6 h, 13)
         self.V = V
 
     def qp(self, Bc_moving: np.ndarray, x0: np.ndarray, x_ref: np.ndarray, alpha: float
@@ -420,8 +416,9 @@ class ConvexMPC:
             self._sense = None
             return U, "solved"
         H, g = self.condensed_form(yaw).qp(self._input_map(r_feet, yaw)[MOVING], x0, x_ref, cfg.alpha)
+        kept = np.repeat(down, 3)  # (12 h,) the forces in the problem
         if n_down < down.size:
-            keep = np.flatnonzero(np.repeat(down, 3))
+            keep = np.flatnonzero(kept)
             H, g = H[np.ix_(keep, keep)], g[keep]
         rows, hi, lo = self._daqp_parts(n_down)
         warm = self._sense if self._sense is not None and self._sense_down == down.tobytes() else None
@@ -430,7 +427,7 @@ class ConvexMPC:
                                 else daqp.solve(H, g, rows, hi, lo, sense))
             if flag >= 1 and np.all(np.isfinite(x)):
                 self._sense, self._sense_down = (info["lam"] != 0.0).astype(np.int32), down.tobytes()
-                U[np.repeat(down, 3)] = x
+                U[kept] = x
                 return U, "solved"
         self._sense = None
         return U, f"daqp exitflag {flag}"
