@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -271,11 +272,33 @@ def test_readme_is_a_front_page_with_the_details_in_docs():
 
 
 # ----------------------------------------------------------------- the selection's term budget
-def test_train_term_budget_is_a_selection_option(data, tmp_path):
+def test_train_term_budget_is_an_option_of_the_refinement(data, tmp_path):
     out = tmp_path / "m"
-    one_line_error(_run("train", data[1], "--max-terms", 4, "--out", out), "--max-terms", "--select")
+    one_line_error(_run("train", data[1], "--max-terms", 4, "--out", out), "--max-terms", "--refine", "--select")
     one_line_error(_run("train", data[1], "--select", "--max-terms", 0, "--out", out), "--max-terms", "0")
+    one_line_error(_run("train", data[1], "--latent-dim", 2, "--encoder-base-latents", 2, "--out", out),
+                   "encoder_base_latents", "1..1")
+    one_line_error(_run("train", data[1], "--select", "--encoder-base-latents", 1, "--out", out),
+                   "--encoder-base-latents")
     assert not out.exists()
+
+
+def test_train_refine_prunes_one_model_to_its_term_budget(data, tmp_path):
+    """One compact candidate from the command line: the encoder split into base and joint latents,
+    the refined model pruned to the budget, which the exact fit of the same settings exceeds."""
+    common = ("--latent-dim", 2, "--encoder-base-latents", 1, "--threshold", 1.0)
+    r = _run("train", data[1], *common, "--out", tmp_path / "exact")
+    assert r.exit_code == 0, r.output
+    exact = load_model(tmp_path / "exact" / "model.json")
+    assert exact.estimator["encoder"]["base_latents"] == 1
+    budget = int(exact.mask.sum()) // 3
+    r = _run("train", data[1], *common, "--refine", "--max-terms", budget, "--out", tmp_path / "compact")
+    assert r.exit_code == 0, r.output
+    compact = load_model(tmp_path / "compact" / "model.json")
+    assert 0 < int(compact.mask.sum()) <= budget < int(exact.mask.sum())
+    assert compact.estimator["regressor"]["max_terms"] == budget
+    assert compact.estimator["encoder"] == exact.estimator["encoder"]
+    assert np.array_equal(compact.autoencoder.W_e, exact.autoencoder.W_e)
 
 
 def test_train_select_keeps_the_chosen_model_within_its_term_budget(data, tmp_path):

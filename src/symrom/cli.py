@@ -305,7 +305,8 @@ def _import_report(ds) -> None:
 
 # train's options that --select does not use (it chooses them on the val split)
 SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "seed", "encoder_components",
-                  "decoded_weight", "alpha", "measure", "collinearity", "encoder_scaling", "trig", "refine")
+                  "decoded_weight", "alpha", "measure", "collinearity", "encoder_scaling", "encoder_base_latents",
+                  "trig", "refine")
 
 
 def _refuse_ignored(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
@@ -344,6 +345,9 @@ def train_cmd(
                                "on a phase's rows, e.g. 0.995 (default: keep all).")] = None,
     encoder_scaling: Annotated[str, typer.Option(
         "--encoder-scaling", help="none, or spread: standardise components before step (a).")] = "none",
+    encoder_base_latents: Annotated[Optional[int], typer.Option(
+        "--encoder-base-latents", help="Latents taken from the base pose, the rest from the joints "
+                                       "(--select's pose+joints; default: one PCA over all, the paper).")] = None,
     trig: Annotated[bool, typer.Option("--trig/--no-trig", help="Trigonometric terms in the library.")] = True,
     refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
     select: Annotated[bool, typer.Option(
@@ -352,7 +356,8 @@ def train_cmd(
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
     workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
     max_terms: Annotated[Optional[int], typer.Option(
-        "--max-terms", help="--select: a term budget; refinements pruned to at most N active terms, and only "
+        "--max-terms", help="With --refine: prune the refined model to at most N active terms. --select: a "
+                            "term budget; refinements pruned to at most N active terms, and only "
                             "candidates within it compete (default: none).")] = None,
     resume: Annotated[bool, typer.Option(
         "--resume", help="--select: continue an interrupted selection (its finished cells are in OUT.parts).")] = False,
@@ -379,12 +384,14 @@ def train_cmd(
         return _train_select(data, out, select_dims, workers, backend, address, resume, force, max_terms)
     if backend != "local" or address is not None or resume:
         raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
-    if max_terms is not None:
-        raise ValueError("--max-terms applies to --select (the budget of its refinements)")
+    if max_terms is not None and not refine:
+        raise ValueError("--max-terms is a budget of the refinement: give it with --refine (one model) or "
+                         "--select (the budget of its refinements)")
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
-                         collinearity=collinearity, encoder_scaling=encoder_scaling, refine=refine)
+                         collinearity=collinearity, encoder_scaling=encoder_scaling,
+                         encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms)
     ds = read_dataset(data)
     out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:

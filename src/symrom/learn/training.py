@@ -95,6 +95,10 @@ class TrainConfig:
         if isinstance(self.adam, dict):
             self.adam = AdamConfig(**self.adam)
         self.encoder_components = check_components(self.encoder_components, self.latent_dim)
+        if self.encoder_base_latents is not None and not 1 <= self.encoder_base_latents < self.latent_dim:
+            raise ValueError(f"encoder_base_latents must lie within 1..{self.latent_dim - 1} (latent_dim "
+                             f"{self.latent_dim}, at least one latent left for the joints), got "
+                             f"{self.encoder_base_latents}")
         if self.encoder_scaling not in SCALINGS:
             raise ValueError(f"encoder_scaling must be one of {SCALINGS}, got {self.encoder_scaling!r}")
         check_measure(self.measure)
