@@ -120,9 +120,37 @@ def test_refinement_recovers_a_stable_accurate_model(lagged):
     assert stages[-1]["window_s"] is None and stages[-1]["cost_after"] < stages[-1]["cost_before"]
 
 
+def test_short_weight_trades_the_whole_jump_for_the_short_windows(lagged):
+    """The stage of whole jumps scores the short windows short_weight times: its starting cost
+    (the same start for both) grows by (weight - 1) times their cost, and the fit that weighs
+    them more ends nearer the truth over them and farther over whole jumps."""
+    ds, _ = lagged
+    problem, init = _problem(ds, train(ds, TrainConfig()))
+    fits = {w: Refine(windows=(0.05, None), short_weight=w).fit(problem, init) for w in (1.0, 30.0)}
+    stages = {w: f.report["contact"]["refinement"]["stages"] for w, f in fits.items()}
+    assert stages[1.0][0] == stages[30.0][0]  # the short windows alone: the weight changes nothing
+    assert stages[30.0][1]["cost_before"] > stages[1.0][1]["cost_before"]
+    from symrom.learn.plugins import regressor_from_dict
+
+    weighted = Refine(short_weight=30.0, hold=("flight",))
+    assert regressor_from_dict(weighted.to_dict()) == weighted  # the model file's record reads back
+    assert "short_weight" not in Refine().to_dict()  # records of models refined before it stay as they were
+
+    def costs(fit):
+        refine = Refine(windows=(0.05,))  # the cost of one schedule stage, from its record
+        short = refine.fit(problem, fit).report["contact"]["refinement"]["stages"][0]["cost_before"]
+        whole = Refine(windows=(None,)).fit(problem, fit).report["contact"]["refinement"]["stages"][0]["cost_before"]
+        return short, whole
+
+    (s1, w1), (s30, w30) = costs(fits[1.0]), costs(fits[30.0])
+    assert s30 < s1 and w30 > w1
+
+
 def test_refine_settings_are_checked():
     with pytest.raises(ValueError, match="velocity_weight"):
         Refine(STLSQ(), velocity_weight=0.0)
+    with pytest.raises(ValueError, match="short_weight"):
+        Refine(STLSQ(), short_weight=0.0)
     with pytest.raises(ValueError, match="window"):
         Refine(STLSQ(), windows=())
 

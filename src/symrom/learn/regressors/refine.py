@@ -29,6 +29,9 @@ first by their saliency on the rollout costs (``prune``), and runs the schedule
 again from there. ``max_jumps`` caps the training jumps used (evenly spaced).
 ``hold`` names phases whose coefficients are held at the start's values: they act
 in every rollout but are not fitted (a flight phase whose gravity must stay).
+``short_weight`` weighs the shortest windows' error against the longer windows' in
+the stages they join (1: every sample alike; more: short-horizon accuracy first,
+the whole jump still kept in view).
 """
 
 from __future__ import annotations
@@ -57,7 +60,8 @@ class Refine(Regressor):
     max_nfev: solver evaluations per stage; bound: divergence bound in units of
     the largest |xi|, |dxi| of the training jumps; substeps: RK4 steps per sample;
     stride: score every stride-th sample of a window; hold: names of phases whose
-    coefficients are kept as the start has them (simulated, not fitted)."""
+    coefficients are kept as the start has them (simulated, not fitted); short_weight:
+    weight of the shortest windows' squared error in the stages they join."""
 
     kind: ClassVar[str] = "refine"
     initial: Regressor = field(default_factory=STLSQ)
@@ -71,6 +75,7 @@ class Refine(Regressor):
     max_terms: int | None = None
     prune_share: float = 0.25
     hold: tuple[str, ...] = ()
+    short_weight: float = 1.0
 
     needs_trajectories = True
 
@@ -81,6 +86,8 @@ class Refine(Regressor):
             raise ValueError("refinement needs at least one window length")
         if self.max_terms is not None and self.max_terms < 1:
             raise ValueError(f"max_terms must be at least 1, got {self.max_terms}")
+        if not self.short_weight > 0:
+            raise ValueError(f"short_weight must be > 0, got {self.short_weight}")
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
 
@@ -93,7 +100,8 @@ class Refine(Regressor):
                 "velocity_weight": self.velocity_weight, "max_jumps": self.max_jumps,
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
                 "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share,
-                **({"hold": list(self.hold)} if self.hold else {})}
+                **({"hold": list(self.hold)} if self.hold else {}),
+                **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {})}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
@@ -113,12 +121,14 @@ class Refine(Regressor):
         limit = self.bound * np.maximum(np.r_[np.abs(xi).max(0), np.abs(dxi).max(0)], 1e-6)
         lengths = [None if w is None else max(2, int(round(w / problem.dt))) for w in self.windows]
         short = cut_windows(trajs, lengths[0])
-        windows = [[cut_windows(trajs, n)] + ([short] if n != lengths[0] else []) for n in lengths]
+        # (windows, weight) of each stage: its own, and the shortest ones weighted by short_weight
+        windows = [[(cut_windows(trajs, n), 1.0)] + ([(short, self.short_weight)] if n != lengths[0] else [])
+                   for n in lengths]
 
         held = np.array([name in self.hold for name in problem.phase_names])
         fixed = np.where(held[:, None, None], start.Xi * start.mask, 0.0)  # the held phases' coefficients
 
-        def cost(mask: np.ndarray, wins: list[Windows]):
+        def cost(mask: np.ndarray, wins: list[tuple[Windows, float]]):
             """normal(th, sens) -> (cost, dead windows, J^T J, J^T r) of the parameters of
             ``mask`` on ``wins`` (the held phases' coefficients fixed); the last two only with
             ``sens``."""
@@ -126,10 +136,11 @@ class Refine(Regressor):
 
             def normal(th, sens):
                 Xi = fixed + params.matrix(th, mask.shape)
-                parts = [_normal_equations(problem.library, Xi, params, w, problem.dt, limit, spread,
-                                           self.substeps, self.stride, sens) for w in wins]
-                return (sum(p[0] for p in parts), sum(p[1] for p in parts),
-                        sum(p[2] for p in parts) if sens else None, sum(p[3] for p in parts) if sens else None)
+                parts = [(c, _normal_equations(problem.library, Xi, params, w, problem.dt, limit, spread,
+                                               self.substeps, self.stride, sens)) for w, c in wins]
+                return (sum(c * p[0] for c, p in parts), sum(p[1] for _, p in parts),
+                        sum(c * p[2] for c, p in parts) if sens else None,
+                        sum(c * p[3] for c, p in parts) if sens else None)
             return normal
 
         mask = start.mask & ~held[:, None, None]
@@ -148,7 +159,7 @@ class Refine(Regressor):
             for name in problem.phase_names}
         return Coefficients(Xi, mask, report)
 
-    def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[Windows]], lengths: list,
+    def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[tuple[Windows, float]]], lengths: list,
                   dt: float, cost) -> tuple[np.ndarray, list[dict], int]:
         """The growing-window schedule from ``Xi`` on the support ``mask``: the result, a
         record per stage and the index of the last stage whose result was kept (0 if none)."""
