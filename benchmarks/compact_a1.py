@@ -36,6 +36,7 @@ from symrom.evaluate.metrics import evaluate
 from symrom.evaluate.paper import implied_rmse, paper_row
 from symrom.experiments import select
 from symrom.experiments.reproduce import ReproduceConfig
+from symrom.learn.calibrate import FLIGHT_PHASE
 from symrom.learn.estimator import phase_data, trajectories
 from symrom.learn.regressors.base import Coefficients, RegressionProblem
 from symrom.learn.regressors.refine import Refine
@@ -49,7 +50,6 @@ VERSION = 1
 MAX_TERMS = 60
 CANDIDATE = ("pose+joints", 7, "poly1+inputs", 0.01)
 SHORT_WEIGHTS = (10.0, 100.0)
-FLIGHT = "flight"
 
 
 def refine_flight(model: HybridModel, ds, short_weight: float) -> HybridModel:
@@ -62,11 +62,11 @@ def refine_flight(model: HybridModel, ds, short_weight: float) -> HybridModel:
     spread = np.maximum(ae.encode_derivative(ds.ddq[rows]).std(axis=0), 1e-12)
     problem = RegressionProblem(model.library, list(model.phase_names), phases, spread, ds.dt,
                                 trajectories(ds, rows, ae))
-    hold = tuple(n for n in model.phase_names if n != FLIGHT)
+    hold = tuple(n for n in model.phase_names if n != FLIGHT_PHASE)
     refine = Refine(windows=(0.1, None), hold=hold, short_weight=short_weight)
     fit = refine.fit(problem, init=Coefficients(model.Xi.copy(), model.mask.copy()))
     info = {**model.info, "flight_refinement": {"regressor": refine.to_dict(),
-                                                 "stages": fit.report[FLIGHT]["refinement"]["stages"]}}
+                                                 "stages": fit.report[FLIGHT_PHASE]["refinement"]["stages"]}}
     return replace(model, Xi=fit.Xi, mask=fit.mask, info=info)
 
 

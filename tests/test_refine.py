@@ -137,10 +137,10 @@ def test_short_weight_trades_the_whole_jump_for_the_short_windows(lagged):
     assert "short_weight" not in Refine().to_dict()  # records of models refined before it stay as they were
 
     def costs(fit):
-        refine = Refine(windows=(0.05,))  # the cost of one schedule stage, from its record
-        short = refine.fit(problem, fit).report["contact"]["refinement"]["stages"][0]["cost_before"]
-        whole = Refine(windows=(None,)).fit(problem, fit).report["contact"]["refinement"]["stages"][0]["cost_before"]
-        return short, whole
+        """The cost of ``fit`` over the short windows and over whole jumps (a one-stage schedule's
+        starting cost; one evaluation, so nothing is fitted)."""
+        return tuple(Refine(windows=(w,), max_nfev=1).fit(problem, fit).report["contact"]["refinement"]
+                     ["stages"][0]["cost_before"] for w in (0.05, None))
 
     (s1, w1), (s30, w30) = costs(fits[1.0]), costs(fits[30.0])
     assert s30 < s1 and w30 > w1
