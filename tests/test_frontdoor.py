@@ -280,6 +280,8 @@ def test_train_term_budget_is_an_option_of_the_refinement(data, tmp_path):
                    "encoder_base_latents", "1..1")
     one_line_error(_run("train", data[1], "--select", "--encoder-base-latents", 1, "--out", out),
                    "--encoder-base-latents")
+    one_line_error(_run("train", data[1], "--polish", "flight", "--out", out), "polish", "needs refine")
+    one_line_error(_run("train", data[1], "--refine", "--polish", "air", "--out", out), "polish", "air")
     assert not out.exists()
 
 
@@ -292,11 +294,14 @@ def test_train_refine_prunes_one_model_to_its_term_budget(data, tmp_path):
     exact = load_model(tmp_path / "exact" / "model.json")
     assert exact.estimator["encoder"]["base_latents"] == 1
     budget = int(exact.mask.sum()) // 3
-    r = _run("train", data[1], *common, "--refine", "--max-terms", budget, "--out", tmp_path / "compact")
+    r = _run("train", data[1], *common, "--refine", "--max-terms", budget, "--polish", "flight",
+             "--out", tmp_path / "compact")
     assert r.exit_code == 0, r.output
     compact = load_model(tmp_path / "compact" / "model.json")
     assert 0 < int(compact.mask.sum()) <= budget < int(exact.mask.sum())
     assert compact.estimator["regressor"]["max_terms"] == budget
+    assert compact.estimator["regressor"]["polish"] == ["flight"]
+    assert compact.phase_info["flight"].report["refinement"]["polish"]
     assert compact.estimator["encoder"] == exact.estimator["encoder"]
     assert np.array_equal(compact.autoencoder.W_e, exact.autoencoder.W_e)
 
@@ -308,4 +313,5 @@ def test_train_select_keeps_the_chosen_model_within_its_term_budget(data, tmp_pa
     table = json.loads((out / "selection.json").read_text())
     chosen = table["rows"][table["chosen"]]
     assert chosen["active_terms"] <= 4 and "within 4 terms" in table["rule"]
+    assert all(r["polish"] == ["flight"] for r in table["rows"] if r["refine"])
     assert int(load_model(out / "model.json").mask.sum()) == chosen["active_terms"]

@@ -146,6 +146,32 @@ def test_short_weight_trades_the_whole_jump_for_the_short_windows(lagged):
     assert s30 < s1 and w30 > w1
 
 
+def test_polish_refits_one_phase_alone_after_the_schedule(lagged):
+    """``polish`` is the schedule's result with each named phase refined again alone: the other
+    phases end as the schedule left them, the polished one as a held-phase refinement from there
+    gives it, its short-window cost falls, and the support stays."""
+    ds, _ = lagged
+    problem, init = _problem(ds, train(ds, TrainConfig()))
+    plain = Refine(windows=(0.05, None)).fit(problem, init)
+    polished = Refine(windows=(0.05, None), polish=("flight",), polish_windows=(0.05, None),
+                      polish_weight=50.0).fit(problem, init)
+    alone = Refine(windows=(0.05, None), hold=("contact",), short_weight=50.0).fit(problem, plain)
+    np.testing.assert_array_equal(polished.Xi[0], plain.Xi[0])  # contact: held while flight is polished
+    np.testing.assert_allclose(polished.Xi[1], alone.Xi[1], rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(polished.mask, plain.mask)
+    assert not np.array_equal(polished.Xi[1], plain.Xi[1])
+    stages = polished.report["flight"]["refinement"]["polish"]
+    assert stages[0]["cost_after"] < stages[0]["cost_before"]
+    assert "polish" not in polished.report["contact"]["refinement"]
+    from symrom.learn.plugins import regressor_from_dict
+
+    record = Refine(polish=("flight",), polish_windows=(0.1, None), polish_weight=10.0)
+    assert regressor_from_dict(record.to_dict()) == record
+    assert "polish" not in Refine().to_dict()
+    with pytest.raises(ValueError, match="polish: no phase named"):
+        Refine(polish=("air",)).fit(problem, init)
+
+
 def test_refine_settings_are_checked():
     with pytest.raises(ValueError, match="velocity_weight"):
         Refine(STLSQ(), velocity_weight=0.0)
@@ -153,6 +179,12 @@ def test_refine_settings_are_checked():
         Refine(STLSQ(), short_weight=0.0)
     with pytest.raises(ValueError, match="window"):
         Refine(STLSQ(), windows=())
+    with pytest.raises(ValueError, match="polish_weight"):
+        Refine(STLSQ(), polish=("flight",), polish_weight=-1.0)
+    with pytest.raises(ValueError, match="are held"):
+        Refine(STLSQ(), polish=("flight",), hold=("flight",))
+    with pytest.raises(ValueError, match="needs refine"):
+        TrainConfig(polish=("flight",))
 
 
 def test_budget_prunes_a_dense_model_to_the_planted_support(planted_axis):

@@ -53,8 +53,6 @@ def test_sim_a1_is_compact_does_not_diverge_and_meets_the_paper_over_whole_jumps
     assert met, missed
 
 
-@pytest.mark.xfail(strict=True, reason="not met yet: with 0.1 s resets the 60-term SIM A1 model is at or below "
-                                       "the paper on 8 of 12 components (hip flexion misses; docs/results.md)")
 def test_sim_a1_meets_the_paper_with_resets():
     met, missed = meets_paper_but_hx("0.1")
     assert met, missed

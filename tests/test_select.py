@@ -9,7 +9,8 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.experiments.select import SelectionConfig, choose, parse_library, select, selection_rule
+from symrom.experiments.select import (SelectionConfig, choose, parse_library, select, selection_rule,
+                                      to_refine)
 from conftest import one_line_error
 
 GRID = SelectionConfig(encoders=("all", "base_position"), latent_dims=(2,), libraries=("poly1+trig+inputs",),
@@ -89,6 +90,31 @@ def test_budget_limits_the_choice_to_candidates_within_it():
     assert "at most 12 active terms" in selection_rule(cfg)
     with pytest.raises(ValueError, match="max_terms"):
         replace(GRID, max_terms=0)
+    # Polishing is a stage of the budget's refinements only.
+    assert cfg.train_config("all", 2, "poly1+inputs", 1e-3, refine=True).regressor().polish == ("flight",)
+    assert GRID.train_config("all", 2, "poly1+inputs", 1e-3, refine=True).regressor().polish == ()
+    assert "flight refined again alone" in selection_rule(cfg)
+
+
+def _cand(cell, terms, short, meets_short=False):
+    """An exact candidate of cell (encoder, l, library) with ``terms`` and 0.1 s score ``short``."""
+    worst = None if short is None else (0.9 if meets_short else 1.5)
+    return {"encoder": cell[0], "latent_dim": cell[1], "library": cell[2], "refine": False, "active_terms": terms,
+            "score": None, "horizons": {"full": {"worst": None, "score": None},
+                                        "0.1": {"worst": worst, "score": short}}}
+
+
+def test_budget_refines_the_best_cell_at_short_horizons_nearest_above_the_budget():
+    a, b = ("pose+joints", 6, "poly1+inputs"), ("pose+joints", 7, "poly1+inputs")
+    rows = [_cand(a, 157, 0.39, True), _cand(a, 188, 0.40, True), _cand(a, 114, 0.46),
+            _cand(b, 98, None), _cand(b, 154, None), _cand(b, 215, 0.358, True), _cand(b, 257, 0.357, True),
+            _cand(b, 40, 0.8)]
+    assert to_refine(rows, 2, reference=True) == [0, 1]  # no budget: the sparsest meeting at 0.1 s
+    # With one: those, then the cell best at 0.1 s from its sparsest thresholds at or above the
+    # budget (its own 0.1 s scores do not matter: diverged ones too), then the densest below it.
+    assert to_refine(rows, 2, reference=True, max_terms=60) == [0, 1, 3, 4]
+    assert to_refine(rows, 5, reference=True, max_terms=60) == [0, 1, 5, 6, 2, 3, 4, 7]
+    assert to_refine(rows, 1, reference=True, max_terms=300) == [0, 6]
 
 
 def test_bad_grids_are_named():

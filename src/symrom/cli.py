@@ -306,7 +306,7 @@ def _import_report(ds) -> None:
 # train's options that --select does not use (it chooses them on the val split)
 SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "seed", "encoder_components",
                   "decoded_weight", "alpha", "measure", "collinearity", "encoder_scaling", "encoder_base_latents",
-                  "trig", "refine")
+                  "trig", "refine", "polish")
 
 
 def _refuse_ignored(ctx: typer.Context, names: tuple[str, ...], why: str) -> None:
@@ -350,6 +350,9 @@ def train_cmd(
                                        "(--select's pose+joints; default: one PCA over all, the paper).")] = None,
     trig: Annotated[bool, typer.Option("--trig/--no-trig", help="Trigonometric terms in the library.")] = True,
     refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
+    polish: Annotated[Optional[str], typer.Option(
+        "--polish", help="With --refine: phases refined again, each alone, after the refinement and pruning, "
+                         "e.g. flight (comma-separated; --select with --max-terms polishes flight).")] = None,
     select: Annotated[bool, typer.Option(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
                          "split (it refuses the options above, which it would not use).")] = False,
@@ -391,8 +394,12 @@ def train_cmd(
                          threshold=threshold, seed=seed, adam=adam, encoder_components=comps,
                          decoded_weight=decoded_weight, alpha=alpha, measure=measure,
                          collinearity=collinearity, encoder_scaling=encoder_scaling,
-                         encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms)
+                         encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms,
+                         polish=() if polish is None else tuple(p.strip() for p in polish.split(",") if p.strip()))
     ds = read_dataset(data)
+    unknown = [p for p in config.polish if p not in ds.phase_names]
+    if unknown:
+        raise ValueError(f"--polish: no phase named {unknown} in {data} (its phases are {list(ds.phase_names)})")
     out_console.print(f"training rows: {_phase_rows(ds, ds.rows_of('train'))}", highlight=False, soft_wrap=True)
     with progress_bar() as bar:
         task = bar.add_task("training", total=1.0)

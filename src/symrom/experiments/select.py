@@ -26,6 +26,13 @@ and 0.1 s resets). The grid spans
   selection says so in its notes). The exact candidates keep their thresholds'
   supports; a dense candidate that meets the reference at 0.1 s is thus turned
   into one within the budget, rather than a sparse one refined as it is.
+  With a budget, two more things: the refinement ends with the phases of
+  ``polish`` the data has refined again, each alone (``Refine.polish``); and besides the
+  picks above, the cell (encoder, latent dimension, library) of the exact
+  candidate with the best 0.1 s score is refined from ``refine_top`` of its
+  thresholds, the sparsest with at least ``max_terms`` terms first (an exact
+  fit's own val score says little of what it becomes once pruned, and the
+  fewer terms pruning removes, the less it costs).
 
 Score of a candidate: at each horizon, the mean over the components of the
 validation RMSE divided by a yardstick; the score is the mean of the two
@@ -164,6 +171,7 @@ class SelectionConfig:
     substeps: int = 2
     reference: dict[str, dict[str, float]] | None = None
     max_terms: int | None = None
+    polish: tuple[str, ...] = ("flight",)
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]
@@ -216,7 +224,8 @@ class SelectionConfig:
                            measure=self.measure, collinearity=self.collinearity, alpha=self.alpha,
                            decoded_weight=self.decoded_weight, **ENCODERS[encoder].settings(latent_dim),
                            contact_phase=self.contact_phase, refine=refine,
-                           max_terms=self.max_terms if refine else None)
+                           max_terms=self.max_terms if refine else None,
+                           polish=self.polish if refine and self.max_terms is not None else ())
 
 
 def component_spread(ds: Dataset, floor: float) -> np.ndarray:
@@ -254,7 +263,8 @@ def meets(row: dict, horizons: tuple[str, ...] = ("full", "0.1")) -> bool:
 
 def _row(cfg: SelectionConfig, encoder: str, l: int, library: str, threshold: float, refine: bool,
          model: HybridModel, scored: dict, seconds: float) -> dict[str, Any]:
-    budget = {"max_terms": cfg.max_terms} if refine and cfg.max_terms is not None else {}
+    budget = ({"max_terms": cfg.max_terms, **({"polish": list(cfg.polish)} if cfg.polish else {})}
+              if refine and cfg.max_terms is not None else {})
     return {"encoder": encoder, "latent_dim": l, "library": library, "threshold": threshold, "refine": refine,
             **budget, "active_terms": int(model.mask.sum()), "active_per_phase": model.active_terms(),
             "fast_unstable_phases": [s.phase for s in model.stability() if s.fast_unstable],
@@ -323,8 +333,9 @@ def choose(rows: list[dict], tolerance: float, reference: bool = False,
     return sparsest([i for i in ok if rows[i]["score"] <= (1 + tolerance) * best])
 
 
-def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
-    """Indices of the ``k`` exact candidates to refine (module docstring)."""
+def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int | None = None) -> list[int]:
+    """Indices of the exact candidates to refine (module docstring): ``k`` of them, and
+    with ``max_terms`` up to ``k`` more from the best cell at 0.1 s."""
     short = [i for i, r in enumerate(rows) if r["horizons"]["0.1"]["score"] is not None]
     picked = []
     if reference:  # the sparsest that meet the reference with 0.1 s resets
@@ -333,15 +344,24 @@ def to_refine(rows: list[dict], k: int, reference: bool = False) -> list[int]:
     rest = sorted((i for i in short if i not in picked),
                   key=lambda i: (rows[i]["score"] is None, rows[i]["score"] if rows[i]["score"] is not None
                                  else rows[i]["horizons"]["0.1"]["score"]))
-    return picked + rest[:k - len(picked)]
+    picked += rest[:k - len(picked)]
+    if max_terms is None or not short:
+        return picked
+    cell = lambda r: (r["encoder"], r["latent_dim"], r["library"])  # noqa: E731
+    best = cell(rows[min(short, key=lambda i: rows[i]["horizons"]["0.1"]["score"])])
+    members = [i for i, r in enumerate(rows) if cell(r) == best and not r["refine"]]
+    members.sort(key=lambda i: (rows[i]["active_terms"] < max_terms,
+                                abs(rows[i]["active_terms"] - max_terms)))
+    return picked + [i for i in members if i not in picked][:k]
 
 
 def selection_rule(cfg: SelectionConfig) -> str:
     """The score and the choice of ``choose`` under ``cfg``, in words."""
     tol = f"the sparsest within {cfg.tolerance:.0%} of the best score"
     budget = ("" if cfg.max_terms is None else
-              f"; refinements pruned to at most {cfg.max_terms} active terms, and only candidates within "
-              f"{cfg.max_terms} terms compete (all if none stands)")
+              f"; refinements pruned to at most {cfg.max_terms} active terms"
+              + (f", then {', '.join(cfg.polish)} refined again alone" if cfg.polish else "")
+              + f", and only candidates within {cfg.max_terms} terms compete (all if none stands)")
     if cfg.reference is None:
         return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
                 f"a diverged val jump rejected; {tol} chosen" + budget)
@@ -393,12 +413,13 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     their key (``cell_key``) matches.
     """
     check_splits(ds)
+    cfg = replace(cfg, polish=tuple(p for p in cfg.polish if p in ds.phase_names))  # a motion may have no flight
     t0 = time.perf_counter()
     say = progress or (lambda done, total, what: None)
     backend = backend or LocalBackend(cfg.workers)
     sha = data_hash(ds)
     cells = cfg.cells()
-    total = len(cells) + cfg.refine_top
+    total = len(cells) + cfg.refine_top * (1 if cfg.max_terms is None else 2)
     store = None if cells_dir is None else Store(
         path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c),
         record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},
@@ -413,7 +434,7 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     refined_models = {}
     # The refinements (refine_top of them) run in this process, which compiles the refinement
     # kernel once; a fresh worker process would compile it again before refining.
-    picks = to_refine(rows, cfg.refine_top, cfg.reference is not None)
+    picks = to_refine(rows, cfg.refine_top, cfg.reference is not None, cfg.max_terms)
     total = len(cells) + len(picks)  # fewer than refine_top when fewer candidates qualify
     for k, i in enumerate(picks):
         row = rows[i]

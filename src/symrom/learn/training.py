@@ -63,7 +63,8 @@ class TrainConfig:
     (None = keep all, the paper); ``refine``: refine the coefficients on rollout
     error (``symrom.learn.regressors.refine``); ``max_terms``: with ``refine``, the
     refinement prunes the model to at most this many active terms (``Refine.max_terms``;
-    None = the support STLSQ chose); ``path``: thresholds of a sparsity
+    None = the support STLSQ chose); ``polish``: with ``refine``, phases refined
+    again alone after it (``Refine.polish``); ``path``: thresholds of a sparsity
     path to record with validation errors (None = none).
     """
 
@@ -84,6 +85,7 @@ class TrainConfig:
     collinearity: float | None = None
     refine: bool = False
     max_terms: int | None = None
+    polish: tuple[str, ...] = ()
     path: tuple[float, ...] | None = None
     adam: AdamConfig = field(default_factory=AdamConfig)
 
@@ -115,6 +117,9 @@ class TrainConfig:
         if self.max_terms is not None and (not self.refine or self.max_terms < 1):
             raise ValueError(f"max_terms ({self.max_terms}) is a budget of the refinement: needs refine and "
                              "at least 1")
+        self.polish = tuple(self.polish)
+        if self.polish and not self.refine:
+            raise ValueError(f"polish ({list(self.polish)}) is a stage of the refinement: needs refine")
 
     def regressor(self) -> Regressor:
         """The step (c) plug-in these settings describe."""
@@ -125,7 +130,7 @@ class TrainConfig:
         if self.refine:
             from symrom.learn.regressors.refine import Refine
 
-            return Refine(base, max_terms=self.max_terms)
+            return Refine(base, max_terms=self.max_terms, polish=self.polish)
         return base
 
     def estimator(self, progress: Progress | None = None) -> SymbolicROM:

@@ -32,11 +32,18 @@ in every rollout but are not fitted (a flight phase whose gravity must stay).
 ``short_weight`` weighs the shortest windows' error against the longer windows' in
 the stages they join (1: every sample alike; more: short-horizon accuracy first,
 the whole jump still kept in view).
+
+``polish`` names phases refined once more after the schedule and the pruning, one
+at a time in that order, each alone with every other phase held, on the windows
+``polish_windows`` with the shortest weighted ``polish_weight`` (the support is
+kept). Pruning to a budget costs short-horizon accuracy; in a phase whose
+coefficients the joint fit trades against the others' (a froggy jump's flight),
+a pass on that phase alone can get it back (SIM A1: docs/results.md).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -61,7 +68,9 @@ class Refine(Regressor):
     the largest |xi|, |dxi| of the training jumps; substeps: RK4 steps per sample;
     stride: score every stride-th sample of a window; hold: names of phases whose
     coefficients are kept as the start has them (simulated, not fitted); short_weight:
-    weight of the shortest windows' squared error in the stages they join."""
+    weight of the shortest windows' squared error in the stages they join; polish: phases
+    refined again, each alone, after the schedule and pruning, on ``polish_windows`` (s)
+    with the shortest weighted ``polish_weight``."""
 
     kind: ClassVar[str] = "refine"
     initial: Regressor = field(default_factory=STLSQ)
@@ -76,6 +85,9 @@ class Refine(Regressor):
     prune_share: float = 0.25
     hold: tuple[str, ...] = ()
     short_weight: float = 1.0
+    polish: tuple[str, ...] = ()
+    polish_windows: tuple[float | None, ...] = (0.1, None)
+    polish_weight: float = 100.0
 
     needs_trajectories = True
 
@@ -88,6 +100,12 @@ class Refine(Regressor):
             raise ValueError(f"max_terms must be at least 1, got {self.max_terms}")
         if not self.short_weight > 0:
             raise ValueError(f"short_weight must be > 0, got {self.short_weight}")
+        if not self.polish_weight > 0:
+            raise ValueError(f"polish_weight must be > 0, got {self.polish_weight}")
+        if not self.polish_windows:
+            raise ValueError("polish needs at least one window length")
+        if set(self.polish) & set(self.hold):
+            raise ValueError(f"polish: phase(s) {sorted(set(self.polish) & set(self.hold))} are held")
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
 
@@ -101,16 +119,19 @@ class Refine(Regressor):
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
                 "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share,
                 **({"hold": list(self.hold)} if self.hold else {}),
-                **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {})}
+                **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {}),
+                **({"polish": list(self.polish), "polish_windows": list(self.polish_windows),
+                    "polish_weight": self.polish_weight} if self.polish else {})}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
         start = init if init is not None else self.initial.fit(problem)
         if not problem.trajectories:
             raise ValueError("refinement needs the training jumps (problem.trajectories)")
-        unknown = sorted(set(self.hold) - set(problem.phase_names))
-        if unknown:
-            raise ValueError(f"hold: no phase named {unknown} (the phases are {list(problem.phase_names)})")
+        for key in ("hold", "polish"):
+            unknown = sorted(set(getattr(self, key)) - set(problem.phase_names))
+            if unknown:
+                raise ValueError(f"{key}: no phase named {unknown} (the phases are {list(problem.phase_names)})")
         trajs = problem.trajectories
         if len(trajs) > self.max_jumps:
             trajs = [trajs[i] for i in np.linspace(0, len(trajs) - 1, self.max_jumps).round().astype(int)]
@@ -157,6 +178,15 @@ class Refine(Regressor):
         report = {name: {**start.report.get(name, {}), "refinement": {
             "stages": stages, "jumps": len(trajs), **({"prunings": prunings} if self.max_terms is not None else {})}}
             for name in problem.phase_names}
+        for name in self.polish:
+            if not mask[problem.phase_names.index(name)].any():  # pruned away: nothing to polish
+                report[name]["refinement"]["polish"] = []
+                continue
+            alone = replace(self, windows=self.polish_windows, short_weight=self.polish_weight, max_terms=None,
+                            polish=(), hold=tuple(n for n in problem.phase_names if n != name))
+            done = alone._reduce(problem, allowed, Coefficients(Xi, mask))
+            Xi, mask = done.Xi, done.mask
+            report[name]["refinement"]["polish"] = done.report[name]["refinement"]["stages"]
         return Coefficients(Xi, mask, report)
 
     def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[tuple[Windows, float]]], lengths: list,
