@@ -24,12 +24,12 @@ from symrom.atomic import write_text_atomic
 from symrom.data.io import read_dataset
 from symrom.experiments import select
 from symrom.experiments.reproduce import ReproduceConfig
-from symrom.learn.calibrate import FLIGHT_PHASE
 from symrom.learn.estimator import phase_data, trajectories
 from symrom.learn.regressors.base import Coefficients, RegressionProblem
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.training import train
 from symrom.model.hybrid import HybridModel
+from symrom.names import FLIGHT_PHASE
 
 VERSION = 1
 WEIGHTS = (1.0, 10.0, 100.0, 1000.0)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from symrom.names import N_LEGS
+from symrom.names import FLIGHT_PHASE, N_LEGS, PARTIAL_PHASE, STANCE_PHASE
 
 PhaseRule = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
@@ -75,10 +75,10 @@ class MotionEntry:
 
 
 MOTIONS: dict[str, MotionEntry] = {
-    "froggy": MotionEntry("froggy", ("contact", "partial", "flight"), partial_before_flight,
+    "froggy": MotionEntry("froggy", (STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE), partial_before_flight,
                           splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION",
                           variants=("randomized",)),
-    "pronk": MotionEntry("pronk", ("contact", "flight"), contact_flight,
+    "pronk": MotionEntry("pronk", (STANCE_PHASE, FLIGHT_PHASE), contact_flight,
                          splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.pronk:MOTION",
                          variants=("proxy", "randomized")),
 }

@@ -17,6 +17,11 @@ Q_NAMES: tuple[str, ...] = JOINT_NAMES + BASE_NAMES
 WRENCH_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
 U_NAMES: tuple[str, ...] = tuple(f"tau_{n}" for n in JOINT_NAMES) + WRENCH_NAMES
 
+# Phase names the motions share (``symrom.motions`` gives each motion's phases, in order).
+STANCE_PHASE = "contact"  # every foot down
+PARTIAL_PHASE = "partial"  # some feet down, before the first flight (froggy)
+FLIGHT_PHASE = "flight"  # no foot down
+
 N_JOINTS = len(JOINT_NAMES)  # 12
 N_Q = len(Q_NAMES)  # 18
 N_LEGS = len(LEGS)  # 4

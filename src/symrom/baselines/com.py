@@ -16,12 +16,11 @@ from collections.abc import Callable
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.names import BASE_POS, WRENCH
+from symrom.names import BASE_POS, FLIGHT_PHASE, WRENCH
 from symrom.rollout.system import RolloutSystem
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
 COMPONENTS: tuple[str, ...] = ("x", "y", "z")
-FLIGHT_PHASE = "flight"
 
 
 def robot_mass(robot: str) -> float:

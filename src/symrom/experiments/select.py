@@ -81,7 +81,7 @@ from symrom.learn.encoders import unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import write_model_files
-from symrom.names import BASE_NAMES, Q_NAMES
+from symrom.names import BASE_NAMES, FLIGHT_PHASE, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
 SELECTION_VERSION = 2
@@ -171,7 +171,7 @@ class SelectionConfig:
     substeps: int = 2
     reference: dict[str, dict[str, float]] | None = None
     max_terms: int | None = None
-    polish: tuple[str, ...] = ("flight",)
+    polish: tuple[str, ...] = (FLIGHT_PHASE,)
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]

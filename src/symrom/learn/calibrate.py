@@ -52,9 +52,8 @@ from scipy.constants import g as STANDARD_GRAVITY  # m/s^2
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel, ModelDataError
-from symrom.names import Q_NAMES
+from symrom.names import FLIGHT_PHASE, Q_NAMES
 
-FLIGHT_PHASE = "flight"
 FLIGHT_TOLERANCE = 0.05  # of g: the flight residual that would move gravity by more than 5 %
 FLIGHT_T = 3.0  # standard errors (over jumps) the flight residual must also exceed
 CALIBRATION_TERMS = ("support", "every")  # where an offset and a damping are fitted (``calibrate``)

@@ -66,8 +66,9 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.learn.calibrate import CALIBRATION_TERMS, FLIGHT_PHASE, calibrate, flight_gravity, nothing_to_adapt
+from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
+from symrom.names import FLIGHT_PHASE
 
 
 FINETUNE_METHODS = ("calibrate", "acceleration", "rollout", "calibrate_rollout")
