@@ -45,9 +45,7 @@ def polish_alone(model: HybridModel, ds, weight: float) -> HybridModel:
     spread = np.maximum(ae.encode_derivative(ds.ddq[rows]).std(axis=0), 1e-12)
     problem = RegressionProblem(model.library, list(model.phase_names), phases, spread, ds.dt,
                                 trajectories(ds, rows, ae))
-    base = Refine()
-    stage = Refine(windows=base.polish_windows, short_weight=weight,
-                   hold=tuple(n for n in model.phase_names if n != FLIGHT_PHASE))
+    stage = Refine(polish_weight=weight).polish_stage(FLIGHT_PHASE, list(model.phase_names))
     fit = stage.fit(problem, init=Coefficients(model.Xi.copy(), model.mask.copy()))
     return replace(model, Xi=fit.Xi, mask=fit.mask)
 

@@ -81,7 +81,7 @@ from symrom.learn.encoders import unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import write_model_files
-from symrom.names import BASE_NAMES, FLIGHT_PHASE, Q_NAMES
+from symrom.names import BASE_NAMES, FLIGHT_PHASE, Q_NAMES, STANCE_PHASE
 from symrom.rollout.integrate import RolloutOptions
 
 SELECTION_VERSION = 2
@@ -166,7 +166,7 @@ class SelectionConfig:
     collinearity: float = 0.995
     alpha: float = 1e-6
     decoded_weight: float = 0.0
-    contact_phase: str = "contact"
+    contact_phase: str = STANCE_PHASE
     workers: int = 1
     substeps: int = 2
     reference: dict[str, dict[str, float]] | None = None
@@ -349,7 +349,7 @@ def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int 
         return picked
     cell = lambda r: (r["encoder"], r["latent_dim"], r["library"])  # noqa: E731
     best = cell(rows[min(short, key=lambda i: rows[i]["horizons"]["0.1"]["score"])])
-    members = [i for i, r in enumerate(rows) if cell(r) == best and not r["refine"]]
+    members = [i for i, r in enumerate(rows) if cell(r) == best]
     members.sort(key=lambda i: (rows[i]["active_terms"] < max_terms,
                                 abs(rows[i]["active_terms"] - max_terms)))
     return picked + [i for i in members if i not in picked][:k]

@@ -46,7 +46,7 @@ from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.guards import Guard, fit_guards
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
-from symrom.names import Q_NAMES
+from symrom.names import Q_NAMES, STANCE_PHASE
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
 
@@ -133,7 +133,7 @@ class SymbolicROM:
     encoder: PCAEncoder | AdamAutoencoder = field(default_factory=PCAEncoder)
     regressor: Regressor = field(default_factory=STLSQ)
     decoded_weight: float = 1.0
-    contact_phase: str = "contact"
+    contact_phase: str = STANCE_PHASE
     path_thresholds: tuple[float, ...] | None = None
     model_: HybridModel | None = field(default=None, init=False, repr=False)
 

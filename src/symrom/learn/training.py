@@ -39,6 +39,7 @@ from symrom.learn.regressors.base import Regressor
 from symrom.learn.regressors.stlsq import STLSQ, check_measure
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import LibrarySpec
+from symrom.names import STANCE_PHASE
 
 __all__ = ["AdamConfig", "SOLVERS", "TrainConfig", "contact_rows", "data_hash", "fit_decoder",
            "principal_encoder", "reconstruction_error", "train", "varimax"]
@@ -76,7 +77,7 @@ class TrainConfig:
     threshold: float = 0.01
     alpha: float = 0.0
     seed: int = 0
-    contact_phase: str = "contact"
+    contact_phase: str = STANCE_PHASE
     encoder_components: tuple[str, ...] | None = None
     encoder_scaling: str = "none"
     encoder_base_latents: int | None = None

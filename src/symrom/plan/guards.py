@@ -24,6 +24,8 @@ from typing import Protocol
 
 import casadi as ca
 
+from symrom.names import FLIGHT_PHASE, STANCE_PHASE
+
 Constraint = tuple[ca.SX, float, float]
 
 
@@ -74,7 +76,7 @@ class LearnedGuards:
     min_rise_speed: float = 0.3  # m/s, as HeightGuards
 
     @classmethod
-    def of(cls, model, stance: str = "contact", flight: str = "flight") -> LearnedGuards:
+    def of(cls, model, stance: str = STANCE_PHASE, flight: str = FLIGHT_PHASE) -> LearnedGuards:
         """The guards of ``model`` (a ``HybridModel``); ValueError if it lacks either switch."""
         found = {(g.source, g.target): g for g in getattr(model, "guards", None) or []}
         for pair in ((stance, flight), (flight, stance)):

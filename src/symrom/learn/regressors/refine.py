@@ -109,6 +109,12 @@ class Refine(Regressor):
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
 
+    def polish_stage(self, phase: str, phase_names: list[str]) -> Refine:
+        """The refinement that polishes ``phase`` alone: on ``polish_windows``, the shortest
+        weighted ``polish_weight``, every other of ``phase_names`` held, no budget."""
+        return replace(self, windows=self.polish_windows, short_weight=self.polish_weight, max_terms=None,
+                       polish=(), hold=tuple(n for n in phase_names if n != phase))
+
     @property
     def collinearity(self) -> float | None:  # the support is the initial regressor's
         return None
@@ -182,9 +188,7 @@ class Refine(Regressor):
             if not mask[problem.phase_names.index(name)].any():  # pruned away: nothing to polish
                 report[name]["refinement"]["polish"] = []
                 continue
-            alone = replace(self, windows=self.polish_windows, short_weight=self.polish_weight, max_terms=None,
-                            polish=(), hold=tuple(n for n in problem.phase_names if n != name))
-            done = alone._reduce(problem, allowed, Coefficients(Xi, mask))
+            done = self.polish_stage(name, problem.phase_names)._reduce(problem, allowed, Coefficients(Xi, mask))
             Xi, mask = done.Xi, done.mask
             report[name]["refinement"]["polish"] = done.report[name]["refinement"]["stages"]
         return Coefficients(Xi, mask, report)
