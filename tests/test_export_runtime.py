@@ -119,3 +119,18 @@ def test_the_python_runtime_integrates_and_switches_on_its_own_tables():
         model.accel(2, np.zeros(2), np.zeros(1))
     with pytest.raises(ValueError, match="no input map"):
         model.input_from_torques(q0, np.zeros(12), np.ones(4))
+
+
+def test_the_runtime_files_are_package_data():
+    """Every file of the runtime ships with the package: pyproject's package-data globs cover it."""
+    import tomllib
+    from pathlib import Path
+
+    import symrom
+
+    root = Path(symrom.__file__).parent
+    globs = tomllib.loads((root.parents[1] / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    shipped = {p for g in globs["symrom"] for p in root.glob(g)}
+    runtime = {p for p in (root / "export" / "runtime").iterdir() if p.is_file()}
+    assert {p.name for p in runtime} >= {"symrom_runtime.c", "symrom_runtime.h", "symrom_runtime.py"}
+    assert runtime <= shipped, sorted(p.name for p in runtime - shipped)
