@@ -45,15 +45,15 @@ from pathlib import Path
 def child(args: argparse.Namespace) -> dict:
     import numpy as np
 
+    from symrom import compiled
     from symrom.learn.training import TrainConfig, train
-    from symrom.model import codegen
     from symrom.rollout.integrate import RolloutOptions, integrate_system, rollout
     from symrom.testing import make_planted_dataset
 
     ds, _ = make_planted_dataset(args.jumps, args.samples, embedding="block", noise=1e-4, seed=0)
     model = train(ds, TrainConfig(latent_dim=args.latent_dim, poly_order=1))
     samples = ds.n_samples
-    out = {"has_build_at_start": codegen.has_build(model), "samples": samples,
+    out = {"has_build_at_start": compiled.has_build(model.dynamics()), "samples": samples,
            "active_terms": int(model.mask.sum()), "paths": {}}
     order = ["auto", "table", "generated"] if out["has_build_at_start"] else ["auto", "table", "generated", "auto"]
     ref = None
@@ -86,7 +86,7 @@ def child(args: argparse.Namespace) -> dict:
                               "integration_samples_per_cpu_s": samples / statistics.median(cpu),
                               "max_diff_vs_first_path": float(np.abs(q - ref).max()),
                               "diverged": int(ro.diverged.sum())}
-    out["has_build_at_end"] = codegen.has_build(model)
+    out["has_build_at_end"] = compiled.has_build(model.dynamics())
     return out
 
 

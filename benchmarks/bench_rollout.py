@@ -55,8 +55,8 @@ os.environ.setdefault("NUMBA_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-bench-n
 
 import numpy as np
 
-from symrom.model.codegen import generated_integrator
-from symrom.model.export import export
+from symrom import compiled
+from symrom.export import export
 from symrom.learn.training import TrainConfig, train
 from symrom.rollout import compiled_lsoda
 from symrom.rollout.integrate import (
@@ -305,7 +305,8 @@ def main() -> None:
                if compiled_lsoda.available() else {}),
             "rk4_numpy": (padded(numpy_rk4), whole(opts("rk4", "numpy")), "rk4"),
             "rk4_table": (padded(sysm.compiled), whole(opts("rk4", "table")), "rk4"),
-            "rk4_generated": (padded(generated_integrator(model)), whole(opts("rk4", "generated")), "rk4"),
+            "rk4_generated": (padded(compiled.generated(model.dynamics()).integrator), whole(opts("rk4", "generated")),
+                              "rk4"),
         }
         if c_model is not None:
             out["rk4_c"] = (padded(c_model), None, "rk4")
@@ -365,9 +366,7 @@ def main() -> None:
     print("one jump, full horizon", file=sys.stderr, flush=True)
     res["single_jump"] = measure(np.array([0]), None, args.single_runs, args.slow_runs,
                                  1 if args.peer_jumps >= 1 else 0)
-    from symrom.model.codegen import compile_seconds
-
-    res["compile_s"]["generated"] = compile_seconds(model)
+    res["compile_s"]["generated"] = compiled.compile_seconds(model.dynamics())
     res["wall_time_s"] = time.perf_counter() - wall0
     shutil.rmtree(tmp, ignore_errors=True)
 

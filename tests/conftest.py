@@ -17,7 +17,7 @@ from symrom.testing import make_planted_dataset
 # instance on the loopback interface (Ray's single-machine mode).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-# The generated code's disk cache of the test session, not the user's (symrom.model.codegen).
+# The generated code's disk cache of the test session, not the user's (symrom.compiled.codegen).
 if "SYMROM_CACHE_DIR" not in os.environ:
     os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")
     atexit.register(shutil.rmtree, os.environ["SYMROM_CACHE_DIR"], True)

@@ -16,22 +16,26 @@ LAYERS: dict[str, int] = {
     "names": 0, "atomic": 0, "motions": 0, "execution": 0,
     "robots": 1,
     "data": 2,
-    "sim": 3, "rollout": 3,
+    "sim": 3, "rollout": 3, "compiled": 3,
     "model": 4, "baselines": 4,
-    "learn": 5, "testing": 5, "evaluate": 5, "plan": 5,
+    "learn": 5, "testing": 5, "evaluate": 5, "plan": 5, "export": 5,
     "experiments": 6,
     "report": 7,
     "cli": 8,
 }
 # Inside a package, the same rule between its modules (or subpackages).
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {
-    # the fitted model: its parts, then the compiled execution, the model, its file, its export
-    "model": {"autoencoder": 0, "library": 0, "expressions": 0, "guards": 0,
-              "kernel": 1, "codegen": 1, "codec": 1, "shooting": 1,
-              "hybrid": 2, "path": 2, "persistence": 3, "export_io": 4, "export": 4},
-    # learning: the problem and its regressors, the encoders, the estimator, then what drives it
-    "learn": {"audit": 0, "calibrate": 0, "regressors": 1, "adam": 2, "encoders": 2, "plugins": 3, "estimator": 4,
-              "finetune": 5, "training": 5},
+    # compiled execution: the descriptions it reads, then its kernels and generated code
+    "compiled": {"dynamics": 0, "codec": 0, "kernel": 1, "codegen": 1},
+    # the fitted model: its terms, the expressions, the guards, then the model, its file
+    "model": {"autoencoder": 0, "library": 0, "expressions": 1, "guards": 1,
+              "hybrid": 2, "path": 2, "persistence": 3},
+    # learning: the shooting and guard fitting, the problem and its regressors, the encoders, the
+    # estimator, then what drives it
+    "learn": {"audit": 0, "calibrate": 0, "guards": 0, "shooting": 0, "regressors": 1, "adam": 2, "encoders": 2,
+              "plugins": 3, "estimator": 4, "finetune": 5, "training": 5},
+    # export: the tables, then one writer per target
+    "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
     # planning: the models and guards, the problem, its execution, the jump that uses both
     "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "execute": 2, "jump": 3},
 }
@@ -188,6 +192,31 @@ def test_the_library_never_prints_or_exits():
                 name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
                 if name in ("print", "exit", "quit", "echo") or (name == "_exit"):
                     found.append(f"{rel}:{node.lineno} calls {name}")
+    assert not found, "\n".join(found)
+
+
+def test_compiled_execution_has_one_entry_point():
+    """Outside ``symrom/compiled/`` the compiled execution is reached through the package
+    itself (``symrom.compiled``), never through one of its modules."""
+    found = []
+    for path, rel, layer in _modules():
+        if layer == "compiled":
+            continue
+        for module, line in _imports(path):
+            if module.startswith("symrom.compiled."):
+                found.append(f"{rel}:{line} imports {module}")
+    assert not found, "\n".join(found)
+
+
+def test_the_compiled_code_knows_no_model():
+    """``symrom/compiled/`` reads typed descriptions (``LatentDynamics``, ``TermLibrary``,
+    ``LinearMaps``): it names no class of the model's, not even for a type checker."""
+    found = []
+    for path in sorted((SRC / "compiled").rglob("*.py")):
+        text = path.read_text()
+        found += [f"{path.relative_to(SRC)} names {name}" for name in ("HybridModel", "Library", "LinearAutoencoder")
+                  if any(isinstance(n, ast.Name) and n.id == name or isinstance(n, ast.alias) and n.name == name
+                         for n in ast.walk(ast.parse(text)))]
     assert not found, "\n".join(found)
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from symrom.learn.training import TrainConfig, train
-from symrom.model.codec import JumpViews, decode_jumps, encode_inputs, encode_states
+from symrom.compiled import JumpViews, decode_jumps, encode_inputs, encode_states
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.rollout.system import Padded
 

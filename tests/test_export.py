@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.learn.training import TrainConfig, train
-from symrom.model.export import export
+from symrom.export import export
 from symrom.model.persistence import model_hash, save_model
 from symrom.rollout.integrate import RolloutOptions, rollout
 from conftest import one_line_error

@@ -11,7 +11,7 @@ import pytest
 
 from symrom.data.preprocess import input_from_torques
 from symrom.learn.training import TrainConfig, train
-from symrom.model.export import export
+from symrom.export import export
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from symrom import compiled
+from symrom.compiled import codegen
 from symrom.learn.training import TrainConfig, train
-from symrom.model import codegen
 from symrom.rollout.integrate import GENERATED_PAYS_STEPS, RolloutOptions, rollout
 
 
@@ -26,14 +27,14 @@ def _q(model, ds, backend):
 def test_auto_takes_the_generated_code_once_built_and_the_disk_cache_serves_a_new_process(
         model_and_data, tmp_path, monkeypatch):
     model, ds = model_and_data
-    monkeypatch.setenv(codegen.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setenv(compiled.CACHE_ENV, str(tmp_path / "cache"))
     codegen._CACHE.clear()
-    assert not codegen.has_build(model)
+    assert not compiled.has_build(model.dynamics())
     table = _q(model, ds, "table")
     np.testing.assert_array_equal(_q(model, ds, "auto"), table)  # a small rollout: no compilation
     gen = _q(model, ds, "generated")
     assert not np.array_equal(gen, table)  # the two paths round differently: which one ran is visible
-    assert codegen.has_build(model)
+    assert compiled.has_build(model.dynamics())
     np.testing.assert_array_equal(_q(model, ds, "auto"), gen)
     (module,) = (tmp_path / "cache").glob("symrom_model_*.py")
     assert module.with_suffix(".built").is_file()
@@ -43,11 +44,11 @@ def test_auto_takes_the_generated_code_once_built_and_the_disk_cache_serves_a_ne
     from symrom.model.persistence import save_model
 
     save_model(model, tmp_path / "m.json")
-    code = ("import sys; from symrom.model.persistence import load_model; from symrom.model import codegen; "
-            f"m = load_model({str(tmp_path / 'm.json')!r}); print(codegen.has_build(m)); "
-            "codegen.generated_integrator(m); print(codegen.has_build(m))")
-    env = {**os.environ, codegen.CACHE_ENV: str(tmp_path / "cache"),
-           "PYTHONPATH": os.pathsep.join([str(Path(codegen.__file__).parents[2]), os.environ.get("PYTHONPATH", "")])}
+    code = ("import sys; from symrom.model.persistence import load_model; from symrom import compiled; "
+            f"m = load_model({str(tmp_path / 'm.json')!r}); print(compiled.has_build(m.dynamics())); "
+            "compiled.generated(m.dynamics()); print(compiled.has_build(m.dynamics()))")
+    env = {**os.environ, compiled.CACHE_ENV: str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(Path(compiled.__file__).parents[2]), os.environ.get("PYTHONPATH", "")])}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "True"]  # the tampered module was no build; rebuilt
@@ -56,9 +57,9 @@ def test_auto_takes_the_generated_code_once_built_and_the_disk_cache_serves_a_ne
 
 def test_auto_compiles_when_the_work_pays(model_and_data, monkeypatch):
     model, ds = model_and_data
-    monkeypatch.setenv(codegen.CACHE_ENV, "off")
+    monkeypatch.setenv(compiled.CACHE_ENV, "off")
     codegen._CACHE.clear()
-    assert codegen.cache_dir() is None and not codegen.has_build(model)
+    assert compiled.cache_dir() is None and not compiled.has_build(model.dynamics())
     import importlib
 
     monkeypatch.setattr(importlib.import_module("symrom.rollout.integrate"), "GENERATED_PAYS_STEPS", 10)

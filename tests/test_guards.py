@@ -5,8 +5,9 @@ import json
 import numpy as np
 import pytest
 
+from symrom.learn.guards import fit_guards
 from symrom.learn.training import TrainConfig, train
-from symrom.model.guards import Guard, feature_names, fit_guards, first_switch, switch
+from symrom.model.guards import Guard, feature_names, first_switch, switch
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
 
 DT = 0.002

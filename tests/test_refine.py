@@ -9,7 +9,7 @@ from symrom.learn.estimator import trajectories
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.learn.training import TrainConfig, train
-from symrom.model.shooting import Parameters, cut_windows, simulate
+from symrom.learn.shooting import Parameters, cut_windows, simulate
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import make_planted_dataset
 

@@ -183,7 +183,7 @@ def _c_rollout(model, ds, j, reset, substeps=2):
     import tempfile
     from pathlib import Path
 
-    from symrom.model.export import export
+    from symrom.export import export
     from symrom.rollout.integrate import reset_mask
 
     cc = shutil.which("cc") or shutil.which("gcc")
@@ -235,7 +235,7 @@ def test_the_stage_shift_of_sines_and_cosines_is_exact_to_rounding():
 
     import numba
 
-    from symrom.model.codegen import SHIFT_MAX, SHIFT_SOURCE
+    from symrom.compiled.codegen import SHIFT_MAX, SHIFT_SOURCE
 
     ns = {"math": math}
     exec(SHIFT_SOURCE, ns)  # noqa: S102 - the module's own source

@@ -701,7 +701,7 @@ def export_cmd(
 ) -> None:
     """Write the model as standalone code: encoder, decoder, each phase's dynamics, an RK4 step."""
     from symrom.atomic import atomic_dir, check_output_file
-    from symrom.model.export import TARGETS, export
+    from symrom.export import TARGETS, export
     from symrom.model.persistence import load_model, model_hash
 
     if to not in TARGETS:

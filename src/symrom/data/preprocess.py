@@ -97,7 +97,7 @@ def input_from_torques(robot: str, q: np.ndarray, tau: np.ndarray, contact: np.n
     """The input map: u (N, 18) = [tau, CoM wrench] from q (N, 18), joint torques tau (N, 12)
     N m, contact flags (N, 4) and, if known, the feet (N, 4, 3) m world (else from the
     kinematics). The one definition of a model's input ``u``: datasets are built with it, and
-    the exports carry it (``symrom.model.export``)."""
+    the exports carry it (``symrom.export``)."""
     q, tau = np.atleast_2d(np.asarray(q, dtype=float)), np.atleast_2d(np.asarray(tau, dtype=float))
     return np.concatenate([tau, com_wrench(robot, q, tau, np.atleast_2d(contact), foot_pos)], axis=1)
 

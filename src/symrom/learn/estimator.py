@@ -39,11 +39,12 @@ import numpy as np
 from symrom.data.dataset import Dataset, jump_bounds
 from symrom.learn.adam import Adam
 from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
+from symrom.learn.guards import fit_guards
 from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor_from_dict
 from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.guards import Guard, fit_guards
+from symrom.model.guards import Guard
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
 from symrom.names import Q_NAMES, STANCE_PHASE
@@ -98,8 +99,9 @@ def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder,
 
 
 def learn_guards(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder) -> list[Guard]:
-    """The contact guards (``symrom.model.guards``) of the phases of ``ds``, fitted on the jumps of
-    ``rows`` (N,) bool and chosen on those of ``val_rows``, in the latent coordinates of ``ae``."""
+    """The contact guards (``symrom.model.guards``) of the phases of ``ds``, fitted by ``symrom.learn.guards``
+    on the jumps of ``rows`` (N,) bool and chosen on those of ``val_rows``, in the latent coordinates of
+    ``ae``."""
     idx = np.flatnonzero(rows | val_rows)
     Z = np.c_[ae.encode(ds.q[idx]), ae.encode_derivative(ds.dq[idx]), ae.encode_input(ds.u[idx])]
     bounds = jump_bounds(ds.jump[idx])

@@ -1,12 +1,15 @@
 """The latent dynamics as sympy expressions: the one builder behind the printed
-equations (``HybridModel.equations``), the generated code (``codegen``) and the
-exports (``export``)."""
+equations (``HybridModel.equations``), the generated code (``symrom.compiled``,
+through ``latent_dynamics``) and the exports (``symrom.export``)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import sympy
 
+from symrom.compiled import LatentDynamics
 from symrom.model.library import Library
 
 
@@ -34,3 +37,11 @@ def latent_expressions(library: Library, Xi: np.ndarray, digits: int | None = No
             rows.append(sympy.Add(*terms) if terms else zero)
         out.append(rows)
     return out
+
+
+def latent_dynamics(library: Library, Xi: np.ndarray, phase_names: Sequence[str]) -> LatentDynamics:
+    """The hybrid latent model with coefficients Xi (P, p, l) over ``library`` as the compiled
+    code reads it; its right-hand sides are ``latent_expressions(library, Xi)``, built when a
+    compilation asks for them."""
+    Xi = np.array(Xi, dtype=float)  # a copy: the description stays what it was made of
+    return LatentDynamics(library.terms, Xi, tuple(phase_names), lambda: latent_expressions(library, Xi))

@@ -21,13 +21,12 @@ from typing import Any, ClassVar
 import numpy as np
 import sympy
 
+from symrom import compiled
+from symrom.compiled import JumpViews, LatentDynamics, decode_jumps, encode_inputs, encode_states
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.codec import JumpViews, decode_jumps, encode_inputs, encode_states
-from symrom.model.codegen import generated_c_rhs, generated_integrator, generated_rhs, has_build
-from symrom.model.expressions import latent_expressions
+from symrom.model.expressions import latent_dynamics, latent_expressions
 from symrom.model.guards import Guard
-from symrom.model.kernel import compiled_rollout
 from symrom.model.library import Library
 from symrom.names import Q_NAMES
 from symrom.rollout.system import GeneratedCode, Padded, RolloutSystem
@@ -164,6 +163,10 @@ class HybridModel:
         return [n for n in self.phase_names if n not in self.phase_info or self.phase_info[n].trained]
 
     # ------------------------------------------------------------ the dynamics
+    def dynamics(self) -> LatentDynamics:
+        """The latent dynamics as the compiled code reads them (``symrom.compiled``)."""
+        return latent_dynamics(self.library, self.Xi, self.phase_names)
+
     def latent_acceleration(self, xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray,
                             phase: np.ndarray) -> np.ndarray:
         """ddxi (N, l) from xi, dxi, nu (N, l) and model phase indices (N,)."""
@@ -250,6 +253,7 @@ class HybridModel:
         (n, l), held inputs nu (n, l) and model phase indices (n,); scale (J, 2l); padded:
         the same stacked, if at hand (``RolloutSystem.padded``)."""
         lib, Xi, ae = self.library, self.Xi, self.autoencoder
+        dyn = self.dynamics()
 
         def c_params(drive: dict[str, np.ndarray]) -> np.ndarray:
             """(n, 1 + l): the C right-hand side's data per sample, [phase index, nu]."""
@@ -259,13 +263,14 @@ class HybridModel:
             return np.einsum("jp,jpl->jl", lib.transform(xs, vs, drive["nu"]), Xi[drive["phase"]])
 
         def generated() -> GeneratedCode:
-            return GeneratedCode(integrator=generated_integrator(self), rhs=generated_rhs(self),
+            code = compiled.generated(dyn)
+            return GeneratedCode(integrator=code.integrator, rhs=code.rhs,
                                  rhs_args=lambda drive, k: (int(drive["phase"][k]), drive["nu"][k]),
-                                 c_rhs=lambda: generated_c_rhs(self), c_params=c_params)
+                                 c_rhs=code.c_rhs, c_params=c_params)
 
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
-                             lambda i, X: ae.decode(X), compiled_rollout(lib, Xi), generated,
-                             lambda: has_build(self), padded, lambda X, lens: decode_jumps(ae, X, lens))
+                             lambda i, X: ae.decode(X), compiled.table_integrator(lib.terms, Xi), generated,
+                             lambda: compiled.has_build(dyn), padded, lambda X, lens: decode_jumps(ae, X, lens))
 
     # ------------------------------------------------------------ free prediction
     def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,

@@ -31,6 +31,8 @@ from typing import ClassVar
 import numpy as np
 import sympy
 
+from symrom.compiled import TermLibrary
+
 # Preference among near-collinear candidates (lower is simpler and kept first):
 # the constant, then single state variables, inputs, higher monomials, trig, custom.
 RANK_CONSTANT, RANK_LINEAR, RANK_INPUT, RANK_MONOMIAL, RANK_TRIG, RANK_CUSTOM = range(6)
@@ -414,6 +416,13 @@ class Library:
     def sympy_features(self) -> list[sympy.Expr]:
         """The terms as sympy expressions of xi1.., dxi1.., nu1.. (index from 1)."""
         return [e for b in self.blocks for e in b.sympy(self.latent_dim)]
+
+    @cached_property
+    def terms(self) -> TermLibrary:
+        """The terms as the compiled code reads them (``symrom.compiled``): the sympy features
+        over ``symbols(l)``, and the library's record as its identity."""
+        s, nu = symbols(self.latent_dim)
+        return TermLibrary(tuple(self.sympy_features()), tuple(s), tuple(nu), repr(self.to_dict()))
 
     def to_dict(self) -> dict:
         return {"latent_dim": int(self.latent_dim), "blocks": self.spec.to_list(),

@@ -113,7 +113,7 @@ class LearnedDynamics:
     name = "learned"
 
     def __init__(self, model: HybridModel, B: np.ndarray):
-        from symrom.model.export import casadi_functions
+        from symrom.export import casadi_functions
 
         for phase in (STANCE_PHASE, FLIGHT_PHASE):
             if phase not in model.trained_phases():

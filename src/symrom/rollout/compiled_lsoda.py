@@ -5,7 +5,7 @@ and is entered from Python once per sample interval (the input is held over
 each interval, so LSODA restarts there). Here the loop over the intervals is
 compiled by numba and calls numbalsoda's LSODA (a C++ port of the same
 Hindmarsh-Petzold solver) with the model's right-hand side as a C callback
-(``symrom.model.codegen.generated_c_rhs``). Same tolerances, step budget,
+(``symrom.compiled.generated``, its ``c_rhs``). Same tolerances, step budget,
 restarts, resets and divergence rule as ``integrate_lsoda``; given the same
 right-hand side the two LSODA implementations give the same paths bit for bit.
 

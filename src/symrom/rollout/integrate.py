@@ -38,7 +38,7 @@ from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
 # auto: rk4 by the model's generated code when a build of it is at hand (compiled in this
-# process or in the disk cache, ``symrom.model.codegen.has_build``) or when the rollout's
+# process or in the disk cache, ``symrom.compiled.has_build``) or when the rollout's
 # work pays for compiling it (``GENERATED_PAYS_STEPS``), else by the compiled term-table
 # kernel (no compilation per model); lsoda with the NumPy right-hand side; generated: the
 # model's own compiled code for both (about a second to compile per model, then the

@@ -69,7 +69,7 @@ class RolloutSystem:
     it leaves ``bound`` (``RolloutOptions``) times it; acceleration: see ``Acceleration``; observe(i, X): the model's
     prediction (n, C) of its ``components`` from its path X (n, d) on jump i;
     compiled: optionally, a compiled fixed-step RK4 integrator of this system
-    (``symrom.model.kernel.compiled_rollout`` gives the learned model's), used by
+    (``symrom.compiled.table_integrator`` gives the learned model's), used by
     ``rk4`` unless another backend is asked for; generated: optionally, a factory of
     the system's own compiled code (``GeneratedCode``), called only when the
     ``generated`` backend or the compiled LSODA is asked for (or by ``auto`` when

@@ -25,7 +25,7 @@ import numpy as np
 
 from symrom.learn.audit import audit_collinearity, null_terms
 from symrom.model.library import Library
-from symrom.model.shooting import Trajectory
+from symrom.learn.shooting import Trajectory
 
 
 @dataclass

@@ -10,7 +10,7 @@ the training jumps, by multiple shooting:
 
 - the jumps are cut into windows of ``windows[0]`` s, each rolled out from its
   true encoded state with the logged inputs and phases held over each sample
-  (``symrom.model.shooting``, RK4 with exact sensitivities);
+  (``symrom.learn.shooting``, RK4 with exact sensitivities);
 - the residual is the error of xi (divided by each latent's spread over the
   training rows) and, weighted by ``velocity_weight``, of dxi, at every sample;
   plus the windows of the shortest length at every stage, so short-horizon
@@ -51,7 +51,7 @@ import scipy.linalg
 
 from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
 from symrom.learn.regressors.stlsq import STLSQ
-from symrom.model.shooting import Parameters, Windows, cut_windows, simulate
+from symrom.learn.shooting import Parameters, Windows, cut_windows, simulate
 
 # A sample after its window left the bound counts this many times the bound (in
 # units of the spread): more than any sample still inside, so leaving is never a

@@ -1,20 +1,20 @@
-"""Compiled evaluation of the latent dynamics (numba).
+"""Compiled evaluation of the latent dynamics (numba), from the terms' factor table.
 
 Every term of the paper's library is a product of simple factors of one
 variable: a power of a state variable, sin or cos of one, or an input. The
-term table reads those factors off each term's sympy form (the one place a
-block defines its terms), so any library made of such terms is evaluated by
-one compiled routine, whatever its blocks; a library with other terms
-(``Custom`` expressions beyond products of these factors) has no table and
-runs on the NumPy path.
+term table reads those factors off each term's sympy form (``TermLibrary``, the
+one place a library states its terms), so any library made of such terms is
+evaluated by one compiled routine, whatever its blocks; a library with other
+terms (``Custom`` expressions beyond products of these factors) has no table
+and runs on the NumPy path.
 
-``rk4_rollout`` (the ``table`` backend of the rollouts, the default) reads the
+``table_integrator`` (the ``table`` backend of the rollouts, the default) reads the
 table as per-phase term programs (``term_programs``): each active term is the
 list of its factors' places in [1, s, sin s, cos s, nu], the sines and cosines a
 phase uses are evaluated once per stage, and the coefficients are stored by
-active term. ``rk4_windows`` rolls many windows of the hybrid latent model out at once
+active term. ``rollout_windows`` rolls many windows of the hybrid latent model out at once
 with classical Runge-Kutta, optionally with the exact parameter
-sensitivities (see ``symrom.model.shooting``, whose NumPy implementation is
+sensitivities (see ``symrom.learn.shooting``, whose NumPy implementation is
 the reference this kernel is tested against). Functions are compiled on first
 use and cached on disk.
 """
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from symrom.model.library import Library, symbols
+from symrom.compiled.dynamics import TermLibrary
 
 STATE_POWER, SIN, COS, INPUT = 0, 1, 2, 3
 
@@ -43,13 +43,27 @@ class TermTable:
     count: np.ndarray
 
 
-def term_table(library: Library) -> TermTable | None:
-    """The factor table of ``library``, or None if a term is not a product of simple factors."""
-    s, nu = symbols(library.latent_dim)
-    s_index = {v: i for i, v in enumerate(s)}
-    nu_index = {v: i for i, v in enumerate(nu)}
+_TABLES: dict[str, TermTable | None] = {}  # identity of a term library -> its table (read once)
+TABLES_KEPT = 64
+
+
+def term_table(terms: TermLibrary) -> TermTable | None:
+    """The factor table of ``terms``, or None if a term is not a product of simple factors
+    (kept for the last ``TABLES_KEPT`` libraries: reading it walks every term's sympy form)."""
+    if terms.identity in _TABLES:
+        return _TABLES[terms.identity]
+    table = _read_table(terms)
+    if len(_TABLES) >= TABLES_KEPT:
+        _TABLES.pop(next(iter(_TABLES)))
+    _TABLES[terms.identity] = table
+    return table
+
+
+def _read_table(terms: TermLibrary) -> TermTable | None:
+    s_index = {v: i for i, v in enumerate(terms.state)}
+    nu_index = {v: i for i, v in enumerate(terms.inputs)}
     rows = []
-    for expr in library.sympy_features():
+    for expr in terms.features:
         factors = []
         coeff, parts = expr.as_coeff_mul()
         if coeff != 1:
@@ -377,29 +391,28 @@ def term_programs(table: TermTable, Xi: np.ndarray) -> tuple[np.ndarray, ...]:
     return fidx, nfac, coef, n_act, trig
 
 
-_PROGRAMS: dict = {}  # (id(library), Xi bytes) -> (library, integrator): a path's set-up made once
+_PROGRAMS: dict = {}  # (identity of the terms, Xi bytes) -> integrator: a path's set-up made once
 PROGRAMS_KEPT = 32
 
 
-def compiled_rollout(library: Library, Xi: np.ndarray):
-    """An integrator of the hybrid latent model with coefficients Xi (P, p, l) for
-    ``symrom.rollout.integrate`` (``RolloutSystem.compiled``), or None if the
-    library has no term table or numba is not installed. Kept for the last
-    ``PROGRAMS_KEPT`` (library, Xi): reading the term table costs milliseconds, more
-    than a short path (``predict_path``) takes to integrate."""
-    key = (id(library), np.ascontiguousarray(Xi, dtype=float).tobytes())
-    hit = _PROGRAMS.get(key)
-    if hit is not None and hit[0] is library:
-        return hit[1]
-    fn = _compiled_rollout(library, Xi)
+def table_integrator(terms: TermLibrary, Xi: np.ndarray):
+    """An integrator of the hybrid latent model with coefficients Xi (P, p, l) over ``terms``
+    for ``symrom.rollout.integrate`` (``RolloutSystem.compiled``), or None if the terms
+    have no table or numba is not installed. Kept for the last ``PROGRAMS_KEPT`` (terms,
+    Xi): setting the programs up costs more than a short path (``predict_path``) takes to
+    integrate."""
+    key = (terms.identity, np.ascontiguousarray(Xi, dtype=float).tobytes())
+    if key in _PROGRAMS:
+        return _PROGRAMS[key]
+    fn = _table_integrator(terms, Xi)
     if len(_PROGRAMS) >= PROGRAMS_KEPT:
         _PROGRAMS.pop(next(iter(_PROGRAMS)))
-    _PROGRAMS[key] = (library, fn)
+    _PROGRAMS[key] = fn
     return fn
 
 
-def _compiled_rollout(library: Library, Xi: np.ndarray):
-    table = term_table(library)
+def _table_integrator(terms: TermLibrary, Xi: np.ndarray):
+    table = term_table(terms)
     if table is None:
         return None
     try:
@@ -421,6 +434,52 @@ def _compiled_rollout(library: Library, Xi: np.ndarray):
         return X, V, div_at
 
     return integrate
+
+
+@dataclass(frozen=True)
+class WindowRollout:
+    """W windows of at most L samples rolled out from their true starts: X, V (W, L, l);
+    S (W, ceil(L / stride), 2l, n) the sensitivities of [xi, dxi] to the n parameters at
+    every ``stride``-th sample (None unless asked for); alive (W, L) bool: False from the
+    first sample at which a window left its bound (its state then held, its S zeroed)."""
+
+    X: np.ndarray
+    V: np.ndarray
+    S: np.ndarray | None
+    alive: np.ndarray
+
+
+def rollout_windows(terms: TermLibrary, Xi: np.ndarray, phase: np.ndarray, term: np.ndarray, latent: np.ndarray,
+                    xi: np.ndarray, dxi: np.ndarray, nu: np.ndarray, window_phase: np.ndarray, dt: float,
+                    limit: np.ndarray, substeps: int = 1, sensitivities: bool = True,
+                    stride: int = 1) -> WindowRollout | None:
+    """Every window from its true start by the term-table kernel, or None if ``terms`` have
+    no table.
+
+    Xi (P, p, l): every coefficient (nonzero entries outside the parameters act, held
+    fixed); phase, term, latent (n,): the parameters' places in Xi; xi, dxi (W, L, l): the
+    true latent state (sample 0 starts the window); nu (W, L, l) and window_phase (W, L):
+    the drive held over each sample; dt: s; limit (2l,): bound on |[xi, dxi]|; substeps:
+    RK4 steps per sample; stride: samples between stored sensitivities."""
+    table = term_table(terms)
+    if table is None:
+        return None
+    k = kernels()["rk4_windows"]
+    W, L, l = np.shape(xi)
+    n = len(phase)
+    X, V = np.zeros((W, L, l)), np.zeros((W, L, l))
+    S = np.zeros((W, -(-L // stride), 2 * l, n))
+    alive = np.zeros((W, L), dtype=np.bool_)
+    support = np.asarray(Xi) != 0  # coefficients held fixed (not parameters) act too
+    support[phase, term, latent] = True  # a coefficient at 0.0 still needs its term
+    active, n_active = active_terms(support)
+    k(np.ascontiguousarray(xi), np.ascontiguousarray(dxi), np.ascontiguousarray(nu),
+      np.ascontiguousarray(window_phase, dtype=np.int64), np.ascontiguousarray(Xi, dtype=float),
+      table.kind, table.var, table.power, table.count, np.asarray(phase).astype(np.int64),
+      np.asarray(term).astype(np.int64), np.asarray(latent).astype(np.int64), active, n_active,
+      float(dt), int(substeps), np.asarray(limit, dtype=float), int(stride), bool(sensitivities),
+      X, V, S, alive)
+    return WindowRollout(X, V, S if sensitivities else None, alive)
 
 
 def active_terms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,15 +17,30 @@ last) and may differ from BLAS's by rounding (~1e-16 relative).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Protocol
 
 import numpy as np
 
-from symrom.model.autoencoder import LinearAutoencoder
-
-# LLVM's fast-math flags without nnan/ninf (as ``symrom.model.codegen``): sums may be
+# LLVM's fast-math flags without nnan/ninf (as ``symrom.compiled.codegen``): sums may be
 # vectorised; NaN (a diverged path) still decodes to NaN.
 FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
 _KERNELS: dict[str, object] = {}
+
+
+class LinearMaps(Protocol):
+    """What the codec reads of a linear autoencoder (``symrom.model.autoencoder``): W_e
+    (l, C), B_e (l,), W_d (C, l), B_d (C,) and the input map (C, l), nu rows = u rows @ it."""
+
+    W_e: np.ndarray
+    B_e: np.ndarray
+    W_d: np.ndarray
+    B_d: np.ndarray
+
+    @property
+    def latent_dim(self) -> int: ...
+
+    @property
+    def input_map(self) -> np.ndarray: ...
 
 
 def _kernels() -> dict[str, object]:
@@ -96,7 +111,7 @@ def _starts_lens(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.ascontiguousarray(bounds[:, 1] - bounds[:, 0], dtype=np.int64))
 
 
-def encode_states(ae: LinearAutoencoder, q: np.ndarray, dq: np.ndarray, bounds: np.ndarray,
+def encode_states(ae: LinearMaps, q: np.ndarray, dq: np.ndarray, bounds: np.ndarray,
                   rows: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """xi, dxi (J, n_max, l) of the J row ranges ``bounds`` (J, 2) ``[start, stop)`` of q, dq
     (N, 18), each jump's last sample repeated past its end (n_max: the longest jump; every
@@ -115,7 +130,7 @@ def encode_states(ae: LinearAutoencoder, q: np.ndarray, dq: np.ndarray, bounds: 
     return x, v
 
 
-def encode_inputs(ae: LinearAutoencoder, u: np.ndarray, phase: np.ndarray,
+def encode_inputs(ae: LinearMaps, u: np.ndarray, phase: np.ndarray,
                   bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """nu (J, n_max, l) and phase (J, n_max) int64 of the row ranges ``bounds`` of u (N, 18)
     and phase (N,), as ``encode_states``."""
@@ -147,7 +162,7 @@ class JumpViews(Sequence):
         return self._array[j, :self._lens[j]]
 
 
-def decode_jumps(ae: LinearAutoencoder, X: np.ndarray, lens: np.ndarray) -> list[np.ndarray]:
+def decode_jumps(ae: LinearMaps, X: np.ndarray, lens: np.ndarray) -> list[np.ndarray]:
     """Per jump j the decoded path q (lens[j], 18) of its first lens[j] samples of X
     (J, n_max, l): views of one (sum lens, 18) array."""
     lens = np.ascontiguousarray(lens, dtype=np.int64)

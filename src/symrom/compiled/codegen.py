@@ -1,19 +1,20 @@
 """Per-model compiled rollouts: the model's equations written out as code, compiled by numba.
 
-``symrom.model.kernel`` evaluates any model of simple-factor terms with one
+``symrom.compiled.kernel`` evaluates any model of simple-factor terms with one
 compiled routine that reads a term table: no compilation per model, which is
 what a selection over hundreds of candidates needs. For one model rolled out
 many times (evaluation, a planner, the benchmark) this module writes the
 model's equations themselves as straight-line code (sympy's Python printer,
 common subexpressions shared, only the active terms, each phase its own
 branch, the latent state held in scalar variables), so a step costs a few dozen
-floating-point operations. Compiling takes about a second per model; the
-result is cached per model (its library and coefficients) in this process
+floating-point operations. Compiling costs far more than a rollout on the
+term table (docs/benchmarks.md); the result is cached per model (its
+library's identity and coefficients, ``LatentDynamics.key``) in this process
 and on disk (``cache_dir``): the source is written as a module there and
 compiled by numba with its own disk cache, so a later process loads the
 machine code instead of compiling it. The module is written by this process
 only, and rewritten whenever its text differs from the model's source, so
-nothing is run that this code did not generate. ``has_build(model)`` says
+nothing is run that this code did not generate. ``has_build(dynamics)`` says
 whether a build is at hand (``symrom.rollout.integrate``'s ``auto`` backend
 uses the generated code then).
 
@@ -27,11 +28,13 @@ arithmetic may be contracted into fused multiply-adds and reassociated
 (``FASTMATH``), never assumed free of NaN or infinity, so the divergence
 checks stand.
 
-``generated_integrator(model)`` has the interface of
-``symrom.model.kernel.compiled_rollout`` (``RolloutSystem.compiled``), with
-the semantics of ``symrom.rollout.integrate.integrate_rk4``;
-``generated_rhs(model)`` is the right-hand side for SciPy's LSODA and
-``generated_c_rhs(model)`` the same as a C function, for the compiled LSODA.
+``generated(dynamics)`` gives the model's ``GeneratedFunctions``: an RK4
+integrator with the interface of ``symrom.compiled.kernel.table_integrator``
+(``RolloutSystem.compiled``) and the semantics of
+``symrom.rollout.integrate.integrate_rk4``, the right-hand side for SciPy's
+LSODA and the same as a C function, for the compiled LSODA. The model comes
+as a ``LatentDynamics``: its terms, coefficients, phase names and exact
+right-hand sides.
 """
 
 from __future__ import annotations
@@ -44,18 +47,15 @@ import os
 import sys
 import time
 from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-from symrom.model.expressions import latent_expressions
-from symrom.model.library import symbols
-
-if TYPE_CHECKING:  # the model is only read here; hybrid.py imports this module
-    from symrom.model.hybrid import HybridModel
+from symrom.compiled.dynamics import LatentDynamics
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
 CACHE_SIZE = 16  # compiled models kept per process
@@ -160,7 +160,7 @@ def c_rhs(t, y, dy, p):
 """
 
 
-def model_source(model: HybridModel) -> str:
+def model_source(dynamics: LatentDynamics) -> str:
     """Python source of ``accel_s(ph, s0, ..., s_{2l-1}, u0, ..., u_{l-1}, S_i, C_i, ...)``:
     the tuple ddxi (l,) in phase index ``ph`` at the state s = [xi, dxi] with inputs nu
     (NaN for an unknown phase), given S_i = sin(s_i) and C_i = cos(s_i) for each state
@@ -171,10 +171,10 @@ def model_source(model: HybridModel) -> str:
     terms in the library's order, summed one by one as NumPy's reference does, and
     compiled without fast-math, so that they round as it does (LSODA's step choices
     follow the last bits of its right-hand side)."""
-    l = model.latent_dim
-    s, nu = symbols(l)
+    l, names = dynamics.latent_dim, dynamics.phase_names
+    s, nu = dynamics.terms.state, dynamics.terms.inputs
     sub = {v: sympy.Symbol(f"s{i}") for i, v in enumerate(s)} | {v: sympy.Symbol(f"u{i}") for i, v in enumerate(nu)}
-    exprs = [[e.xreplace(sub) for e in rows] for rows in latent_expressions(model.library, model.Xi)]
+    exprs = [[e.xreplace(sub) for e in rows] for rows in dynamics.right_hand_sides()]
     state = {sympy.Symbol(f"s{i}"): i for i in range(2 * l)}
     atoms = set().union(*(e.atoms(sympy.sin, sympy.cos) for rows in exprs for e in rows))
     trig = sorted({state[a.args[0]] for a in atoms if a.args[0] in state})
@@ -186,18 +186,18 @@ def model_source(model: HybridModel) -> str:
     lines = [f"def accel_s(ph, {', '.join(args)}):"]
     for k, rows in enumerate(exprs):
         repl, reduced = sympy.cse([e.xreplace(named) for e in rows], symbols=sympy.numbered_symbols("c"))
-        lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
+        lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {names[k]}")
         lines += [f"        {v} = {printer.doprint(e)}" for v, e in repl]
         lines.append(f"        return {', '.join(f'float({printer.doprint(e)})' for e in reduced)}{tail}")
     lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
     lines += [f"def accel_ref(ph, {', '.join(args[:3 * l])}):"]
-    feats = [printer.doprint(f.xreplace(sub)) for f in model.library.sympy_features()]
-    for k in range(len(model.phase_names)):
-        lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {model.phase_names[k]}")
+    feats = [printer.doprint(f.xreplace(sub)) for f in dynamics.terms.features]
+    for k in range(len(names)):
+        lines.append(f"    {'if' if k == 0 else 'elif'} ph == {k}:  # {names[k]}")
         for j in range(l):
             lines.append(f"        a{j} = 0.0")
             lines += [f"        a{j} = a{j} + {feat} * {float(c)!r}"
-                      for feat, c in zip(feats, model.Xi[k][:, j]) if c != 0]
+                      for feat, c in zip(feats, dynamics.Xi[k][:, j]) if c != 0]
         lines.append(f"        return {', '.join(f'a{j}' for j in range(l))}{tail}")
     lines.append(f"    return {', '.join(['math.nan'] * l)}{tail}")
     return "\n".join(lines) + "\n" + SHIFT_SOURCE + _rk4_source(l, trig)
@@ -241,9 +241,9 @@ def _module_path(key: str) -> Path | None:
     return None if folder is None else folder / f"symrom_model_{key[:32]}.py"
 
 
-def has_build(model: HybridModel) -> bool:
-    """Whether the generated code of ``model`` is compiled in this process or on disk."""
-    key = _key(model)
+def has_build(dynamics: LatentDynamics) -> bool:
+    """Whether the generated code of ``dynamics`` is compiled in this process or on disk."""
+    key = dynamics.key
     if key in _CACHE:
         return True
     path = _module_path(key)
@@ -255,7 +255,7 @@ def has_build(model: HybridModel) -> bool:
         return False
 
 
-def _load_module(model: HybridModel, key: str) -> tuple[dict, Path, str] | None:
+def _load_module(dynamics: LatentDynamics, key: str) -> tuple[dict, Path, str] | None:
     """The model's compiled namespace from the disk cache (written first if missing or
     different), or None when there is no usable cache folder."""
     from symrom.atomic import write_text_atomic
@@ -263,7 +263,7 @@ def _load_module(model: HybridModel, key: str) -> tuple[dict, Path, str] | None:
     path = _module_path(key)
     if path is None:
         return None
-    text = _MODULE_HEAD + model_source(model) + _MODULE_TAIL
+    text = _MODULE_HEAD + model_source(dynamics) + _MODULE_TAIL
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         if not path.is_file() or path.read_text() != text:
@@ -278,34 +278,28 @@ def _load_module(model: HybridModel, key: str) -> tuple[dict, Path, str] | None:
     return vars(module), path, text
 
 
-def _key(model: HybridModel) -> str:
-    h = hashlib.sha256(repr(model.library.to_dict()).encode())
-    h.update(np.ascontiguousarray(model.Xi, dtype=float).tobytes())
-    return h.hexdigest()
-
-
-def _compiled(model: HybridModel) -> dict:
-    """The compiled functions of ``model`` (cached) and the seconds the compilation took."""
-    key = _key(model)
+def _compiled(dynamics: LatentDynamics) -> dict:
+    """The compiled functions of ``dynamics`` (cached) and the seconds the compilation took."""
+    key = dynamics.key
     if key in _CACHE:
         _CACHE.move_to_end(key)
         return _CACHE[key]
     import numba
 
     t0 = time.perf_counter()
-    loaded = _load_module(model, key)
+    loaded = _load_module(dynamics, key)
     if loaded is not None:
         ns, path, text = loaded
         rollout, rhs = ns["rollout"], ns["rhs"]
     else:
         path = None
         ns = {"math": math, "np": np}
-        exec(compile(model_source(model), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
+        exec(compile(model_source(dynamics), f"<symrom model {key[:12]}>", "exec"), ns)  # noqa: S102 - our own source
         for name in ("shift", "accel_s"):  # compiled before the functions that call them
             ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
         ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
         rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
-    l = model.latent_dim
+    l = dynamics.latent_dim
     z = np.zeros((1, 2, l))
     # Compile for the argument types the integrators pass, so that the first real call is fast.
     rollout(z, z, z, np.zeros((1, 2), np.int64), np.array([2], np.int64), np.ones(2, np.bool_), 0.002, 1,
@@ -325,14 +319,31 @@ def _compiled(model: HybridModel) -> dict:
     return entry
 
 
-def compile_seconds(model: HybridModel) -> float:
-    """Seconds the compilation of ``model`` took (compiling it now if needed)."""
-    return _compiled(model)["compile_s"]
+def compile_seconds(dynamics: LatentDynamics) -> float:
+    """Seconds the compilation of ``dynamics`` took (compiling it now if needed)."""
+    return _compiled(dynamics)["compile_s"]
 
 
-def generated_integrator(model: HybridModel):
-    """An RK4 integrator of ``model`` with the interface of ``kernel.compiled_rollout``."""
-    fn = _compiled(model)["rollout"]
+@dataclass(frozen=True)
+class GeneratedFunctions:
+    """One model's generated code, compiled.
+
+    integrator(x_true, v_true, drive, lens, resets, limit, dt, substeps): RK4 with the
+    interface of ``symrom.compiled.kernel.table_integrator``'s integrators (drive: nu (J,
+    n_max, l), phase (J, n_max)); rhs(y (2l,), t, phase index, nu (l,)) -> dy/dt (2l,), for
+    SciPy's LSODA; c_rhs(): the address of the same as a C function ``void f(double t,
+    double *y, double *dy, double *p)``, p = [phase index, nu (l)], for a compiled LSODA
+    (``symrom.rollout.compiled_lsoda``), compiled on the first call."""
+
+    integrator: Callable
+    rhs: Callable
+    c_rhs: Callable[[], int]
+
+
+def generated(dynamics: LatentDynamics) -> GeneratedFunctions:
+    """The generated code of ``dynamics``, compiled now unless a build is at hand."""
+    entry = _compiled(dynamics)
+    fn = entry["rollout"]
 
     def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
         J, n_max, l = x_true.shape
@@ -344,19 +355,10 @@ def generated_integrator(model: HybridModel):
            np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
         return X, V, div_at
 
-    return integrate
+    return GeneratedFunctions(integrate, entry["rhs"], lambda: _c_rhs(entry))
 
 
-def generated_rhs(model: HybridModel):
-    """``rhs(y (2l,), t, phase index, nu (l,)) -> dy/dt (2l,)``, compiled, for SciPy's LSODA."""
-    return _compiled(model)["rhs"]
-
-
-def generated_c_rhs(model: HybridModel) -> int:
-    """The address of the right-hand side as a C function ``void f(double t, double *y,
-    double *dy, double *p)``, p = [phase index, nu (l)], for a compiled LSODA
-    (``symrom.rollout.compiled_lsoda``); compiled on first use."""
-    entry = _compiled(model)
+def _c_rhs(entry: dict) -> int:
     if "c_rhs_address" not in entry:
         import numba
         from numba import types

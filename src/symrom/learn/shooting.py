@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from symrom.compiled import rollout_windows
 from symrom.model.library import Library
 
 
@@ -124,34 +125,18 @@ def simulate(library: Library, Xi: np.ndarray, params: Parameters, win: Windows,
     at every ``stride``-th sample (None unless ``sensitivities``), and alive
     (W, L) bool: False from the first sample at which a window left the bound
     (its state is then held, its S zeroed). backend: ``table`` (numba,
-    ``symrom.model.kernel``), ``numpy`` (the reference), or ``auto`` (the table
-    kernel when the library has a term table).
+    ``symrom.compiled.rollout_windows``), ``numpy`` (the reference), or ``auto``
+    (the table kernel when the library has a term table).
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose from {BACKENDS}")
     if backend != "numpy":
-        from symrom.model.kernel import active_terms, kernels, term_table
-
-        table = term_table(library)
-        if table is None and backend == "table":
+        out = rollout_windows(library.terms, Xi, params.phase, params.term, params.latent, win.xi, win.dxi,
+                              win.nu, win.phase, dt, limit, substeps, sensitivities, stride)
+        if out is None and backend == "table":
             raise ValueError("this library has terms the compiled kernel cannot evaluate")
-        if table is not None:
-            W, L = win.shape
-            l, n = library.latent_dim, params.size
-            X, V = np.zeros((W, L, l)), np.zeros((W, L, l))
-            S = np.zeros((W, -(-L // stride), 2 * l, n))
-            alive = np.zeros((W, L), dtype=np.bool_)
-            support = np.asarray(Xi) != 0  # coefficients held fixed (not parameters) act too
-            support[params.phase, params.term, params.latent] = True  # a coefficient at 0.0 still needs its term
-            active, n_active = active_terms(support)
-            kernels()["rk4_windows"](
-                np.ascontiguousarray(win.xi), np.ascontiguousarray(win.dxi), np.ascontiguousarray(win.nu),
-                np.ascontiguousarray(win.phase, dtype=np.int64), np.ascontiguousarray(Xi, dtype=float),
-                table.kind, table.var, table.power, table.count, params.phase.astype(np.int64),
-                params.term.astype(np.int64), params.latent.astype(np.int64), active, n_active,
-                float(dt), int(substeps), np.asarray(limit, dtype=float), int(stride), bool(sensitivities),
-                X, V, S, alive)
-            return X, V, (S if sensitivities else None), alive
+        if out is not None:
+            return out.X, out.V, out.S, out.alive
     W, L = win.shape
     l = library.latent_dim
     n = params.size
