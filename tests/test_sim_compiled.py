@@ -10,10 +10,13 @@ from scipy.spatial.transform import Rotation
 
 from symrom.robots import leg_kinematics
 from symrom.robots.stance import start_pose
-from symrom.sim import bullet, compiled
-from symrom.sim.froggy import FroggyController, distribute, sample_params
-from symrom.sim.mpc import ConvexMPC, continuous_dynamics, discretize
-from symrom.sim.world import BulletWorld as World, euler_rate_matrix, matrix_to_rpy
+from symrom.sim.controllers import compiled
+from symrom.sim.engines import bullet
+from symrom.sim.engines.compiled import base_state
+from symrom.sim.controllers.froggy import FroggyController, distribute, sample_params
+from symrom.sim.controllers.mpc import ConvexMPC, continuous_dynamics, discretize
+from symrom.sim.engines.bullet import BulletWorld as World
+from symrom.sim.engines.world import euler_rate_matrix, matrix_to_rpy
 
 
 @pytest.mark.parametrize("robot", ["go1", "a1", "laikago"])
@@ -33,7 +36,7 @@ def test_base_state_is_the_link_frame_of_the_inertial_frame():
         com_pos, v_com, omega, off_pos = rng.normal(size=(4, 3))
         com_orn, off_orn = Rotation.random(2, random_state=rng).as_quat()  # (x, y, z, w)
         q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
-        compiled.base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R)
+        base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R)
         Rc = Rotation.from_quat(com_orn)
         R_ref = (Rc * Rotation.from_quat(off_orn)).as_matrix()
         pos = com_pos + Rc.apply(off_pos)

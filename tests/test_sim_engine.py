@@ -16,10 +16,11 @@ from symrom.robots import ActuatorEffects, get_robot
 from symrom.robots.description import RobotDescriptionError, load_description
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.stance import start_pose
-from symrom.sim.engine import ENGINES, UnknownEngineError, World, make_world
-from symrom.sim.generate import GenerateConfig, GenerationError, generate, run_record_path
-from symrom.sim.forces import NoContactForceError, force_error
-from symrom.sim.world import euler_rate_matrix
+from symrom.sim.engines.registry import ENGINES, UnknownEngineError, make_world
+from symrom.sim.engines.world import World
+from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, run_record_path
+from symrom.sim.diagnostics.forces import NoContactForceError, force_error
+from symrom.sim.engines.world import euler_rate_matrix
 from symrom.cli import app
 from typer.testing import CliRunner
 
@@ -204,7 +205,7 @@ def test_pronk_on_user_written_descriptions(robot, engine):
 
 def test_froggy_scales_to_the_aliengo():
     """Unscaled, the A1's froggy thrust barely lifts the Aliengo (no flight); scaled, it jumps."""
-    from symrom.sim.froggy import FroggyParams, sample_params, scales
+    from symrom.sim.controllers.froggy import FroggyParams, sample_params, scales
 
     path = str(ROBOTS_DIR / "aliengo.toml")
     m, l = scales(path)
