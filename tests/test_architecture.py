@@ -242,3 +242,22 @@ def test_the_rollout_layer_knows_no_model():
                     and node.slice.value in ("nu", "phase"):
                 found.append(f"{path.relative_to(SRC)}:{node.lineno} reads [{node.slice.value!r}]")
     assert not found, "\n".join(found)
+
+
+def test_the_planner_composes_the_simulator_through_public_names():
+    """plan/ drives the pronk through its push policy and read-only properties: it subclasses
+    nothing of sim/ and reads no private attribute (``obj._name``) of anything but itself."""
+    found = []
+    for path in sorted((SRC / "plan").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        from_sim = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                    and (node.module or "").startswith("symrom.sim") for a in node.names}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                found += [f"{path.name}:{node.lineno} subclasses {b.id}" for b in node.bases
+                          if isinstance(b, ast.Name) and b.id in from_sim]
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id == "self")):
+                found.append(f"{path.name}:{node.lineno} reads {ast.unparse(node)}")
+    assert not found, "\n".join(found)
+
