@@ -72,8 +72,8 @@ def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path):
 
 
 def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
-    code = ("import sys, symrom, symrom.cli, symrom.execution, symrom.sim.generation.generate, symrom.experiments.sweep, "
-            "symrom.experiments.select, symrom.experiments.reproduce\n"
+    code = ("import sys, symrom, symrom.cli, symrom.execution, symrom.sim.generation.generate, "
+            "symrom.experiments.sweep, symrom.experiments.select, symrom.experiments.reproduce\n"
             "from symrom.execution import LocalBackend\n"
             "import _tasks\n"
             "assert [d.value for d in LocalBackend(1).map(_tasks.square, [(0, (3,))], (1,))] == [10]\n"
