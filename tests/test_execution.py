@@ -78,6 +78,8 @@ def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
             "import _tasks\n"
             "assert [d.value for d in LocalBackend(1).map(_tasks.square, [(0, (3,))], (1,))] == [10]\n"
             "assert 'ray' not in sys.modules, 'ray was imported'\n")
+    src = str(Path(execution.__file__).parents[1])  # the symrom under test, whatever the cwd
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                       cwd=str(Path(__file__).parent))
+                       cwd=str(Path(__file__).parent), env=env)
     assert r.returncode == 0, r.stderr
