@@ -97,8 +97,8 @@ def driver_costs(tmp: Path, reference: Path, jumps: int, seed: int) -> dict:
     its parts cut from the ``reference`` dataset; the file it writes must equal it), and a
     jump's result size (bytes)."""
     from symrom.data.io import read_dataset
-    from symrom.sim.generate import GenerateConfig, generate, parts_dir
-    from symrom.sim.parts import LOG_KEYS, part_path, write_part
+    from symrom.sim.generation.generate import GenerateConfig, generate, parts_dir
+    from symrom.sim.generation.parts import LOG_KEYS, part_path, write_part
 
     cfg = GenerateConfig("go1", "pronk", jumps, seed=seed)
     ds = read_dataset(reference)

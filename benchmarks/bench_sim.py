@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.sim.generate import GenerateConfig, generate, motion_available
+from symrom.sim.generation.generate import GenerateConfig, generate, motion_available
 
 ROBOT_OF_MOTION = {"froggy": "a1", "pronk": "go1"}  # the robots of the paper's datasets
 
@@ -66,18 +66,26 @@ def _run(motion: str, n: int, workers: int, seed: int, out: Path) -> dict:
 
 
 _CHILD = r"""
-import json, sys, tempfile, time
+import importlib, json, sys, tempfile, time
 from pathlib import Path
-from symrom.sim.controller import load_motion
-from symrom.sim.generate import GenerateConfig, generate
+from symrom.motions import get_motion
+try:
+    from symrom.sim.generation.generate import GenerateConfig, generate
+except ImportError:  # code before sim/ was laid out by job
+    from symrom.sim.generate import GenerateConfig, generate
 motion, robot, n, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 engine = {"engine": sys.argv[5]} if len(sys.argv) > 5 else {}  # code before engines: PyBullet only
-load_motion(motion)
+importlib.import_module(get_motion(motion).plugin.partition(":")[0])  # the motion's plug-in
 try:
-    from symrom.sim.compiled import warm_up
-    warm_up()
-except ImportError:  # code without compiled routines
-    pass
+    from symrom.sim.controllers.compiled import warm_up
+    from symrom.sim.engines.compiled import warm_up as warm_engines
+    warm_engines()
+except ImportError:
+    try:
+        from symrom.sim.compiled import warm_up
+    except ImportError:  # code without compiled routines
+        warm_up = lambda: None  # noqa: E731
+warm_up()
 with tempfile.TemporaryDirectory() as d:
     t0, c0 = time.perf_counter(), time.process_time()
     ds = generate(GenerateConfig(robot, motion, n, seed=seed, **engine), Path(d) / "x.h5", workers=1)
@@ -89,16 +97,18 @@ print(json.dumps({"wall_s": wall, "cpu_s": cpu, "simulated_s": ds.n_samples * ds
 _ENGINE_CHILD = r"""
 import json, sys, tempfile, time
 from pathlib import Path
-from symrom.sim.compiled import warm_up
-from symrom.sim.controller import load_motion
-from symrom.sim.engine import engine_class
-from symrom.sim.generate import GenerateConfig, generate
+from symrom.sim.controllers.compiled import warm_up
+from symrom.sim.controllers.motion import load_motion
+from symrom.sim.engines.compiled import warm_up as warm_engines
+from symrom.sim.engines.registry import engine_class
+from symrom.sim.generation.generate import GenerateConfig, generate
 motion, robot, n, seed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 engine, _, solver = sys.argv[5].partition(":")  # "mujoco" or "mujoco:osqp": the MPC's solver named
 load_motion(motion)
+warm_engines()
 warm_up()
-from symrom.sim.dynamics import LegGravity
-from symrom.sim.mpc import ConvexMPC
+from symrom.sim.controllers.body import LegGravity
+from symrom.sim.controllers.mpc import ConvexMPC
 cls = engine_class(engine)
 spent = {"world": 0.0, "mpc": 0.0, "leg_gravity": 0.0}
 def timed(f, key):
@@ -248,12 +258,14 @@ def main() -> None:
         write(args.out, res)
         return
     t0 = time.perf_counter()
-    from symrom.sim.compiled import warm_up
-    from symrom.sim.controller import load_motion
+    from symrom.sim.controllers.compiled import warm_up
+    from symrom.sim.controllers.motion import load_motion
+    from symrom.sim.engines.compiled import warm_up as warm_engines
 
     for motion in ROBOT_OF_MOTION:
         if motion_available(motion):
             load_motion(motion)
+    warm_engines()
     warm_up()
     res = {"jumps": args.jumps, "seed": args.seed, "startup_s": time.perf_counter() - t0,
            "machine": {"python": platform.python_version(), "cpu": platform.processor() or platform.machine()},

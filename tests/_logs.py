@@ -12,7 +12,7 @@ from scipy.interpolate import CubicSpline
 from _simdata import reference_file, tmp_path
 from symrom.data.io import read_dataset
 from symrom.names import JOINT_NAMES, LEGS, Q_NAMES
-from symrom.sim.generate import GenerateConfig, generate
+from symrom.sim.generation.generate import GenerateConfig, generate
 
 # The published Go1 hardware layout, spelled out by hand.
 HW_JOINTS = [n.replace("_", ".") for n in JOINT_NAMES]

@@ -8,7 +8,7 @@ import tempfile
 from functools import cache
 from pathlib import Path
 
-from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
+from symrom.sim.generation.generate import GenerateConfig, NoiseConfig, generate
 
 _ROOT = Path(tempfile.mkdtemp(prefix="symrom-simtests-"))
 atexit.register(shutil.rmtree, _ROOT, True)

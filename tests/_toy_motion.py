@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from symrom.robots.stance import start_pose
-from symrom.sim.controller import PlainMotion
+from symrom.sim.controllers.motion import PlainMotion
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,10 @@ prints or exits (the command line does)."""
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
+
+import pytest
 
 import symrom
 
@@ -23,7 +26,7 @@ LAYERS: dict[str, int] = {
     "report": 7,
     "cli": 8,
 }
-# Inside a package, the same rule between its modules (or subpackages).
+# Inside a package (or a subpackage, dotted), the same rule between its modules (or subpackages).
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # compiled execution: the descriptions it reads, then its kernels and generated code
     "compiled": {"dynamics": 0, "codec": 0, "kernel": 1, "codegen": 1},
@@ -38,6 +41,19 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
     # planning: the models and guards, the problem, its execution, the jump that uses both
     "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "execute": 2, "jump": 3},
+    # simulation by job: the engines; the hardware-like variant, on any engine; the controllers and
+    # motions; what runs them (generation) and what reads its data (diagnostics)
+    "sim": {"engines": 0, "proxy": 1, "controllers": 2, "generation": 3, "diagnostics": 3},
+    # the engines: what they share and their compiled reads, then each engine and the registry
+    "sim.engines": {"world": 0, "compiled": 0, "bullet": 1, "mujoco": 1, "registry": 1},
+    # the controllers: their compiled arithmetic, flights, the body model; its URDF source, the
+    # MPC, the protocols; the motions
+    "sim.controllers": {"compiled": 0, "flight": 0, "body": 0, "urdf_body": 1, "mpc": 1, "motion": 1,
+                        "pronk": 2, "froggy": 2},
+    # generation: the checks, parts, the episode loop and the warm start; the configuration; one
+    # checked jump; the whole file
+    "sim.generation": {"checks": 0, "parts": 0, "episode": 0, "warm": 0, "config": 1, "runner": 2, "generate": 3},
+    "sim.diagnostics": {"forces": 0, "render": 0},
 }
 # Known upward imports, each with the change that removes it (none today).
 KNOWN: set[tuple[str, str]] = set()
@@ -95,10 +111,14 @@ def _modules():
         yield path, rel, (rel.parts[0][:-3] if len(rel.parts) == 1 else rel.parts[0])
 
 
+def _package_dir(package: str) -> Path:
+    return SRC.joinpath(*package.split("."))
+
+
 def test_every_module_has_a_layer():
     assert {layer for _, _, layer in _modules()} - {"__init__"} == set(LAYERS)
     for package, table in PACKAGE_LAYERS.items():
-        found = {p.stem if p.is_file() else p.name for p in (SRC / package).iterdir()
+        found = {p.stem if p.is_file() else p.name for p in _package_dir(package).iterdir()
                  if (p.suffix == ".py" or (p / "__init__.py").is_file()) and p.name != "__init__.py"}
         assert found == set(table), f"{package}/: modules {sorted(found)}, table {sorted(table)}"
 
@@ -118,16 +138,37 @@ def test_imports_only_point_down():
 def test_imports_inside_packages_only_point_down():
     upward = []
     for package, table in PACKAGE_LAYERS.items():
-        for path in sorted((SRC / package).rglob("*.py")):
-            rel = path.relative_to(SRC)
-            if len(rel.parts) < 3 and rel.name == "__init__.py":
+        prefix = ["symrom", *package.split(".")]
+        for path in sorted(_package_dir(package).rglob("*.py")):
+            rel = path.relative_to(_package_dir(package))
+            if rel.parts == ("__init__.py",):
                 continue
-            own = rel.parts[1].removesuffix(".py")
+            own = rel.parts[0].removesuffix(".py")
             for module, line in _imports(path, runtime_only=True):  # a type may name what uses it
                 parts = module.split(".")
-                if len(parts) > 2 and parts[1] == package and table[parts[2]] > table[own]:
-                    upward.append(f"{rel}:{line} imports {module}")
+                if (len(parts) > len(prefix) and parts[:len(prefix)] == prefix
+                        and table[parts[len(prefix)]] > table[own]):
+                    upward.append(f"{path.relative_to(SRC)}:{line} imports {module}")
     assert not upward, "\n".join(upward)
+
+
+def test_the_layer_rule_sees_an_upward_import_inside_a_subpackage(tmp_path, monkeypatch):
+    """The rule between a subpackage's modules is enforced, not only stated: a planted engine-neutral
+    module importing an engine's module (a layer above it) is caught, the import down is not."""
+    pkg = tmp_path / "sim" / "engines"
+    pkg.mkdir(parents=True)
+    for name in PACKAGE_LAYERS["sim.engines"]:
+        (pkg / f"{name}.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "bullet.py").write_text("from symrom.sim.engines.world import World\n")  # down: fine
+    (pkg / "world.py").write_text("x = 1\n\n\ndef f():\n    from symrom.sim.engines.bullet import p\n")  # up
+    here = sys.modules[__name__]
+    monkeypatch.setattr(here, "SRC", tmp_path)
+    monkeypatch.setattr(here, "PACKAGE_LAYERS", {"sim.engines": PACKAGE_LAYERS["sim.engines"]})
+    with pytest.raises(AssertionError) as caught:
+        test_imports_inside_packages_only_point_down()
+    assert str(caught.value).splitlines()[0] == "sim/engines/world.py:5 imports symrom.sim.engines.bullet"
+    assert "bullet.py" not in str(caught.value)
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
@@ -230,3 +271,22 @@ def test_the_rollout_layer_knows_no_model():
                     and node.slice.value in ("nu", "phase"):
                 found.append(f"{path.relative_to(SRC)}:{node.lineno} reads [{node.slice.value!r}]")
     assert not found, "\n".join(found)
+
+
+def test_the_planner_composes_the_simulator_through_public_names():
+    """plan/ drives the pronk through its push policy and read-only properties: it subclasses
+    nothing of sim/ and reads no private attribute (``obj._name``) of anything but itself."""
+    found = []
+    for path in sorted((SRC / "plan").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        from_sim = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                    and (node.module or "").startswith("symrom.sim") for a in node.names}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ClassDef):
+                found += [f"{path.name}:{node.lineno} subclasses {b.id}" for b in node.bases
+                          if isinstance(b, ast.Name) and b.id in from_sim]
+            if (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")
+                    and not (isinstance(node.value, ast.Name) and node.value.id == "self")):
+                found.append(f"{path.name}:{node.lineno} reads {ast.unparse(node)}")
+    assert not found, "\n".join(found)
+

@@ -72,12 +72,14 @@ def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path):
 
 
 def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
-    code = ("import sys, symrom, symrom.cli, symrom.execution, symrom.sim.generate, symrom.experiments.sweep, "
-            "symrom.experiments.select, symrom.experiments.reproduce\n"
+    code = ("import sys, symrom, symrom.cli, symrom.execution, symrom.sim.generation.generate, "
+            "symrom.experiments.sweep, symrom.experiments.select, symrom.experiments.reproduce\n"
             "from symrom.execution import LocalBackend\n"
             "import _tasks\n"
             "assert [d.value for d in LocalBackend(1).map(_tasks.square, [(0, (3,))], (1,))] == [10]\n"
             "assert 'ray' not in sys.modules, 'ray was imported'\n")
+    src = str(Path(execution.__file__).parents[1])  # the symrom under test, whatever the cwd
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
-                       cwd=str(Path(__file__).parent))
+                       cwd=str(Path(__file__).parent), env=env)
     assert r.returncode == 0, r.stderr

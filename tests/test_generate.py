@@ -12,11 +12,11 @@ import pytest
 from _simdata import N_JUMPS, SEED, config, reference_file, tmp_path
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
-from symrom.sim import generate as gen
-from symrom.sim.checks import JumpChecks, check_jump
-from symrom.sim.froggy import MOTION as FROGGY
-from symrom.sim.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
-from symrom.sim.parts import read_part, write_part
+from symrom.sim.generation import generate as gen
+from symrom.sim.generation.checks import JumpChecks, check_jump
+from symrom.sim.controllers.froggy import MOTION as FROGGY
+from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
+from symrom.sim.generation.parts import read_part, write_part
 
 
 
@@ -135,7 +135,7 @@ def test_froggy_interrupted_then_resumed_gives_the_same_file():
 @pytest.mark.slow
 def test_killed_subprocess_leaves_parts_that_resume(tmp_path):
     out = tmp_path / "killed.h5"
-    code = ("import sys; from symrom.sim.generate import GenerateConfig, generate; "
+    code = ("import sys; from symrom.sim.generation.generate import GenerateConfig, generate; "
             f"generate(GenerateConfig('a1', 'froggy', 2, seed=7), {str(out)!r}, "
             "progress_callback=lambda d, t, i: sys.exit(3) if d == 1 else None)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=300)
@@ -220,8 +220,8 @@ def test_pybullet_banner_is_not_printed_by_any_process(tmp_path):
 
 def test_flight_watch_fails_exactly_when_the_brief_flight_check_does():
     """The runner stops an attempt once FlightWatch fails: only when the whole log would."""
-    from symrom.sim.checks import BRIEF_FLIGHT, FlightWatch, one_main_flight
-    from symrom.sim.pronk import MOTION as PRONK
+    from symrom.sim.controllers.flight import BRIEF_FLIGHT, FlightWatch, one_main_flight
+    from symrom.sim.controllers.pronk import MOTION as PRONK
 
     rng = np.random.default_rng(0)
     for _ in range(2000):

@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
-from symrom.sim.mpc import (MOVING, QP_SOLVERS, ConvexMPC, MPCConfig, condense, continuous_dynamics,
+from symrom.sim.controllers.mpc import (MOVING, QP_SOLVERS, ConvexMPC, MPCConfig, condense, continuous_dynamics,
                             discretize, srb_state)
 
 MASS = 13.1

@@ -14,8 +14,8 @@ from symrom.model.hybrid import HybridModel
 from symrom.model.library import Library
 from symrom.model.persistence import save_model
 from symrom.plan.dynamics import GRAVITY, LearnedDynamics, PlanModelError, PointMass
-from symrom.plan.execute import distribute
 from symrom.plan.problem import JumpPlanner, PlanError
+from symrom.sim.controllers.pronk import distribute_wrench
 
 X, Z = 12, 14  # base x and z in q
 
@@ -188,7 +188,7 @@ def test_distribute_sums_to_the_force_and_the_moment():
     rng = np.random.default_rng(0)
     r = rng.normal(0, 0.2, (4, 3))
     F, M = np.array([40.0, -3.0, 200.0]), np.array([1.0, -2.0, 0.5])
-    f = distribute(F, M, r)
+    f = distribute_wrench(F, M, r)
     assert f.sum(axis=0) == pytest.approx(F, abs=1e-9)
     assert np.cross(r, f).sum(axis=0) == pytest.approx(M, abs=1e-9)
 

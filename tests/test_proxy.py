@@ -11,7 +11,7 @@ import pytest
 from _simdata import tmp_path
 from symrom.names import BASE_POS, JOINTS
 from symrom.robots import ActuatorEffects
-from symrom.sim.engine import make_world
+from symrom.sim.engines.registry import make_world
 from symrom.sim.proxy import (JUMP_FIELDS, PROXY_RANGES, RANDOMIZED_RANGES, ROBOT_FIELDS, ProxyConfig, ProxyWorld,
                               for_engine, robot_constants, sample_proxy, sample_robot)
 
@@ -133,7 +133,7 @@ def test_ranges_and_engines():
 
 def test_randomized_variant_recorded_and_reproducible():
     from symrom.data.io import read_dataset
-    from symrom.sim.generate import GenerateConfig, GenerationError, generate
+    from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate
 
     cfg = GenerateConfig("go1", "pronk", 2, seed=3, randomize=True, splits=(1, 0, 1))
     a = generate(cfg, tmp_path("rand_a.h5"))
@@ -156,7 +156,7 @@ def test_randomized_variant_recorded_and_reproducible():
     with pytest.raises(GenerationError, match="choose one"):
         generate(replace(cfg, proxy=True), tmp_path("rand_c.h5"), force=True)
     # froggy's randomised jumps vary the length of the rear-only phase
-    from symrom.sim.froggy import MOTION as FROGGY, RANDOMIZED_MOTION
+    from symrom.sim.controllers.froggy import MOTION as FROGGY, RANDOMIZED_MOTION
 
     rear = [FROGGY.sample_params(np.random.default_rng(s), "a1", "randomized") for s in range(8)]
     lo, hi = RANDOMIZED_MOTION.t_push_rear
@@ -168,8 +168,8 @@ def test_proxy_is_one_robot_per_dataset():
     """The proxy target's hardware constants are drawn once from the generation seed (the same in
     every jump and recorded once); ground friction, latency, noise and drift vary per jump; the
     randomised source still draws its hardware per jump."""
-    from symrom.sim.generate import GenerateConfig, generate
-    from symrom.sim.runner import dataset_seed
+    from symrom.sim.generation.generate import GenerateConfig, generate
+    from symrom.sim.generation.runner import dataset_seed
 
     assert set(ROBOT_FIELDS).isdisjoint(JUMP_FIELDS)
     assert set(ROBOT_FIELDS) | set(JUMP_FIELDS) == set(ProxyConfig.__dataclass_fields__)

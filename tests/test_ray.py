@@ -25,7 +25,7 @@ from symrom.cli import app  # noqa: E402
 from symrom.data.io import write_dataset  # noqa: E402
 from symrom.execution import RayBackend, WorkerLostError  # noqa: E402
 from symrom.model.persistence import load_model  # noqa: E402
-from symrom.sim.generate import parts_dir, run_record_path  # noqa: E402
+from symrom.sim.generation.generate import parts_dir, run_record_path  # noqa: E402
 
 # The test helpers are not installed: Ray's workers get them by value.
 ray.cloudpickle.register_pickle_by_value(_tasks)

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from symrom.cli import app
 from symrom.data.io import read_dataset
 from symrom.robots import ROBOTS, get_robot
-from symrom.sim.checks import longest_run
+from symrom.sim.controllers.flight import longest_run
 
 pytestmark = pytest.mark.slow
 DESCRIPTION = str(ROBOTS["laikago"])  # given by path: no registry needed

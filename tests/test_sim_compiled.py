@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import copy
+import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -10,10 +13,13 @@ from scipy.spatial.transform import Rotation
 
 from symrom.robots import leg_kinematics
 from symrom.robots.stance import start_pose
-from symrom.sim import bullet, compiled
-from symrom.sim.froggy import FroggyController, distribute, sample_params
-from symrom.sim.mpc import ConvexMPC, continuous_dynamics, discretize
-from symrom.sim.world import BulletWorld as World, euler_rate_matrix, matrix_to_rpy
+from symrom.sim.controllers import compiled
+from symrom.sim.engines import bullet
+from symrom.sim.engines.compiled import base_state
+from symrom.sim.controllers.froggy import FroggyController, distribute, sample_params
+from symrom.sim.controllers.mpc import ConvexMPC, continuous_dynamics, discretize
+from symrom.sim.engines.bullet import BulletWorld as World
+from symrom.sim.engines.world import euler_rate_matrix, matrix_to_rpy
 
 
 @pytest.mark.parametrize("robot", ["go1", "a1", "laikago"])
@@ -33,7 +39,7 @@ def test_base_state_is_the_link_frame_of_the_inertial_frame():
         com_pos, v_com, omega, off_pos = rng.normal(size=(4, 3))
         com_orn, off_orn = Rotation.random(2, random_state=rng).as_quat()  # (x, y, z, w)
         q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
-        compiled.base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R)
+        base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R)
         Rc = Rotation.from_quat(com_orn)
         R_ref = (Rc * Rotation.from_quat(off_orn)).as_matrix()
         pos = com_pos + Rc.apply(off_pos)
@@ -208,3 +214,25 @@ def test_mpc_force_clipping_is_numpys_to_the_bit():
         ref[..., 1] = np.clip(ref[..., 1], -lim, lim)
         compiled.clip_forces(U, c, 0.0, 250.0, 0.6)
         np.testing.assert_array_equal(U.view(np.int64), ref.view(np.int64))  # signs of zeros too
+
+
+def test_the_compiled_routines_load_from_numba_s_disk_cache():
+    """After one process has compiled them, a fresh one loads every routine of both warm-ups from
+    the disk cache (cache=True survives the modules' layout) and compiles none."""
+    code = """
+import json
+from symrom.sim.controllers import compiled as controllers
+from symrom.sim.engines import compiled as engines
+engines.warm_up()
+controllers.warm_up(froggy=True)
+funcs = [engines.base_state, engines.mujoco_state, engines.mujoco_foot_forces, controllers.pronk_stance_torque,
+         controllers.clip_forces, controllers.condensed_qp, controllers.froggy_torque]
+print(json.dumps({f.__name__: [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
+                  for f in funcs}))
+"""
+    for _ in range(2):  # the first may compile (a fresh checkout); the second must not
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+    stats = json.loads(r.stdout.strip().splitlines()[-1])
+    assert all(hits > 0 and misses == 0 for hits, misses in stats.values()), stats
+

@@ -4,6 +4,8 @@ jumps that pass PyBullet's checks; actuator effects from the description."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from dataclasses import replace
 
 import h5py
@@ -16,10 +18,10 @@ from symrom.robots import ActuatorEffects, get_robot
 from symrom.robots.description import RobotDescriptionError, load_description
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.stance import start_pose
-from symrom.sim.engine import ENGINES, UnknownEngineError, World, make_world
-from symrom.sim.generate import GenerateConfig, GenerationError, generate, run_record_path
-from symrom.sim.forces import NoContactForceError, force_error
-from symrom.sim.world import euler_rate_matrix
+from symrom.sim.diagnostics.forces import NoContactForceError, force_error
+from symrom.sim.engines.registry import ENGINES, UnknownEngineError, make_world
+from symrom.sim.engines.world import World, euler_rate_matrix
+from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, run_record_path
 from symrom.cli import app
 from typer.testing import CliRunner
 
@@ -204,7 +206,7 @@ def test_pronk_on_user_written_descriptions(robot, engine):
 
 def test_froggy_scales_to_the_aliengo():
     """Unscaled, the A1's froggy thrust barely lifts the Aliengo (no flight); scaled, it jumps."""
-    from symrom.sim.froggy import FroggyParams, sample_params, scales
+    from symrom.sim.controllers.froggy import FroggyParams, sample_params, scales
 
     path = str(ROBOTS_DIR / "aliengo.toml")
     m, l = scales(path)
@@ -215,3 +217,33 @@ def test_froggy_scales_to_the_aliengo():
     assert sample_params(np.random.default_rng(0)) == a1  # the A1's own: unchanged
     ds = generate(GenerateConfig(path, "froggy", 1, seed=0, max_attempts=6), tmp_path("aliengo_froggy.h5"))
     assert (ds.contact.sum(axis=1) == 0).sum() * ds.dt >= 0.12
+
+
+def test_mujoco_runs_without_pybullet():
+    """The engine layer names no engine but the one asked for: a MuJoCo world steps, and a froggy
+    controller (whose model of the robot needs no body source) runs on it through the episode
+    loop, with PyBullet never imported. (The pronk's body model reads the URDF through PyBullet,
+    on any engine: ``sim.controllers.body``.)"""
+    code = """
+import sys
+import numpy as np
+from symrom.robots.stance import start_pose
+from symrom.sim.controllers.froggy import FroggyController, FroggyParams
+from symrom.sim.engines.registry import make_world
+from symrom.sim.generation.episode import run_episode
+import symrom.sim.generation.generate, symrom.sim.diagnostics.render
+world = make_world("mujoco", "go1")
+world.reset(start_pose("go1"))
+for _ in range(20):
+    world.step(np.zeros(12))
+s = world.state()
+assert abs(s.t - 0.02) < 1e-12 and s.contact.all(), (s.t, s.contact)
+world = make_world("mujoco", "a1")
+ctrl = FroggyController("a1", FroggyParams())
+end = run_episode(world, ctrl, ctrl.reset(world), 0.05)
+assert end.ticks == 51 and ctrl.phase == "settle", (end, ctrl.phase)
+assert "pybullet" not in sys.modules, "pybullet was imported"
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+

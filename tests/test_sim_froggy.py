@@ -10,8 +10,8 @@ import pytest
 from _simdata import N_JUMPS, reference_file
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
-from symrom.sim import froggy
-from symrom.sim.world import BulletWorld as World
+from symrom.sim.controllers import froggy
+from symrom.sim.engines.bullet import BulletWorld as World
 
 pytestmark = pytest.mark.slow
 LIMIT = np.asarray(get_robot("a1").torque_limit)

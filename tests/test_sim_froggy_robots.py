@@ -12,10 +12,11 @@ import pytest
 from _simdata import tmp_path
 from symrom.robots import ROBOTS, leg_kinematics
 from symrom.robots.stance import nominal_feet
-from symrom.sim.checks import JumpChecks, longest_run
-from symrom.sim.engine import ENGINES
-from symrom.sim.froggy import FroggyParams, sample_params
-from symrom.sim.generate import GenerateConfig, generate
+from symrom.sim.controllers.flight import longest_run
+from symrom.sim.generation.checks import JumpChecks
+from symrom.sim.engines.registry import ENGINES
+from symrom.sim.controllers.froggy import FroggyParams, sample_params
+from symrom.sim.generation.generate import GenerateConfig, generate
 
 pytestmark = pytest.mark.slow
 ROBOTS_DIR = Path(__file__).parent / "robots"

@@ -12,8 +12,10 @@ import pytest
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
 from symrom.robots import get_robot
 from symrom.robots.stance import FOOT_PRELOAD, start_pose
-from symrom.sim import pronk, proxy
-from symrom.sim.world import BulletWorld as World, WorldConfig
+from symrom.sim import proxy
+from symrom.sim.controllers import pronk
+from symrom.sim.engines.bullet import BulletWorld as World
+from symrom.sim.engines.world import WorldConfig
 
 SPEC = get_robot("go1")
 LIMIT = np.asarray(SPEC.torque_limit)

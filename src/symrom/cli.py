@@ -751,7 +751,7 @@ def reproduce_cmd(
         raise ValueError(f"--max-terms must be a positive number of terms, got {max_terms}")
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = _start_backend(backend, workers, address, local_default=2)
-    from symrom.sim.engine import check_engine
+    from symrom.sim.engines.registry import check_engine
 
     cfg = replace(ReproduceConfig.quick() if quick else ReproduceConfig(), workers=runner.workers, seed=seed,
                   backend=backend, address=getattr(runner, "address", None), engine=check_engine(engine))
@@ -966,7 +966,7 @@ def jump_cmd(
     import importlib.util
 
     from symrom.atomic import check_output_file
-    from symrom.sim.engine import ENGINES
+    from symrom.sim.engines.registry import ENGINES
 
     if importlib.util.find_spec("casadi") is None:
         raise ValueError("symrom jump plans with CasADi and IPOPT, which are not installed: pip install 'symrom[export]'")
@@ -1053,7 +1053,7 @@ def generate_cmd(
     """Simulate jumps (PyBullet or MuJoCo), check them and write a dataset file."""
     from symrom.atomic import check_writable
     from symrom.robots import get_robot
-    from symrom.sim.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
+    from symrom.sim.generation.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
                                      run_record_path)
 
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
@@ -1099,8 +1099,8 @@ def show_cmd(
     """Render frames of one logged jump (replayed in PyBullet or MuJoCo) as PNG files."""
     from symrom.atomic import check_writable
     from symrom.data.io import read_dataset
-    from symrom.sim.engine import check_engine
-    from symrom.sim.render import render_jump
+    from symrom.sim.engines.registry import check_engine
+    from symrom.sim.diagnostics.render import render_jump
 
     check_engine(engine)
     if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:
@@ -1120,7 +1120,7 @@ def forces_cmd(
     """The torque-derived ground force (the input u's) against the engine's own contact force."""
     from symrom.data.io import read_dataset
     from symrom.robots import get_robot
-    from symrom.sim.forces import AXES, force_error
+    from symrom.sim.diagnostics.forces import AXES, force_error
 
     for path in data:
         r = force_error(read_dataset(path))

@@ -7,8 +7,9 @@ by ``symrom.sim`` when a jump is simulated). This module sits on the ground
 floor (it imports nothing of symrom but ``names``), so ``data`` reads phase
 rules without importing the simulator.
 
-Adding a motion: one new file ``sim/<motion>.py`` exporting a ``Motion``
-(``symrom.sim.controller``) and one entry in ``MOTIONS``.
+Adding a motion: one new file ``sim/controllers/<motion>.py`` exporting a ``Motion``
+(``symrom.sim.controllers.motion``) and one entry in ``MOTIONS`` (a plug-in may live in
+any importable module; its entry names it).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ class MotionEntry:
     variant (``""`` for the plain one), scaled for other jump counts; variants:
     the options beyond ``noise`` the plug-in offers (e.g. ``proxy``,
     ``randomized``); plugin:
-    ``"module:attribute"`` of its ``symrom.sim.controller.Motion``.
+    ``"module:attribute"`` of its ``symrom.sim.controllers.motion.Motion``.
     """
 
     name: str
@@ -76,10 +77,10 @@ class MotionEntry:
 
 MOTIONS: dict[str, MotionEntry] = {
     "froggy": MotionEntry("froggy", (STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE), partial_before_flight,
-                          splits={"": (100, 40, 10)}, plugin="symrom.sim.froggy:MOTION",
+                          splits={"": (100, 40, 10)}, plugin="symrom.sim.controllers.froggy:MOTION",
                           variants=("randomized",)),
     "pronk": MotionEntry("pronk", (STANCE_PHASE, FLIGHT_PHASE), contact_flight,
-                         splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.pronk:MOTION",
+                         splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.controllers.pronk:MOTION",
                          variants=("proxy", "randomized")),
 }
 

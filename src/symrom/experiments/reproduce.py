@@ -193,7 +193,7 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     path = run / "data" / f"{spec.name}.h5"
     if _done(path):
         return path
-    from symrom.sim.generate import GenerateConfig, NoiseConfig, generate
+    from symrom.sim.generation.generate import GenerateConfig, NoiseConfig, generate
 
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
     gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed + spec.seed, proxy=spec.proxy,

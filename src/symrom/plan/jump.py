@@ -30,8 +30,8 @@ from symrom.plan.inputs import force_input_map, torque_map
 from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError
 from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.stance import start_pose
-from symrom.sim.pronk import PronkParams, scales
-from symrom.sim.world import RobotState
+from symrom.sim.controllers.pronk import PronkParams, scales
+from symrom.sim.engines.world import RobotState
 
 PLANNERS = ("learned", "point-mass", "aslip")
 GUARDS = ("height", "learned")

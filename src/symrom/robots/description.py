@@ -54,7 +54,7 @@ class ActuatorEffects:
     armature kg m^2: reflected rotor inertia, rotor inertia x gear ratio^2 (typical
     0-0.05); friction_loss N m: Coulomb joint friction (typical 0-1). All zero (the
     default) is the ideal motor both engines simulate otherwise. ``symrom.sim`` applies
-    them in every engine that can (``symrom.sim.engine``); a description states them in
+    them in every engine that can (``symrom.sim.engines``); a description states them in
     its optional ``[actuators]`` table, per joint kind (3) or per joint (12).
     """
 

@@ -52,7 +52,7 @@ Use, in this order (what a runner does)::
 
 ``apply_to_world(world, cfg)``, ``TorqueChannel`` and ``SensorModel`` are the
 parts, usable on their own. Units: s, m, rad, N m; arrays as in
-``symrom.sim.world``.
+``symrom.sim.engines.world``.
 """
 
 from __future__ import annotations
@@ -245,7 +245,7 @@ def apply_to_world(world, cfg: ProxyConfig) -> None:
     """Scale the robot's link masses and inertias, set the ground friction and contact and the
     joints' damping, armature and friction loss, in place.
 
-    world: any engine's world (``symrom.sim.engine.World``); an engine without armature
+    world: any engine's world (``symrom.sim.engines.world.World``); an engine without armature
     refuses a non-zero one (``for_engine`` first).
     """
     world.scale_inertia(cfg.trunk_mass_scale, cfg.leg_mass_scale, cfg.inertia_scale)
@@ -314,7 +314,7 @@ class SensorModel:
 
 class ProxyWorld:
     """A world seen through the proxy's motors and sensors; the same methods (a
-    ``symrom.sim.engine.World`` of any engine).
+    ``symrom.sim.engines.world.World`` of any engine).
 
     Construction applies the mass, inertia, friction, contact and actuator perturbations to
     ``world``; ``cfg`` is what the engine simulates of them (``for_engine``; the runner

@@ -1,11 +1,11 @@
-"""Compiled (numba) pieces of the per-tick work of a simulation: the base state, the MPC's
-force clipping, the pronk and froggy controllers' torques.
+"""Compiled (numba) arithmetic of the controllers' ticks: the froggy force distribution and
+torques, the pronk's stance torques, the MPC's force clipping and its condensed QP.
 
-A physics tick at 1 kHz leaves a few hundred microseconds for everything
-Python does around it; NumPy's per-call overhead on 3-vectors would take most
-of that. These routines do the same arithmetic as one compiled call each.
-Compiled on first use and cached on disk; import this module only where it runs
-(it imports numba).
+A physics tick at 1 kHz leaves a few hundred microseconds for everything Python does
+around it; NumPy's per-call overhead on 3-vectors would take most of that. These routines
+do the same arithmetic as one compiled call each (their NumPy references are tested
+against them). Compiled on first use and cached on disk (``warm_up`` compiles or loads
+them ahead); import this module only where it runs (it imports numba).
 """
 
 from __future__ import annotations
@@ -19,138 +19,8 @@ njit = numba.njit(cache=True)
 
 
 @njit
-def quat_matrix(x, y, z, w, R):
-    """R (3, 3) of the unit quaternion (x, y, z, w) (PyBullet's order)."""
-    R[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    R[0, 1] = 2.0 * (x * y - z * w)
-    R[0, 2] = 2.0 * (x * z + y * w)
-    R[1, 0] = 2.0 * (x * y + z * w)
-    R[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    R[1, 2] = 2.0 * (y * z - x * w)
-    R[2, 0] = 2.0 * (x * z - y * w)
-    R[2, 1] = 2.0 * (y * z + x * w)
-    R[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-
-
-@njit
-def base_state(com_pos, com_orn, v_com, omega, off_pos, off_orn, q, dq, R):
-    """The base link's pose and rates from its inertial frame's.
-
-    com_pos (3,) m, com_orn (4,) quaternion (x, y, z, w), v_com (3,) m/s, omega (3,)
-    rad/s (world) of the inertial frame, arrays or tuples (as PyBullet gives them);
-    off_pos (3,), off_orn (4,): the inertial -> link frame transform. Writes q[12:18] =
-    x, y, z, roll, pitch, yaw (ZYX), dq[12:18] = base velocity (m/s) and Euler-angle rates
-    (rad/s), R (3, 3) base -> world.
-    """
-    x1, y1, z1, w1 = com_orn[0], com_orn[1], com_orn[2], com_orn[3]
-    x2, y2, z2, w2 = off_orn[0], off_orn[1], off_orn[2], off_orn[3]
-    # orientation of the link frame: com_orn * off_orn
-    x = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
-    y = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
-    z = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
-    w = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
-    n = np.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    Rc = np.empty((3, 3))
-    quat_matrix(x1, y1, z1, w1, Rc)
-    lever = np.empty(3)
-    for a in range(3):
-        lever[a] = Rc[a, 0] * off_pos[0] + Rc[a, 1] * off_pos[1] + Rc[a, 2] * off_pos[2]
-        q[12 + a] = com_pos[a] + lever[a]
-    quat_matrix(x, y, z, w, R)
-    s = min(max(R[2, 0], -1.0), 1.0)
-    roll, pitch, yaw = np.arctan2(R[2, 1], R[2, 2]), -np.arcsin(s), np.arctan2(R[1, 0], R[0, 0])
-    q[15], q[16], q[17] = roll, pitch, yaw
-    # v_base = v_com + omega x (base - com)
-    dq[12] = v_com[0] + omega[1] * lever[2] - omega[2] * lever[1]
-    dq[13] = v_com[1] + omega[2] * lever[0] - omega[0] * lever[2]
-    dq[14] = v_com[2] + omega[0] * lever[1] - omega[1] * lever[0]
-    # omega = E d(rpy)/dt, E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]]: solved in closed form
-    cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-    droll = (cy * omega[0] + sy * omega[1]) / cp
-    dpitch = -sy * omega[0] + cy * omega[1]
-    dq[15], dq[16], dq[17] = droll, dpitch, omega[2] + sp * droll
-
-
-@njit
-def mujoco_state(qpos, qvel, xmat, xpos, cvel, subtree_com, body_root, base, feet, qadr, vadr, signs,
-                 con_geom, leg_of_geom, ground, quat, q, dq, R, omega, foot_pos, foot_vel, contact):
-    """The robot's state from MuJoCo's arrays, in one call (``MujocoWorld.state``).
-
-    qpos, qvel, xmat (nbody, 9), xpos (nbody, 3), cvel (nbody, 6), subtree_com (nbody, 3)
-    and body_root (nbody,): MuJoCo's, after a forward pass; base: the base body (its free
-    joint at qpos[0:7], qvel[0:6], angular velocity in the body frame); feet (4,) bodies;
-    qadr, vadr (12,): the joints' addresses; signs (12,); con_geom (ncon, 2) the contacts'
-    geoms, leg_of_geom (ngeom,) the leg of a foot geom or -1, ground the ground geom; quat
-    (4,) scratch. Writes q, dq (18,), R (3, 3), omega (3,) rad/s world, foot_pos and
-    foot_vel (4, 3) (m, m/s, the foot bodies' frames, world) and contact (4,) (1 where a
-    foot geom touches the ground geom). foot_vel is ``mj_objectVelocity``'s linear part:
-    the body's com-based velocity moved from its root's subtree centre of mass to xpos."""
-    w = qvel[3:6]
-    for a in range(3):  # qvel holds the angular velocity in the body frame
-        omega[a] = xmat[base, 3 * a] * w[0] + xmat[base, 3 * a + 1] * w[1] + xmat[base, 3 * a + 2] * w[2]
-    quat[0], quat[1], quat[2], quat[3] = qpos[4], qpos[5], qpos[6], qpos[3]  # (w, x, y, z) as (x, y, z, w)
-    zero, unit = np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])  # the free joint sits at the link frame
-    base_state(qpos[0:3], quat, qvel[0:3], omega, zero, unit, q, dq, R)
-    for j in range(12):
-        q[j] = qpos[qadr[j]] * signs[j]
-        dq[j] = qvel[vadr[j]] * signs[j]
-    for k in range(4):
-        b = feet[k]
-        c = subtree_com[body_root[b]]
-        r0, r1, r2 = xpos[b, 0] - c[0], xpos[b, 1] - c[1], xpos[b, 2] - c[2]
-        w0, w1, w2 = cvel[b, 0], cvel[b, 1], cvel[b, 2]
-        foot_vel[k, 0] = cvel[b, 3] + (w1 * r2 - w2 * r1)
-        foot_vel[k, 1] = cvel[b, 4] + (w2 * r0 - w0 * r2)
-        foot_vel[k, 2] = cvel[b, 5] + (w0 * r1 - w1 * r0)
-        foot_pos[k, 0], foot_pos[k, 1], foot_pos[k, 2] = xpos[b, 0], xpos[b, 1], xpos[b, 2]
-        contact[k] = 0
-    for i in range(con_geom.shape[0]):
-        g1, g2 = con_geom[i, 0], con_geom[i, 1]
-        if g1 == ground and leg_of_geom[g2] >= 0:
-            contact[leg_of_geom[g2]] = 1
-        elif g2 == ground and leg_of_geom[g1] >= 0:
-            contact[leg_of_geom[g1]] = 1
-
-
-@njit
-def mujoco_foot_forces(con_geom, con_frame, con_friction, con_dim, con_efc, efc_force, leg_of_geom, ground, f):
-    """The ground's force f (4, 3) N on each foot, world, from MuJoCo's contacts (pyramidal
-    friction cones): per foot/ground contact with constraint rows (efc address >= 0), the
-    force ``mj_contactForce`` decodes (normal: the sum of the pyramid's edge forces; tangent
-    i: (edge 2i - edge 2i+1) mu_i) turned from the contact frame (con_frame rows: normal,
-    tangents) into the world, signed for the foot (MuJoCo's acts from geom1 on geom2).
-    con_*: the contacts' geom (n, 2), frame (n, 9), friction (n, 5), dim (n,), efc_address
-    (n,); efc_force: MuJoCo's; leg_of_geom, ground as in ``mujoco_state``."""
-    f[:, :] = 0.0
-    for i in range(con_geom.shape[0]):
-        g1, g2 = con_geom[i, 0], con_geom[i, 1]
-        if g1 == ground and leg_of_geom[g2] >= 0:
-            k, sign = leg_of_geom[g2], 1.0
-        elif g2 == ground and leg_of_geom[g1] >= 0:
-            k, sign = leg_of_geom[g1], -1.0
-        else:
-            continue
-        a = con_efc[i]
-        if a < 0:  # within the margin, not touching: no force
-            continue
-        dim = con_dim[i]
-        local = np.zeros(3)
-        if dim == 1:
-            local[0] = efc_force[a]
-        else:
-            for e in range(2 * (dim - 1)):
-                local[0] += efc_force[a + e]
-            for t in range(min(dim - 1, 2)):
-                local[t + 1] = (efc_force[a + 2 * t] - efc_force[a + 2 * t + 1]) * con_friction[i, t]
-        for r in range(3):
-            f[k, r] += sign * (con_frame[i, r] * local[0] + con_frame[i, 3 + r] * local[1]
-                               + con_frame[i, 6 + r] * local[2])
-
-
-@njit
 def distribute(foot_pos, centre, legs, force, moment, mu, grf):
-    """Ground reactions grf (4, 3) N (``symrom.sim.froggy.distribute``) of the feet
+    """Ground reactions grf (4, 3) N (``symrom.sim.controllers.froggy.distribute``) of the feet
     ``legs`` (int array) giving the body wrench (force, moment), least norm, pulls
     dropped, horizontal parts clipped to the friction cone mu."""
     m = legs.shape[0]
@@ -229,7 +99,7 @@ def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_r
         tau[j] = t
 
 
-# Froggy stages (``symrom.sim.froggy``), by index.
+# Froggy stages (``symrom.sim.controllers.froggy``), by index.
 SETTLE, CROUCH, HOLD, PUSH_ALL, PUSH_REAR, FLIGHT, LAND = range(7)
 # Positions of the froggy parameters in the vector ``froggy_torque`` takes.
 FROGGY_PARAMS = ("stand_height", "crouch_height", "crouch_shift", "crouch_pitch", "push_speed", "push_rise",
@@ -396,17 +266,13 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
 
 def warm_up(froggy: bool = True) -> None:
     """Compile (or load from the disk cache) the routines here now, as the first tick of a
-    simulation would: those every motion uses, the pronk controller's (quick), and with
-    ``froggy`` the froggy controller's (the slowest to compile, about 10 s the first time)."""
+    simulation would: the one-configuration leg kinematics, the pronk controller's and the
+    MPC's (quick), and with ``froggy`` the froggy controller's (the slowest to compile, about
+    10 s the first time)."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
     kin.one(np.zeros(12))
-    q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
-    unit = np.array([0.0, 0.0, 0.0, 1.0])
-    base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
-    zero = (0.0, 0.0, 0.0)  # as World.state passes PyBullet's tuples
-    base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
     J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
     pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
                         np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
@@ -414,34 +280,10 @@ def warm_up(froggy: bool = True) -> None:
     h, m = 2, 6
     condensed_qp(np.zeros((h, m, h, m)), np.zeros((h * m, 13)), np.zeros((h * m, 13 * h)), np.zeros((m, 12)),
                  np.zeros(13), np.zeros(13 * h), 1.0, np.empty((12 * h, 12 * h)), np.empty(12 * h))
-    _warm_mujoco()
     if not froggy:
         return
     feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+    q, dq = np.zeros(18), np.zeros(18)
     q[14] = 0.3
     froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
                   np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())
-
-
-def _warm_mujoco() -> None:
-    """Compile the MuJoCo world's reads for the array types MuJoCo hands them: its contact
-    fields are strided views of the contact structs, contiguous when there is one contact
-    or none."""
-    nb, ng = 6, 8
-    i32, i64 = np.int32, np.int64
-    f4, legs = np.zeros((4, 3)), np.full(ng, -1, dtype=i64)
-    legs[2:6] = np.arange(4)
-    qpos = np.zeros(19)
-    qpos[3] = 1.0  # a unit quaternion
-    for n, strided in ((1, False), (2, True)):
-        rows = np.zeros((n, 12 if strided else 2), dtype=i32)
-        geom, dim, efc = rows[:, :2], np.full(n, 3, i32), np.zeros(n, i32)
-        frame, friction = np.zeros((n, 9 if not strided else 20))[:, :9], np.zeros((n, 5 if not strided else 8))[:, :5]
-        if strided:
-            dim, efc = rows[:, 2], rows[:, 3]
-        mujoco_state(qpos, np.zeros(18), np.tile(np.eye(3).ravel(), (nb, 1)), np.zeros((nb, 3)),
-                     np.zeros((nb, 6)), np.zeros((nb, 3)), np.zeros(nb, dtype=i64), 1, np.arange(2, 6, dtype=i64),
-                     np.arange(7, 19, dtype=i32), np.arange(6, 18, dtype=i32), np.ones(12), geom, legs, 0,
-                     np.empty(4), np.empty(18), np.empty(18), np.empty((3, 3)), np.empty(3), np.empty((4, 3)),
-                     np.empty((4, 3)), np.empty(4, dtype=np.uint8))
-        mujoco_foot_forces(geom, frame, friction, dim, efc, np.zeros(4 * n), legs, 0, f4)

@@ -1,11 +1,11 @@
 """Simulated jump datasets: run checked jumps on a back end and write a dataset file.
 
-``generate(config, out)`` runs ``config.n_jumps`` jumps (``symrom.sim.runner``)
+``generate(config, out)`` runs ``config.n_jumps`` jumps (``runner.run_checked_jump``)
 as tasks of an execution back end (``symrom.execution``: local processes by
-default, or a Ray cluster), each in its own PyBullet client with the seed
+default, or a Ray cluster), each in its own world with the seed
 ``SeedSequence(seed, spawn_key=(jump, attempt))``, so the file depends neither
 on the back end nor on the worker count. A task returns its jump's arrays; the
-driver writes each finished jump at once to a part file (``symrom.sim.parts``),
+driver writes each finished jump at once to a part file (``parts``),
 and ``resume`` reuses them. The dataset is assembled with
 ``symrom.data.preprocess.assemble`` and written atomically, beside it the run's
 record ``OUT.run.json`` (back end, time per jump, workers lost and retried),
@@ -34,17 +34,19 @@ from symrom.execution import Backend, LocalBackend
 from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
-from symrom.sim.engine import ENGINES, UnknownEngineError, check_engine
-from symrom.sim.mpc import QP_SOLVERS
-from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
-from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
-from symrom.sim.runner import GenerationError, jump_seed, run_checked_jump
+from symrom.sim.controllers.mpc import QP_SOLVERS
+from symrom.sim.engines.registry import UnknownEngineError, check_engine, engine_module
+from symrom.sim.generation.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
+from symrom.sim.generation.parts import jsonable, part_path, parts_dir, read_part, write_part
+from symrom.sim.generation.runner import GenerationError, jump_seed, run_checked_jump
+from symrom.sim.proxy import ROBOT_FIELDS
 
 __all__ = ["GenerateConfig", "GenerationError", "NoiseConfig", "build_dataset", "generate", "jump_seed",
            "motion_available", "parts_dir", "run_record_path", "split_counts", "split_labels"]
 
 ProgressCallback = Callable[[int, int, dict], None]
 RUN_RECORD_VERSION = 1
+GENERATOR_NAME = "symrom.sim.generate"  # the files' ``generator.generator``: the generator's name in the format
 
 
 def motion_available(motion: str) -> bool:
@@ -97,7 +99,7 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
     dt = cfg.world.dt * cfg.world.log_every
     counts = cfg.splits or split_counts(cfg.n_jumps, cfg.motion, cfg.proxy)
     generator = {
-        "generator": "symrom.sim.generate", "version": GENERATOR_VERSION, "engine": cfg.engine,
+        "generator": GENERATOR_NAME, "version": GENERATOR_VERSION, "engine": cfg.engine,
         "config": jsonable(cfg.to_dict()), "fingerprint": cfg.fingerprint(),
         "seeds": {"seed": cfg.seed, "rule": "SeedSequence(seed, spawn_key=(jump, attempt))"},
         "splits": dict(zip(SPLITS, counts)),
@@ -119,7 +121,6 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
 def proxy_robot(records: list[dict]) -> dict:
     """The hardware constants (``proxy.ROBOT_FIELDS``) the proxy jumps ``records`` share, as
     simulated; ``GenerationError`` naming the first jump that differs."""
-    from symrom.sim.proxy import ROBOT_FIELDS
 
     def of(r: dict) -> dict:
         return {f: r["params"]["proxy"][f] for f in ROBOT_FIELDS}
@@ -133,11 +134,11 @@ def proxy_robot(records: list[dict]) -> dict:
 
 
 def _preload(cfg: GenerateConfig) -> list[str]:
-    """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet and
-    the compiled simulation routines (``symrom.sim.warm``)."""
-    engine = ENGINES[cfg.engine].partition(":")[0]
-    return ["symrom.sim.runner", get_motion(cfg.motion).plugin.partition(":")[0], "pybullet", engine,
-            "symrom.sim.warm"]
+    """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet (without
+    its banner; the pronk's body model reads the URDF with it on any engine), the engine's world and
+    the compiled simulation routines (``warm``)."""
+    return ["symrom.sim.generation.runner", get_motion(cfg.motion).plugin.partition(":")[0],
+            "symrom.sim.engines.bullet", engine_module(cfg.engine), "symrom.sim.generation.warm"]
 
 
 def run_record_path(out: str | os.PathLike) -> Path:

@@ -25,7 +25,7 @@ must be the description's. Then:
 - the integrator is ``implicitfast`` (damping terms implicit) at ``WorldConfig.dt``.
 
 The compiled model is kept per (robot, settings) in the process; each world works
-on its own copy. Units and coordinates as in ``symrom.sim.world``.
+on its own copy. Units and coordinates as in ``symrom.sim.engines.world``.
 """
 
 from __future__ import annotations
@@ -39,9 +39,9 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
-from symrom.sim.compiled import base_state, mujoco_foot_forces, mujoco_state
-from symrom.sim.world import (RobotState, WorldConfig, _check_contact, euler_rate_matrix,
-                              standing_configuration)
+from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state
+from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
+                                      standing_configuration)
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)
@@ -134,7 +134,7 @@ def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[
 
 
 class MujocoWorld:
-    """One robot on a plane in MuJoCo (a ``symrom.sim.engine.World``; see the module docstring).
+    """One robot on a plane in MuJoCo (a ``symrom.sim.engines.world.World``; see the module docstring).
 
     robot: a built-in name or a description file; config: physics settings;
     effects: actuator effects (default: the description's ``[actuators]``).
@@ -208,7 +208,7 @@ class MujocoWorld:
 
     def state(self) -> RobotState:
         """The current state of the robot (see ``RobotState``): MuJoCo's arrays read in one
-        compiled call (``symrom.sim.compiled.mujoco_state``; ``state_reference`` is the same
+        compiled call (``symrom.sim.engines.compiled.mujoco_state``; ``state_reference`` is the same
         through MuJoCo's own functions)."""
         q, dq, R, omega = np.empty(N_Q), np.empty(N_Q), np.empty((3, 3)), np.empty(3)
         foot_pos, foot_vel, contact = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3)), np.empty(N_LEGS, np.uint8)
@@ -362,7 +362,7 @@ class MujocoWorld:
         rest that gives r = (1 - d) / d x w x load / k: with d held constant
         (``CONTACT_IMPEDANCE``) and k, b = (1 - d) / d x w x (stiffness, damping) a foot sinks
         by load / stiffness, as on PyBullet's contactStiffness."""
-        _check_contact(stiffness, damping)
+        check_ground_contact(stiffness, damping)
         d = CONTACT_IMPEDANCE
         w = float(np.mean(self.model.body_invweight0[self._feet, 0]))  # 1/kg, along a contact normal
         scale = (1.0 - d) / d * w

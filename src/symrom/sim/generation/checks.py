@@ -2,11 +2,10 @@
 
 ``check_jump`` applies the checks common to all motions (``JumpChecks``); a
 motion adds its own through its plug-in's ``check`` (the one-flight jumps,
-pronk and froggy, ``one_main_flight``; froggy its rear-only push). Each failed
-check is one human-readable reason, recorded with the retry. ``FlightWatch``
-sees, while a jump runs, when ``one_main_flight`` is already certain to fail; a
-motion hands the runner such a watcher (``watch``) so that it can stop the
-attempt there.
+pronk and froggy, ``controllers.flight.one_main_flight``; froggy its rear-only
+push). Each failed check is one human-readable reason, recorded with the retry.
+A motion's watcher (``Motion.watch``, e.g. ``controllers.flight.FlightWatch``)
+lets the episode loop stop an attempt once it has certainly failed.
 """
 
 from __future__ import annotations
@@ -17,7 +16,7 @@ import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY
 from symrom.robots import get_robot
-
+from symrom.sim.controllers.flight import longest_run, runs
 
 @dataclass(frozen=True)
 class JumpChecks:
@@ -36,20 +35,6 @@ class JumpChecks:
     min_flight: float = 0.12
     min_apex_gain: float = 0.05
     min_travel: float = 0.1
-
-
-BRIEF_FLIGHT = "a brief flight before the main one"  # the one_main_flight reason FlightWatch foresees
-
-
-def runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """[start, stop) of the runs of True in a boolean (n,) array."""
-    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
-def longest_run(mask: np.ndarray) -> tuple[int, int]:
-    """[start, stop) of the longest run of True (the first of equals); mask must hold a True."""
-    return max(runs(mask), key=lambda r: r[1] - r[0])
 
 
 def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpChecks = JumpChecks(),
@@ -88,42 +73,3 @@ def check_jump(log: dict[str, np.ndarray], robot: str, dt: float, checks: JumpCh
     if travel < checks.min_travel:
         bad.append(f"travel {travel:.3f} m")
     return bad
-
-
-def one_main_flight(log: dict[str, np.ndarray]) -> list[str]:
-    """[``BRIEF_FLIGHT``] if the first run of samples with no foot down in ``log["contact"]``
-    (n, 4) is not the longest (the first of equals), else []: a jump with one flight."""
-    airborne = log["contact"].sum(axis=1) == 0
-    flights = runs(airborne)
-    if flights and flights[0][0] != longest_run(airborne)[0]:
-        return [BRIEF_FLIGHT]
-    return []
-
-
-class FlightWatch:
-    """Watches the logged contact flags of a running jump for a certain failure of
-    ``one_main_flight`` (the first run of samples with no foot down must be the longest,
-    the first of equals).
-
-    ``update(contact (4,))`` per logged sample; ``failed`` turns true once a later
-    airborne run has grown longer than the first one ended at: the whole log will fail
-    that check whatever follows; ``reason`` says which check that is.
-    """
-
-    reason = BRIEF_FLIGHT
-
-    def __init__(self) -> None:
-        self.first: int | None = None  # length of the first airborne run, once it ended
-        self.run = 0  # length of the current airborne run
-        self.failed = False
-
-    def update(self, contact: np.ndarray) -> bool:
-        if not contact.any():
-            self.run += 1
-            if self.first is not None and self.run > self.first:
-                self.failed = True
-        else:
-            if self.run and self.first is None:
-                self.first = self.run
-            self.run = 0
-        return self.failed

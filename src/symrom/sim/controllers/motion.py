@@ -2,13 +2,15 @@
 
 A motion's registry entry (``symrom.motions``) names its plug-in as
 ``"module:attribute"``; ``load_motion`` imports it only here, in the
-simulator. The runner (``symrom.sim.runner``) uses nothing else of a motion:
+simulator. Generation (``symrom.sim.generation.runner``, through the episode loop
+``symrom.sim.generation.episode.run_episode``) uses nothing else of a motion:
 
     params = motion.sample_params(rng, robot, variant, dataset_rng)  # a dataclass with max_time (s)
-    world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engine.World
+    world = motion.make_world(robot, world_config, params, engine)   # symrom.sim.engines.world.World
     ctrl = motion.make_controller(robot, params, mpc_solver="osqp")
     q0 = ctrl.reset(world)                             # start pose (18,), before world.reset
     watch = motion.watch()                             # sees a certain failure while it runs
+    world.reset(q0)
     while not ctrl.done(s := world.state()):
         world.step(ctrl.torque(s))                     # (12,) N m per physics tick
         watch.update(s.contact)                        # on logged samples; True: stop
@@ -24,10 +26,10 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from symrom.motions import get_motion
-from symrom.sim.checks import FlightWatch, one_main_flight
-from symrom.sim.engine import World, make_world
+from symrom.sim.controllers.flight import FlightWatch, one_main_flight
+from symrom.sim.engines.registry import make_world
+from symrom.sim.engines.world import RobotState, World, WorldConfig
 from symrom.sim.proxy import ProxyWorld
-from symrom.sim.world import RobotState, WorldConfig
 
 
 @runtime_checkable
@@ -60,12 +62,12 @@ class Motion(Protocol):
         draws that per jump too."""
 
     def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
-        """The world of ``engine`` (``symrom.sim.engine.ENGINES``) the jump runs in (e.g. a
+        """The world of ``engine`` (``symrom.sim.engines.registry.ENGINES``) the jump runs in (e.g. a
         hardware-like proxy of it)."""
 
     def make_controller(self, robot: str, params: Any, mpc_solver: str = "osqp") -> Controller:
         """A fresh controller for one jump; mpc_solver: the QP solver of its MPC, if it has one
-        (``symrom.sim.mpc.QP_SOLVERS``; ``GenerateConfig.mpc_solver``)."""
+        (``symrom.sim.controllers.mpc.QP_SOLVERS``; ``GenerateConfig.mpc_solver``)."""
 
     def source(self, params: Any) -> str:
         """The dataset's ``source`` for jumps with ``params``: ``sim`` or ``proxy``."""
@@ -73,16 +75,17 @@ class Motion(Protocol):
     def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
         """Reasons the logged jump fails this motion's own checks (beyond ``JumpChecks``)."""
 
-    def watch(self) -> Any:
-        """A fresh watcher of one attempt: ``update(contact (4,)) -> bool`` per logged sample,
-        True once the attempt has certainly failed; ``reason`` names the check."""
+    def watch(self) -> Watcher:
+        """A fresh watcher of one attempt (``Watcher``)."""
 
 
-class _NoWatch:
-    reason = ""
+class Watcher(Protocol):
+    """Watches one running attempt for a certain failure of its motion's own check."""
+
+    reason: str  # the check that will fail, once ``update`` said so
 
     def update(self, contact: np.ndarray) -> bool:
-        return False
+        """Per logged sample, its contact flags (4,): True once the attempt has certainly failed."""
 
 
 @dataclass(frozen=True)
@@ -90,7 +93,7 @@ class PlainMotion:
     """Defaults for a ``Motion`` of one main flight: the nominal world, seen through the
     proxy's motors and sensors when the jump's parameters hold a ``proxy`` configuration
     (``sim.proxy.ProxyWorld``), source ``sim``, the one-flight check
-    (``checks.one_main_flight``) and its watcher (``checks.FlightWatch``)."""
+    (``flight.one_main_flight``) and its watcher (``flight.FlightWatch``)."""
 
     def make_world(self, robot: str, config: WorldConfig, params: Any, engine: str) -> World:
         world = make_world(engine, robot, config)
@@ -103,7 +106,7 @@ class PlainMotion:
     def check(self, log: dict[str, np.ndarray], dt: float, checks: Any) -> list[str]:
         return one_main_flight(log)
 
-    def watch(self) -> Any:
+    def watch(self) -> Watcher:
         return FlightWatch()
 
 

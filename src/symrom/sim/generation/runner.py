@@ -1,11 +1,12 @@
 """Running one jump: a fresh world and controller of the motion, logged, checked, retried.
 
 One jump: the motion's world (1 kHz physics) and controller (``Controller``:
-``reset``, ``torque``, ``done``), logged every ``physics_hz / log_hz`` ticks
-(500 Hz, dt = 0.002 s): t (s), q and dq (18,), the applied torque tau (12,)
-N m, contact (4,) and foot_pos (4, 3) m. A failed jump is re-run with a fresh
-seed derived from (seed, jump, attempt), so a file never depends on the
-order or the number of workers.
+``reset``, ``torque``, ``done``) run by the episode loop (``episode.run_episode``),
+logged every ``physics_hz / log_hz`` ticks (500 Hz, dt = 0.002 s): t (s), q and dq
+(18,), the applied torque tau (12,) N m, contact (4,), foot_pos (4, 3) m and the
+engine's contact forces (4, 3) N. A failed jump is re-run with a fresh seed derived
+from (seed, jump, attempt), so a file never depends on the order or the number of
+workers.
 """
 
 from __future__ import annotations
@@ -16,12 +17,13 @@ from typing import Any
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_Q
-from symrom.sim.checks import check_jump
-from symrom.sim.config import GenerateConfig, NoiseConfig
-from symrom.sim.controller import load_motion
-from symrom.sim.parts import LOG_KEYS, jsonable
+from symrom.sim.controllers.motion import load_motion
+from symrom.sim.engines.world import RobotState
+from symrom.sim.generation.checks import check_jump
+from symrom.sim.generation.config import GenerateConfig, NoiseConfig
+from symrom.sim.generation.episode import BasePush, run_episode
+from symrom.sim.generation.parts import LOG_KEYS, jsonable
 from symrom.sim.proxy import ProxyWorld
-from symrom.sim.world import RobotState
 
 
 class GenerationError(RuntimeError):
@@ -72,7 +74,7 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
         bound = world.logged_torque_bound  # a measured torque may pass the limits
         if not np.array_equal(bound, world.torque_limit):
             info["torque_bound"] = np.asarray(bound).tolist()
-    force = None
+    push = reading = None
     if cfg.noise is not None:
         n = cfg.noise
         q0[JOINTS] += noise_rng.normal(0.0, n.q0_joint, N_JOINTS)
@@ -81,40 +83,33 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
         q0 = world.standing_q(q0[JOINTS], tuple(xy), tuple(rpy))  # back on the ground
         f = noise_rng.normal(0.0, np.asarray(n.force_std))
         t0 = float(noise_rng.uniform(*n.force_start))
-        force = (f, t0, t0 + n.force_duration)
+        push = BasePush(f, t0, t0 + n.force_duration)
         info["push"] = {"force": f.tolist(), "t_start": t0, "t_end": t0 + n.force_duration}
+
+        def reading(s: RobotState) -> RobotState:
+            return _noisy(s, n, noise_rng)
+
     log: dict[str, list] = {k: [] for k in LOG_KEYS}
-    every = cfg.world.log_every
-    finished = False
+    dt = cfg.world.dt
+
+    def on_sample(tick: int, s: RobotState, applied: np.ndarray) -> None:
+        log["t"].append(tick * dt)
+        log["q"].append(s.q)
+        log["dq"].append(s.dq)
+        log["tau"].append(applied)
+        log["contact"].append(s.contact)
+        log["foot_pos"].append(s.foot_pos)
+        log["contact_force"].append(world.contact_forces())  # the engine's, during this tick
+
     watch = motion.watch() if hasattr(motion, "watch") else None  # the motion's own watcher
     try:
-        world.reset(q0)
-        for tick in range(int(round(params.max_time * cfg.world.physics_hz)) + 1):
-            s = world.state()
-            if cfg.noise is not None:
-                s = _noisy(s, cfg.noise, noise_rng)
-            if ctrl.done(s):
-                finished = True
-                break
-            tau = ctrl.torque(s)
-            if force is not None and force[1] <= s.t < force[2]:
-                world.apply_base_force(force[0])
-            logged = tick % every == 0
-            applied = world.step(tau, report=logged)
-            if logged:
-                log["t"].append(tick * cfg.world.dt)
-                log["q"].append(s.q)
-                log["dq"].append(s.dq)
-                log["tau"].append(applied)
-                log["contact"].append(s.contact)
-                log["foot_pos"].append(s.foot_pos)
-                log["contact_force"].append(world.contact_forces())  # the engine's, during this tick
-                if watch is not None and watch.update(s.contact):  # fails whatever follows: stop
-                    info["stopped"] = f"{watch.reason} (stopped at {tick * cfg.world.dt:.3f} s)"
-                    break
+        end = run_episode(world, ctrl, q0, params.max_time, on_sample=on_sample, watch=watch, reading=reading,
+                          push=push)
     finally:
         world.close()
-    info["finished"] = finished
+    if end.stopped_at is not None:  # fails whatever would follow
+        info["stopped"] = f"{watch.reason} (stopped at {end.stopped_at * dt:.3f} s)"
+    info["finished"] = end.finished
     info["diagnostics"] = ctrl.diagnostics()
     arrays = {"t": np.asarray(log["t"], float), "q": np.asarray(log["q"], float).reshape(-1, N_Q),
               "dq": np.asarray(log["dq"], float).reshape(-1, N_Q),

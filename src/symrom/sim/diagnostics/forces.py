@@ -15,7 +15,7 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.robots import get_robot
-from symrom.sim.dynamics import GRAVITY
+from symrom.sim.controllers.body import GRAVITY
 
 AXES = ("x", "y", "z")
 

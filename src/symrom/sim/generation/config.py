@@ -11,8 +11,8 @@ import json
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from symrom.sim.checks import JumpChecks
-from symrom.sim.world import WorldConfig
+from symrom.sim.engines.world import WorldConfig
+from symrom.sim.generation.checks import JumpChecks
 
 # 2: compiled per-tick arithmetic (the jumps of 1 to rounding, not bitwise); 3: the engine is a
 # choice and its true contact forces are logged (PyBullet's jumps bitwise those of 2); 4: feet
@@ -68,9 +68,9 @@ class GenerateConfig:
     domain-randomised variant (``randomized``; not with proxy); noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
     max_attempts: tries per jump before generation fails; engine: the physics engine
-    (``symrom.sim.engine.ENGINES``); splits: (train, val, test) jump counts, None for the
+    (``symrom.sim.engines.registry.ENGINES``); splits: (train, val, test) jump counts, None for the
     motion's (``generate.split_counts``); mpc_solver: the QP solver of a motion's MPC
-    (``symrom.sim.mpc.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
+    (``symrom.sim.controllers.mpc.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
     None for the engine's (``MPC_SOLVER``), which is what the file records.
     """
 

@@ -34,12 +34,11 @@ import numpy as np
 from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
-from symrom.sim import compiled
-from symrom.sim.checks import longest_run
-from symrom.sim.controller import PlainMotion
-from symrom.sim.engine import World
+from symrom.sim.controllers import compiled
+from symrom.sim.controllers.flight import longest_run
+from symrom.sim.controllers.motion import PlainMotion
+from symrom.sim.engines.world import RobotState, World
 from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy
-from symrom.sim.world import RobotState
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
@@ -213,7 +212,7 @@ def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
     Least-norm solution of sum F_k = force (3,) N and sum (p_k - centre) x F_k =
     moment (3,) N m, with foot_pos (4, 3) m and centre (3,) m in the world; then
     pulls are dropped and horizontal parts clipped to the friction cone ``mu``.
-    Compiled (``symrom.sim.compiled``).
+    Compiled (``symrom.sim.controllers.compiled``).
     """
     grf = np.empty((N_LEGS, 3))
     compiled.distribute(np.ascontiguousarray(foot_pos, dtype=float), np.asarray(centre, dtype=float),
@@ -284,7 +283,7 @@ class FroggyController:
     def torque(self, s: RobotState) -> np.ndarray:
         """Joint torques (12,) N m for state ``s``.
 
-        The stages above pick the targets; ``symrom.sim.compiled.froggy_torque`` does the
+        The stages above pick the targets; ``symrom.sim.controllers.compiled.froggy_torque`` does the
         arithmetic (it reads as ``torque_numpy``, the reference it is tested against).
         """
         self.phase = self._stage(s)

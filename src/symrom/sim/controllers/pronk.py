@@ -9,7 +9,7 @@ ballistic flight with the commanded apex height and a total forward travel of
 the commanded distance (``plan_jump``); the MPC's contact schedule turns all
 four feet off at the planned take-off time, so the plan already holds the
 ballistic start. In both phases a convex single-rigid-body MPC
-(``symrom.sim.mpc``, OSQP, 10 steps of 25 ms, solved at ``mpc_hz``) computes
+(``symrom.sim.controllers.mpc``, OSQP, 10 steps of 25 ms, solved at ``mpc_hz``) computes
 the ground-reaction forces ``f`` of the four feet (world frame); they become
 joint torques ``tau = -J^T R^T f`` (leg Jacobian ``J`` from the URDF
 kinematics in the base frame, ``R`` base -> world), plus the torques that hold
@@ -34,7 +34,17 @@ forces with mass, joint stiffness and damping with mass x length, Cartesian
 stiffness with mass / length, times of the landing reference with the square
 root of length. For the Go1 both ratios are exactly 1.
 
-Use: ``MOTION`` is the plug-in the runner drives (``symrom.sim.controller``)::
+A push policy. ``PronkController(..., push=policy)`` hands the push to a
+``PushPolicy`` in place of the MPC: called once when the push is due and then at
+every tick of the push with the measured state, it commands the summed ground
+force on the feet and its moment about the CoM (``PushCommand``), and says when
+the push ends and what flight follows (``PushTiming``); it may re-plan at any
+tick. The pronk turns the command into joint torques through massless legs
+(``push_torque``) and runs its own flight and landing after it. The jump's
+events (``push_start``, ``liftoff``, ``touchdown``) and ``phase`` are public,
+read-only. ``symrom.plan.execute`` runs a planned jump this way.
+
+Use: ``MOTION`` is the plug-in generation drives (``symrom.sim.controllers.motion``)::
 
     params = sample_params(rng, proxy=False, robot="go1")   # PronkParams
     ctrl = PronkController("go1", params)
@@ -45,12 +55,13 @@ Use: ``MOTION`` is the plug-in the runner drives (``symrom.sim.controller``)::
 
 A Go1 jump lasts about 1.4-1.5 s (crouch and push ~0.6 s, flight ~0.25 s,
 landing and settling >= 0.6 s), i.e. ~730 samples at 500 Hz.
-Units: m, s, rad, N, N m. ``RobotState`` as in ``symrom.sim.world``.
+Units: m, s, rad, N, N m. ``RobotState`` as in ``symrom.sim.engines.world``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -58,12 +69,12 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
-from symrom.sim.compiled import pronk_stance_torque as stance_torque
-from symrom.sim.controller import PlainMotion
-from symrom.sim.dynamics import GRAVITY, LegGravity, body_model
-from symrom.sim.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
+from symrom.sim.controllers.body import GRAVITY, LegGravity, body_model
+from symrom.sim.controllers.compiled import pronk_stance_torque as stance_torque
+from symrom.sim.controllers.motion import PlainMotion
+from symrom.sim.controllers.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
+from symrom.sim.engines.world import RobotState, World
 from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
-from symrom.sim.engine import World
 
 REFERENCE_ROBOT = "go1"  # the robot the gains and heights were tuned on
 
@@ -224,17 +235,83 @@ def plan_jump(params: PronkParams, brake_time: float, boost: float = 1.0) -> Jum
                     vx=float(boost * vx), vz=float(boost * vz), flight_time=float(flight_time))
 
 
+@dataclass(frozen=True)
+class PushTiming:
+    """The push a ``PushPolicy`` means to make: duration s from its first tick to lift-off, the
+    lift-off velocity vx (along the heading) and vz (up), m/s, and flight_time s, lift-off to
+    touchdown (the pronk waits for a touchdown at most 0.4 s longer)."""
+
+    duration: float
+    vx: float
+    vz: float
+    flight_time: float
+
+
+@dataclass(frozen=True)
+class PushCommand:
+    """A ``PushPolicy``'s command for one tick of the push: force (3,) N, the summed ground force
+    on the feet, and moment (3,) N m, its moment about the CoM, both world; the legs' torques
+    stand for them (``PronkController.push_torque``). timing: the push's new ``PushTiming``
+    when the policy re-planned it, else None (the last one holds)."""
+
+    force: np.ndarray
+    moment: np.ndarray
+    timing: PushTiming | None = None
+
+
+@runtime_checkable
+class PushPolicy(Protocol):
+    """What drives the pronk's push in place of its MPC (``PronkController(push=...)``).
+
+    ``start`` is called once, at the first tick of the push (the crouch and hold are over),
+    with the measured state; then ``command`` at every tick of the push, from that first one
+    (``since`` = 0), with the measured state and the time since the push began. Either may
+    plan; ``command`` may re-plan the rest of the push at any tick (a closed loop), its
+    ``PushCommand.timing`` then moving the push's end. The push ends at the first tick
+    ``duration`` s or more after it began; the pronk's flight and landing follow.
+    """
+
+    def start(self, state: RobotState) -> PushTiming:
+        """The push's timing, planned from the measured ``state`` at its first tick."""
+
+    def command(self, state: RobotState, since: float) -> PushCommand:
+        """The command for this tick of the push, ``since`` s after it began."""
+
+
+def heading(yaw: float) -> np.ndarray:
+    """(3,) horizontal unit vector, world, of the heading ``yaw`` rad."""
+    return np.array([np.cos(yaw), np.sin(yaw), 0.0])
+
+
+def distribute_wrench(F: np.ndarray, M: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Least-norm foot forces (4, 3) N summing to F (3,) N with moment M (3,) N m about the
+    point the lever arms r (4, 3) m start from: the minimum-norm solution of
+    [I ... I; [r_k]x ...] f = [F; M]."""
+    A = np.zeros((6, 3 * N_LEGS))
+    for k in range(N_LEGS):
+        x, y, z = r[k]
+        A[:3, 3 * k:3 * k + 3] = np.eye(3)
+        A[3:, 3 * k:3 * k + 3] = [[0, -z, y], [z, 0, -x], [-y, x, 0]]
+    return np.linalg.lstsq(A, np.concatenate([F, M]), rcond=None)[0].reshape(N_LEGS, 3)
+
+
 class PronkController:
     """Forward-pronking controller of one jump; see the module docstring.
 
     ``torque(state)`` -> (12,) N m is called every physics tick; ``done(state)``
     is true once the robot has settled after landing (or at ``max_time``).
-    ``phase`` is the current phase name; ``mpc_solve_times`` (list, s) are the
-    wall times of all MPC solves so far.
+    push: a ``PushPolicy`` driving the push in place of the MPC, or None.
+    Read-only: ``phase`` (``crouch``, ``push``, ``flight``, ``land``), the jump's
+    events ``push_start``, ``liftoff``, ``touchdown`` and ``airborne``, its
+    ``heading``; ``plan`` (``JumpPlan``) is the timing in force (a push policy's
+    from the push on); ``mpc_solve_times`` (list, s) are the wall times of all
+    MPC solves so far.
     """
 
-    def __init__(self, robot: str, params: PronkParams, gains: PronkGains | None = None):
+    def __init__(self, robot: str, params: PronkParams, gains: PronkGains | None = None,
+                 push: PushPolicy | None = None):
         self.robot, self.spec, self.params = robot, get_robot(robot), params
+        self.push = push
         self.gains = gains or PronkGains.scaled(*scales(robot))
         self.body = body_model(robot)
         self.kin = leg_kinematics(robot)
@@ -244,12 +321,18 @@ class PronkController:
         self.leg_gravity = LegGravity(robot)
         self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
-        self.phase = "crouch"
+        self._phase = "crouch"
         self._x0: np.ndarray | None = None  # base position at the first call
         self._forces = np.zeros((N_LEGS, 3))
         self._last_solve = -np.inf
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
+        # the jump's events (the public read-only properties)
+        self._push_start: tuple[float, np.ndarray] | None = None
+        self._liftoff: tuple[np.ndarray, np.ndarray] | None = None
+        self._touchdown: tuple[float, np.ndarray] | None = None
+        self._airborne = False
+        self._zero_tau = np.zeros(N_JOINTS)  # no leg-weight torque in a policy's push
         # posture terms per joint (3, 12): kp (hip abduction only), kd, standing angles
         self._posture = np.stack([np.tile([self.gains.kp_hx, 0.0, 0.0], N_LEGS),
                                   np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS),
@@ -257,7 +340,7 @@ class PronkController:
         self._q_land: np.ndarray | None = None
         # fixed parts of the references: heading (3,), take-off velocity (3,) m/s, CoM offset
         # from the base origin for a level body at the commanded heading (3,) m, world
-        self._e = np.array([np.cos(params.yaw), np.sin(params.yaw), 0.0])
+        self._e = heading(params.yaw)
         self._v_to = self.plan.vx * self._e + np.array([0.0, 0.0, self.plan.vz])
         self._off_ref = rot_z(params.yaw) @ self.body.com_base
         self._p_crouch = self._p_to = None  # bottom of the crouch and take-off point (3,) m, set with _x0
@@ -265,6 +348,38 @@ class PronkController:
     @property
     def mpc_solve_times(self) -> list[float]:
         return self.mpc.solve_times
+
+    @property
+    def phase(self) -> str:
+        """The current phase: ``crouch`` (with the hold), ``push``, ``flight`` or ``land``."""
+        return self._phase
+
+    @property
+    def push_start(self) -> tuple[float, np.ndarray] | None:
+        """t s and base position (3,) m at the push's first tick; None before."""
+        return self._push_start
+
+    @property
+    def liftoff(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Base position (3,) m and velocity (3,) m/s at the tick the push ended; None before."""
+        return self._liftoff
+
+    @property
+    def touchdown(self) -> tuple[float, np.ndarray] | None:
+        """t s and base position (3,) m at the first tick a foot met the ground after the robot
+        flew (``airborne``); None before, and for a flight that ended on its time-out or on a
+        foot that never left the ground (no landing)."""
+        return self._touchdown
+
+    @property
+    def airborne(self) -> bool:
+        """Whether some tick of the flight phase had no foot on the ground."""
+        return self._airborne
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(3,) unit vector of the jump's heading (``params.yaw``), world, horizontal."""
+        return self._e.copy()
 
     def reset(self, world: World) -> np.ndarray:
         """The start pose (18,): standing at the start height, heading ``params.yaw``."""
@@ -281,7 +396,7 @@ class PronkController:
         floats, as ever (``x ** 2`` is libm's pow there, not NumPy's x * x)."""
         cfg, pr, pl = self.gains.mpc, self.params, self.plan
         ts = np.array([t + (k + 1) * cfg.dt for k in range(cfg.horizon)])
-        if self.phase == "land" and self._t_td is not None:
+        if self._phase == "land" and self._t_td is not None:
             pos, vel = self._ref_land(np.maximum(ts - self._t_td, 0.0))
             return pos, vel, np.ones(cfg.horizon)
         x0, e, v_to = self._x0, self._e, self._v_to
@@ -351,14 +466,14 @@ class PronkController:
         yaw_ref = self.params.yaw
         x_ref = np.zeros((cfg.horizon, 13))  # srb_state of the references: level, not turning
         x_ref[:, 2], x_ref[:, 12] = yaw_ref, GRAVITY
-        if self.params.pitch and self.phase in ("crouch", "push"):
+        if self.params.pitch and self._phase in ("crouch", "push"):
             x_ref[:, 1] = self.params.pitch
         pos, vel, c = self._references(state.t)
         x_ref[:, 3:6], x_ref[:, 9:12] = pos + self._off_ref, vel
         contact = np.empty((cfg.horizon, N_LEGS))
         contact[:] = c[:, None]
         contact[0] = np.minimum(contact[0], contact_now)
-        if self.phase == "land":
+        if self._phase == "land":
             contact[:] = np.maximum(contact, contact_now)  # feet already down stay down
         r_feet = state.foot_pos - p_com
         return self.mpc.solve(x0, x_ref, r_feet, contact, yaw=yaw_ref).forces
@@ -366,18 +481,30 @@ class PronkController:
     def _update_phase(self, state) -> None:
         pl = self.plan
         t = state.t
-        if self.phase == "crouch" and t >= pl.t_push:
-            self.phase = "push"
-        if self.phase == "push" and t >= pl.t_push + pl.push_time:
-            self.phase = "flight"
+        if self._phase == "crouch" and t >= pl.t_push:
+            self._phase = "push"
+            self._push_start = (t, state.q[BASE_POS].copy())
+        if self._phase == "push" and t >= pl.t_push + pl.push_time:
+            self._phase = "flight"
             self._q_land = None
-        if self.phase == "flight":
+            self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+        if self._phase == "flight":
             since = t - (pl.t_push + pl.push_time)
             if (np.any(state.contact) and since > 0.05) or since > pl.flight_time + 0.4:
-                self.phase = "land"
+                self._phase = "land"
                 self._t_td = t
                 self._td_state = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
                 self._last_solve = -np.inf
+
+    def _start_push(self, state: RobotState) -> None:
+        """The policy's push begins at this tick: its timing replaces the plan's from now on."""
+        self._phase = "push"
+        self._push_start = (state.t, state.q[BASE_POS].copy())
+        self._set_timing(state.t, self.push.start(state))
+
+    def _set_timing(self, t_push: float, timing: PushTiming) -> None:
+        self.plan = JumpPlan(t_push=t_push, push_time=timing.duration, vx=float(timing.vx), vz=float(timing.vz),
+                             flight_time=timing.flight_time)
 
     def torque(self, state) -> np.ndarray:
         """Joint torques (12,) N m for ``state`` (a ``RobotState``), within the torque limits."""
@@ -385,21 +512,35 @@ class PronkController:
             x0 = self._x0 = state.q[BASE_POS].copy()
             self._p_crouch = np.array([x0[0], x0[1], self.params.crouch_height])
             self._p_to = self._p_crouch + 0.5 * self.plan.push_time * self._v_to
+        if self.push is not None:
+            if self._phase == "crouch" and state.t >= self.plan.t_push:
+                self._start_push(state)
+            if self._phase == "push" and state.t < self.plan.t_push + self.plan.push_time:
+                cmd = self.push.command(state, state.t - self.plan.t_push)
+                if cmd.timing is not None:
+                    self._set_timing(self.plan.t_push, cmd.timing)
+                return self.push_torque(state, cmd.force, cmd.moment)
+        was_flight = self._phase == "flight"
+        if was_flight and not state.contact.any():
+            self._airborne = True
         self._update_phase(state)
+        if (was_flight and self._phase == "land" and self._touchdown is None and self._airborne
+                and state.contact.any()):
+            self._touchdown = (state.t, state.q[BASE_POS].copy())
         g = self.gains
-        if self.phase == "flight":
+        if self._phase == "flight":
             tau = self._flight_pd(state)
             return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         p_b, J = self._p_b, self._J  # feet (4, 3) m and leg Jacobians (4, 3, 3), base frame
         legs_one(qj, *self._chains, p_b, J)
         if state.t - self._last_solve >= 1.0 / g.mpc_hz - 1e-9:
-            contact = np.ones(N_LEGS) if self.phase in ("crouch", "push") else state.contact.astype(float)
+            contact = np.ones(N_LEGS) if self._phase in ("crouch", "push") else state.contact.astype(float)
             self._forces = self._mpc_forces(state, contact)
             self._last_solve = state.t
         f_base = -(self._forces @ state.R)  # force the foot exerts, base frame (rows R^T f)
         tau_g = self.leg_gravity.torques(qj, state.R)
-        land = self.phase == "land"
+        land = self._phase == "land"
         if land:
             # Cartesian impedance per leg in the base frame: spring along the base z axis
             # towards the reference leg length, damping of the foot velocity relative to the
@@ -413,6 +554,29 @@ class PronkController:
         # kp_hx, kd_hx; damp the legs with kd_stance), clipped: one compiled call
         tau = np.empty(N_JOINTS)
         stance_torque(J, f_base, tau_g, land, p_b, p_land, state.contact, v_rel, h_ref, g.k_land, g.d_land,
+                      self._posture, qj, dqj, self.torque_limit, tau)
+        return tau
+
+    def push_torque(self, state: RobotState, force: np.ndarray, moment: np.ndarray) -> np.ndarray:
+        """Joint torques (12,) N m, within the limits, whose ground force through massless legs is
+        ``force`` (3,) N with ``moment`` (3,) N m about the CoM (world): a push policy's command.
+
+        The pronk's stance joint PD (hip abduction held, legs damped) stays on; the foot forces
+        are the least-norm ones (``distribute_wrench``) that sum to ``force`` less the force the
+        PD's torques stand for, with ``moment`` about the CoM, and become tau = -J^T R^T f. A
+        model's input is the ground force derived from all joint torques through massless legs
+        (``symrom.data.preprocess``), so no leg-weight torque is added."""
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        p_b, J = self._p_b, self._J
+        legs_one(qj, *self._chains, p_b, J)
+        kp, kd, q_stand = self._posture
+        tau_pd = (kp * (q_stand - qj) - kd * dqj).reshape(N_LEGS, 3)
+        G = sum(state.R @ -np.linalg.solve(J[k].T, tau_pd[k]) for k in range(N_LEGS))
+        p_com = state.q[BASE_POS] + state.R @ self.body.com_base
+        f = distribute_wrench(force - G, moment, state.foot_pos - p_com)
+        f_base = -(f @ state.R)
+        tau = np.empty(N_JOINTS)
+        stance_torque(J, f_base, self._zero_tau, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
                       self._posture, qj, dqj, self.torque_limit, tau)
         return tau
 
@@ -433,7 +597,7 @@ class PronkController:
         """True once settled after landing (or when the jump has run ``max_time``)."""
         if state.t >= self.params.max_time:
             return True
-        if self.phase != "land" or self._t_td is None:
+        if self._phase != "land" or self._t_td is None:
             return False
         v, w = state.dq[BASE_POS], state.omega
         settled = float(v @ v) < 0.15 ** 2 and float(w @ w) < 0.6 ** 2

@@ -45,7 +45,7 @@ import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
-from symrom.sim.compiled import clip_forces, condensed_qp
+from symrom.sim.controllers.compiled import clip_forces, condensed_qp
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components

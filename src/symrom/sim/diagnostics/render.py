@@ -13,17 +13,19 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 # MuJoCo picks its OpenGL platform when it is imported: headless EGL unless told otherwise
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
-from symrom.sim.bullet import p
 
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS, N_Q
-from symrom.sim.engine import make_world
-from symrom.sim.world import BulletWorld
+from symrom.sim.engines.registry import make_world
+
+if TYPE_CHECKING:
+    from symrom.sim.engines.bullet import BulletWorld
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,10 @@ def frame_rows(n_rows: int, n_frames: int) -> np.ndarray:
 
 def render_q(world: BulletWorld, q: np.ndarray, camera: CameraConfig = CameraConfig(),
              target: np.ndarray | None = None) -> np.ndarray:
-    """RGB image (height, width, 3) uint8 of the robot posed at ``q`` (18,)."""
+    """RGB image (height, width, 3) uint8 of the robot posed at ``q`` (18,) in a PyBullet world,
+    by PyBullet's software renderer."""
+    from symrom.sim.engines.bullet import p
+
     world.reset(np.asarray(q, dtype=float))
     c = camera
     look = np.asarray(q[BASE_POS] if target is None else target, dtype=float).copy()

@@ -1,141 +1,89 @@
-"""The PyBullet world (``BulletWorld``) and what every engine's world shares: settings
-(``WorldConfig``), the state a controller sees (``RobotState``), angle helpers.
+"""The PyBullet engine: ``BulletWorld``, and PyBullet imported without its banner.
 
-The ``World`` protocol and the engine registry are in ``symrom.sim.engine``. Each
-``BulletWorld`` owns its own PyBullet client in DIRECT mode (no GUI), so several
-worlds can live in one process and worker processes never share state. A closed
-world's client is emptied and kept for the next one (``symrom.sim.bullet.client``). The
-robot's base pose is reported for the URDF base link frame (the frame the leg
-kinematics use), not PyBullet's inertial frame. Joint order, signs, foot links
-and torque limits come from the robot's description (``symrom.robots``): joint
-angles, rates and torques cross this boundary as symrom angle = sign x URDF
-angle.
+``BulletWorld`` (a ``symrom.sim.engines.world.World``) owns its own PyBullet client in
+DIRECT mode (no GUI), so several worlds can live in one process and worker processes
+never share state. The robot's base pose is reported for the URDF base link frame (the
+frame the leg kinematics use), not PyBullet's inertial frame. Joint order, signs, foot
+links and torque limits come from the robot's description (``symrom.robots``).
 
-Coordinates (see ``symrom.names``): ``q`` (18,) = 12 joint angles (rad,
-FR FL RR RL x hx hy kn), base x y z (m, world), roll pitch yaw (rad, ZYX);
-``dq`` (18,) = joint rates (rad/s), base linear velocity (m/s, world), Euler
-angle rates (rad/s).
+PyBullet's C extension prints ``pybullet build time: ...`` when it is first
+imported, once in every worker process too, so a command with workers shows
+it several times in the middle of its own output. It is silenced here by
+pointing the standard output and error descriptors (1, 2) at the null device
+while the module loads (C's buffers flushed before they are pointed back).
+Every module of symrom imports PyBullet as ``from symrom.sim.engines.bullet import p``.
+
+``client()`` and ``release(cid)`` hand out and take back DIRECT clients: a
+released client is emptied (``resetSimulation``) and kept for the next request
+of the process. Connecting anew costs ~15 ms (the allocator gives Bullet's ~30 MB
+back to the system at each disconnect), a tenth of a jump's simulation.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+import ctypes
+import os
+import sys
 
 import numpy as np
-from symrom.sim.bullet import client, p, release
-import pybullet_data
+import pybullet_data  # PyBullet's data folder (the plane); imports no PyBullet
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
-from symrom.sim.compiled import base_state
+from symrom.sim.engines.compiled import base_state
+from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
+                                      standing_configuration)
 
 
-@dataclass(frozen=True)
-class WorldConfig:
-    """Physics settings of a world, in one place.
-
-    physics_hz: simulation tick rate (Hz); log_hz: rate at which runs log (Hz,
-    must divide physics_hz); gravity: m/s^2 (downwards). Friction and
-    restitution are the values of the foot/ground contact (Bullet multiplies
-    the two bodies' lateral friction and restitution, so the feet get 1 and the
-    plane these values; rolling/spinning friction is set on the plane only).
-    contact_stiffness / contact_damping (N/m, N s/m): ground contact as a
-    spring-damper; ``None`` keeps Bullet's rigid (ERP-based) contact.
-    """
-
-    physics_hz: int = 1000
-    log_hz: int = 500
-    gravity: float = 9.81
-    lateral_friction: float = 0.8
-    spinning_friction: float = 0.01
-    rolling_friction: float = 0.0
-    restitution: float = 0.0
-    solver_iterations: int = 50
-    contact_stiffness: float | None = None
-    contact_damping: float | None = None
-    self_collision: bool = False
-
-    def __post_init__(self) -> None:
-        if self.physics_hz <= 0 or self.log_hz <= 0 or self.physics_hz % self.log_hz:
-            raise ValueError(f"log_hz ({self.log_hz}) must be a positive divisor of "
-                             f"physics_hz ({self.physics_hz})")
-        if (self.contact_stiffness is None) != (self.contact_damping is None):
-            raise ValueError("give both contact_stiffness and contact_damping, or neither")
-
-    @property
-    def dt(self) -> float:
-        """Physics tick, s."""
-        return 1.0 / self.physics_hz
-
-    @property
-    def log_every(self) -> int:
-        """Physics ticks per logged sample."""
-        return self.physics_hz // self.log_hz
-
-    def to_dict(self) -> dict:
-        return asdict(self)
+def _import_quietly():
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        for fd in saved:
+            os.dup2(null, fd)
+        import pybullet
+        try:
+            ctypes.CDLL(None).fflush(None)  # the banner may still sit in a C stream buffer
+        except (OSError, AttributeError):
+            pass
+    finally:
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(null)
+    return pybullet
 
 
-@dataclass
-class RobotState:
-    """What a controller sees; world frame unless said.
+p = _import_quietly()
 
-    t: s since the last reset; q, dq: (18,) as in the module docstring;
-    omega: (3,) base angular velocity (rad/s, world); R: (3, 3) base -> world;
-    contact: (4,) uint8 foot-ground contact flags FR FL RR RL; foot_pos (4, 3) m
-    and foot_vel (4, 3) m/s: feet (foot link frames) in the world.
-    """
-
-    t: float
-    q: np.ndarray
-    dq: np.ndarray
-    omega: np.ndarray
-    R: np.ndarray
-    contact: np.ndarray
-    foot_pos: np.ndarray
-    foot_vel: np.ndarray
+_SPARE: list[int] = []  # released clients, emptied (at most one)
 
 
-def euler_rate_matrix(rpy: np.ndarray) -> np.ndarray:
-    """(3, 3) E with omega_world = E @ d(roll, pitch, yaw)/dt for ZYX Euler angles rpy (3,) rad."""
-    _, pt, y = rpy
-    cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(pt), np.sin(pt)
-    return np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+def client() -> int:
+    """A connected, empty DIRECT client: a released one, else a new one."""
+    try:
+        return _SPARE.pop()
+    except IndexError:
+        return p.connect(p.DIRECT)
 
 
-def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
-    """ZYX Euler angles (3,) rad of a rotation R (3, 3) (inverse of ``rpy_to_matrix``)."""
-    pitch = -np.arcsin(np.clip(R[2, 0], -1.0, 1.0))
-    return np.array([np.arctan2(R[2, 1], R[2, 2]), pitch, np.arctan2(R[1, 0], R[0, 0])])
-
-
-def _check_contact(stiffness: float, damping: float) -> None:
-    if not (np.isfinite(stiffness) and stiffness > 0 and np.isfinite(damping) and damping >= 0):
-        raise ValueError(f"ground contact needs stiffness > 0 and damping >= 0 (N/m, N s/m), "
-                         f"got {stiffness!r}, {damping!r}")
-
-
-def standing_configuration(spec: RobotDescription, foot_radius: float, q_joints: np.ndarray,
-                           xy: tuple[float, float] = (0.0, 0.0),
-                           rpy: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                           penetration: float = 5e-4) -> np.ndarray:
-    """Configuration (18,) with joints ``q_joints`` (12,) rad whose lowest foot (a sphere of
-    ``foot_radius`` m) touches the ground, lowered ``penetration`` m further so the contacts
-    exist from the first tick."""
-    q = np.zeros(N_Q)
-    q[JOINTS] = q_joints
-    q[BASE_RPY] = rpy
-    q[BASE_POS] = (*xy, 0.0)
-    from symrom.data.preprocess import foot_positions_world  # the one kinematics source
-
-    lowest = foot_positions_world(spec.key, q[None])[0, :, 2].min()
-    q[BASE_POS.start + 2] = foot_radius - lowest - penetration
-    return q
+def release(cid: int) -> None:
+    """Take back the client ``cid``: emptied and kept for the next ``client()``, or
+    disconnected if one is kept already."""
+    if _SPARE:
+        p.disconnect(physicsClientId=cid)
+        return
+    p.resetSimulation(physicsClientId=cid)
+    _SPARE.append(cid)
 
 
 class BulletWorld:
-    """One robot on a plane in its own DIRECT PyBullet client (a ``symrom.sim.engine.World``).
+    """One robot on a plane in its own DIRECT PyBullet client (a ``symrom.sim.engines.world.World``).
 
     robot: a built-in name or a description file (``symrom.robots.get_robot``).
     The joints' default velocity motors are disabled, so ``step`` drives the
@@ -334,7 +282,7 @@ class BulletWorld:
     def set_ground_contact(self, stiffness: float, damping: float) -> None:
         """The ground contact as a spring-damper: ``stiffness`` N/m, ``damping`` N s/m (Bullet's
         contactStiffness / contactDamping of the plane)."""
-        _check_contact(stiffness, damping)
+        check_ground_contact(stiffness, damping)
         p.changeDynamics(self.plane, -1, contactStiffness=stiffness, contactDamping=damping,
                          physicsClientId=self.client)
 
@@ -417,3 +365,6 @@ class BulletWorld:
 
     def __del__(self) -> None:
         self.close()
+
+
+__all__ = ["BulletWorld", "client", "p", "release"]

@@ -1,8 +1,0 @@
-"""Importing this module compiles, or loads from numba's disk cache, the compiled routines every
-simulation uses (``symrom.sim.compiled.warm_up``; a motion's own, such as the froggy
-controller's, load on their first call). The worker processes' fork server imports it, so that
-every worker starts with them instead of loading them on its first tick."""
-
-from symrom.sim.compiled import warm_up
-
-warm_up(froggy=False)
