@@ -201,6 +201,34 @@ def test_a_torque_gain_is_found_from_the_weight(tmp_path, robot):
     assert got.generator["files"][0]["consistency"] == []
 
 
+def test_torque_gains_per_joint_kind_where_the_jumps_tell_them_apart(tmp_path):
+    """The hips' torques 0.6 and the knees' 0.5 of the true ones. An A1 froggy jump, whose
+    rear-only push and landing load hips and knees in changing shares, tells the two apart;
+    a Go1 pronk jump, loading them alike throughout, does not, and one gain (the knees',
+    which carry the weight) is kept for all."""
+    kinds = np.tile([0.6, 0.6, 0.5], 4)
+    m = jump(sim_a1_froggy(), 1)
+    logged = _copy(m)
+    logged["tau"] = kinds * m["tau"]
+    got, rec = _repaired(tmp_path, "a1", logged, name="a1.csv")
+    g = rec["gain"]
+    assert g["applied"] and g["kinds"] is not None and "per joint kind" in rec["line"]
+    assert np.all(np.abs(np.array(g["kinds"]) / kinds[:3] - 1) < 0.03), g["kinds"]
+    np.testing.assert_allclose(got.tau, m["tau"], rtol=0.03, atol=1e-9)
+    m = jump(sim_go1(), 1)
+    logged = _copy(m)
+    logged["tau"] = kinds * m["tau"]
+    _, rec = _repaired(tmp_path, "go1", logged, name="go1.csv")
+    assert rec["gain"]["kinds"] is None and abs(rec["gain"]["gain"] / 0.5 - 1) < 0.03
+    # one gain for all joints is never taken for two
+    for robot in ("go1", "a1"):
+        m = jump(_sim(robot)[0], 0)
+        logged = _copy(m)
+        logged["tau"] = 0.56 * m["tau"]
+        _, rec = _repaired(tmp_path, robot, logged, name=f"one_{robot}.csv")
+        assert rec["gain"]["kinds"] is None
+
+
 @pytest.mark.parametrize("robot", ["go1", "a1"])
 @pytest.mark.parametrize("offset", [0.022, -0.022])
 def test_a_height_offset_is_found_from_the_stance_feet(tmp_path, robot, offset):

@@ -104,7 +104,10 @@ class JumpRepair:
                 f"{v.gain:.4f} +- {v.sd:.4f} ({v.group}{'' if v.how == 'estimated' else ', ' + v.how})"
                 for v in moved))
         g = self.gain
-        if g.applied:
+        if g.applied and g.kinds is not None:
+            parts.append(f"torques / {g.kinds[1]:.3f} +- {g.kinds_sd[1]:.3f} (hx, hy), {g.kinds[2]:.3f} +- "
+                         f"{g.kinds_sd[2]:.3f} (kn) ({g.note})")
+        elif g.applied:
             parts.append(f"torques / {g.gain:.3f} +- {g.sd:.3f} ({g.note})")
         elif np.isfinite(g.gain):
             parts.append(f"torque gain {g.gain:.3f} +- {g.sd:.3f}")
@@ -202,7 +205,7 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
                 q_fix = q.copy()
                 if height is not None and height.applied:
                     q_fix[:, _Z] += height.offset
-                tau_fix = tau / gain.gain if gain.applied else tau
+                tau_fix = tau / gain.per_joint() if gain.applied else tau
                 contact = derived_contact(robot, q_fix, tau_fix)
                 gain, gain_why = estimate_gain(t, state, tau, contact, limits)
                 height = estimate_height(state, contact, limits) if heights else None
@@ -211,7 +214,7 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
             fz = None if physics is None else vertical_impulse(where, robot, t, q, dq, tau, contact, physics)
             _keep_or_refuse(f"{where}: {gain_why}", physics is None or _passes(fz), lenient, kept)
         if gain.applied:
-            tau = tau / gain.gain
+            tau = tau / gain.per_joint()
         if height is not None and height.applied:
             q[:, _Z] += height.offset
         if derived:

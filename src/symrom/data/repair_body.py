@@ -14,9 +14,11 @@ F_z = C tau_true - C h, and the feet together carry m (g + a_z) of the centre of
   m g T + m dv_z, holds with the logged torques divided by the gain. Quasi-static windows
   (mean vertical acceleration within ``static`` g, no contact change inside: the feet carry
   the weight) give it on their own; the dynamic ones (push-off, landing) give it too, less
-  surely (the legs' own inertia is left out: 2 % on simulated Go1 jumps). The gain is the
-  quasi-static windows' where there are ``min_static`` of them, else all windows'; where both
-  exist they must agree (a torque offset or an unmodelled load would set them apart). The
+  surely (the legs' own inertia, friction and damping are left out: 1 % on simulated Go1
+  jumps, 5-10 % on the hardware-like proxy). The gain is the quasi-static windows' where
+  there are ``min_static`` of them, else all windows'; where both exist, dynamic windows
+  off by more than the factor ``gain_spread`` mean no one gain describes the torques (a
+  torque offset, a load the legs do not carry) and the gain is not determined. The
   flight rows are the check that the gain is not absorbing the time base: the repaired
   clock puts the flight's centre of mass at g (``repair_clock``); what the torques push in
   flight (every foot as if down, in units of the weight) is recorded beside it.
@@ -138,6 +140,12 @@ class GainEstimate:
     flight_force: float
     applied: bool
     note: str
+    kinds: tuple[float, float, float] | None = None
+    kinds_sd: tuple[float, float, float] | None = None
+
+    def per_joint(self) -> np.ndarray:
+        """The gain of each of the 12 joints (12,): per joint kind where found, else the one."""
+        return np.tile(self.kinds, 4) if self.kinds is not None else np.full(12, self.gain)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -174,10 +182,11 @@ def estimate_gain(t: np.ndarray, state: BodyState, tau: np.ndarray, contact: np.
     pushed = (state.force * tau).reshape(n, N_LEGS, 3).sum(axis=2) * down  # (n, 4) N, logged torques
     held = (state.force * state.hold).reshape(n, N_LEGS, 3).sum(axis=2) * down  # (n, 4) N of the legs' weight
     x_rows, h_rows = pushed.sum(axis=1), held.sum(axis=1)
+    knee_rows = ((state.force * tau)[:, 2::3] * down).sum(axis=1)  # the knees' share of x_rows
     vz = np.convolve(np.pad(state.com_vz, 2, mode="edge"), np.ones(5) / 5, "valid")  # 5-row mean at each row
     edges = np.searchsorted(t, np.arange(t[0], t[-1] + limits.gain_window, limits.gain_window))
     edges = np.unique(np.r_[edges, n - 1].clip(0, n - 1))
-    xs, ys, static = [], [], []
+    xs, ys, static, knees = [], [], [], []
     for a, b in zip(edges[:-1], edges[1:]):
         while a < b and near[a]:
             a += 1
@@ -191,10 +200,11 @@ def estimate_gain(t: np.ndarray, state: BodyState, tau: np.ndarray, contact: np.
             continue
         dv = float(vz[b] - vz[a])
         xs.append(x)
+        knees.append(float(trapezoid(knee_rows[a:b + 1], t[a:b + 1])))
         ys.append(weight * span + state.mass * dv + float(trapezoid(h_rows[a:b + 1], t[a:b + 1])))
         inside = np.any(np.diff(down[a:b + 1].astype(int), axis=0) != 0)
         static.append(abs(dv) <= limits.static * G * span and not inside)
-    xs, ys, static = np.array(xs), np.array(ys), np.array(static, bool)
+    xs, ys, static, knees = np.array(xs), np.array(ys), np.array(static, bool), np.array(knees)
     gs, gs_sd = _ratio_fit(xs[static], ys[static], limits.static_floor)
     gd, gd_sd = _ratio_fit(xs[~static], ys[~static], limits.dynamic_floor)
     air = np.flatnonzero((~down.any(axis=1)) & ~_near_changes(contact, limits.flight_trim))
@@ -206,18 +216,36 @@ def estimate_gain(t: np.ndarray, state: BodyState, tau: np.ndarray, contact: np.
         gain, sd = gs, gs_sd
         note = f"from the weight over {int(static.sum())} quasi-static windows"
         if (~static).sum() >= 2 and abs(gs - gd) > limits.z * np.hypot(gs_sd, gd_sd):
-            undetermined = (f"the quasi-static rows give a torque gain of {gs:.3g} +- {gs_sd:.2g}, the dynamic ones "
-                            f"{gd:.3g} +- {gd_sd:.2g}: not one gain (a torque offset, or a load the legs do not carry)")
+            # the dynamic windows leave out the legs' inertia, friction and damping: noted
+            note += f"; the dynamic windows give {gd:.3g} +- {gd_sd:.2g}"
+            if not 1 / limits.gain_spread <= gd / gs <= limits.gain_spread:
+                undetermined = (f"the quasi-static rows give a torque gain of {gs:.3g} +- {gs_sd:.2g}, the dynamic "
+                                f"ones {gd:.3g} +- {gd_sd:.2g}: not one gain (a torque offset, or a load the legs do "
+                                f"not carry)")
     else:
         gain, sd = _ratio_fit(xs, ys, limits.dynamic_floor)
         note = f"from the vertical momentum over {xs.size} windows ({int(static.sum())} quasi-static)"
     flight = float("nan")
     if air.size and np.isfinite(gain) and gain != 0:
         flight = float((state.force[air] * tau[air]).sum(axis=1).mean() / gain / weight)
-    applied = undetermined is None and bool(np.isfinite(sd)) and abs(gain - 1.0) > limits.z * sd
+    kinds = kinds_sd = None
+    if undetermined is None and xs.size >= 6:
+        # the hips' (hx, hy) and the knees' gains apart, over every window: where the windows
+        # tell them apart (each within ``determined``, apart by more than z uncertainties and
+        # ``kind_min``); hx moves no foot vertically and goes with hy (the hip's motors alike)
+        beta, cov, _ = robust_fit(np.c_[xs - knees, knees], ys)
+        if np.all(beta > 0):
+            g2 = 1.0 / beta
+            sd2 = np.sqrt(np.diag(cov)) * g2 ** 2
+            if (np.all(sd2 <= limits.determined * g2) and abs(g2[0] - g2[1]) > limits.z * np.hypot(*sd2)
+                    and abs(g2[0] / g2[1] - 1) > limits.kind_min):
+                kinds = (float(g2[0]), float(g2[0]), float(g2[1]))
+                kinds_sd = (float(sd2[0]), float(sd2[0]), float(sd2[1]))
+                note = f"per joint kind, the hips' and the knees' apart over {xs.size} windows"
+    applied = undetermined is None and bool(np.isfinite(sd)) and (kinds is not None or abs(gain - 1.0) > limits.z * sd)
     est = GainEstimate(gain=gain, sd=sd, static=gs, static_sd=gs_sd, static_windows=int(static.sum()), dynamic=gd,
                        dynamic_sd=gd_sd, dynamic_windows=int((~static).sum()), flight_force=flight,
-                       applied=applied, note=note)
+                       applied=applied, note=note, kinds=kinds, kinds_sd=kinds_sd)
     return est, undetermined
 
 

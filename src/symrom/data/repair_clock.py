@@ -30,8 +30,9 @@ Per jump (``estimate_clock``):
    (neither fits: kappa from the flight); undetermined (no flight, or both fit);
 4. the clock's rows then lie at T(t) = integral of s (a uniform scale or a monotone warp),
    and each velocity group's gain is its own windows' ratio to s (``velocity_gains``): the
-   joints, the base position and the base angles (whose ratio is noisy: where it does not
-   determine its gain and the determined groups agree, it takes theirs).
+   joints, the base position and the base angles (a group whose windows do not determine
+   its gain, the base of a noisy estimator, takes the gain the others agree on where its
+   windows do not contradict it, and stays as logged otherwise).
 
 Refused (``RepairError`` naming the file, jump and figures): the windows scattering about the
 smooth rate by more than ``RepairLimits.scatter`` (and 3 times their own noise: a rate that
@@ -71,7 +72,7 @@ class RepairLimits:
     scatter: the windows' largest robust scatter about the fitted rate (relative) before the
     rate is taken to change faster than the windows resolve; ratio_floor: relative floor of
     the position/velocity ratio's uncertainty; determined: a velocity group whose gain is
-    less certain than this (relative) takes the others' gain; min_flight: s, the shortest
+    less certain than this (relative) takes the others' gain where it fits it; min_flight: s, the shortest
     flight fitted; flight_trim: rows cut at each end of a flight; flight_floor: relative
     floor of the flight's acceleration's uncertainty (a state estimator's height in flight);
     gain_window: s, the windows of the vertical momentum balance; static: the largest mean
@@ -79,6 +80,9 @@ class RepairLimits:
     relative floors of the torque gain's uncertainty from quasi-static and from dynamic
     windows (the legs' own inertia is left out of the balance: 2 % on simulated Go1 jumps);
     min_static: the fewest quasi-static windows that give the gain on their own;
+    gain_spread: the largest factor between the dynamic and the quasi-static windows' gains
+    for one gain to describe the torques; kind_min: the least relative difference between
+    the hips' and the knees' gains for a gain per joint kind;
     height_floor: m, floor of the height offset's uncertainty (the feet's contact model);
     lag_max: rows, the largest contact lag looked for; foot_clearance: m, a foot higher
     than this above its stance level, or foot_speed m/s, moving faster vertically, is in
@@ -101,6 +105,8 @@ class RepairLimits:
     static_floor: float = 0.01
     dynamic_floor: float = 0.03
     min_static: int = 2
+    gain_spread: float = 1.3
+    kind_min: float = 0.05
     height_floor: float = 0.001
     lag_max: int = 3
     foot_clearance: float = 0.004
@@ -108,7 +114,8 @@ class RepairLimits:
 
     def __post_init__(self) -> None:
         for name in ("z", "window", "knot", "warp_min", "warp_cv", "scatter", "ratio_floor", "determined", "min_flight",
-                     "flight_floor", "gain_window", "static", "static_floor", "dynamic_floor", "height_floor",
+                     "flight_floor", "gain_window", "static", "static_floor", "dynamic_floor", "gain_spread", "kind_min",
+                     "height_floor",
                      "foot_clearance", "foot_speed"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -196,7 +203,8 @@ class VelocityGain:
     """One velocity group's gain: the logged velocities are ``gain`` times the true ones
     (``sd`` its uncertainty, over ``windows`` windows); applied: the group's velocities were
     divided by it; how: ``estimated`` (its own windows), ``as the other velocities`` (its
-    windows do not determine it; the determined groups' common gain) or ``undetermined``."""
+    windows do not determine it, and fit the determined groups' common gain) or
+    ``undetermined`` (left as logged)."""
 
     group: str
     gain: float
@@ -490,8 +498,11 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
 def velocity_gains(t: np.ndarray, groups: dict[str, _Windows], rate: Rate, limits: RepairLimits,
                    finding: str) -> tuple[VelocityGain, ...]:
     """Each group's velocity gain against the clock ``rate``: its windows' ratio of the
-    clock's rate over the window to the positions' ratio; groups whose windows do not
-    determine it take the applied gains' common value when they agree."""
+    clock's rate over the window to the positions' ratio (with the positions' lag). A group
+    whose windows do not determine it (fewer than 3, or less certain than ``determined``:
+    an estimator's noisy base) takes the gain the determined groups agree on, where its own
+    windows do not contradict it (one fault of a log's velocities, its differencing or its
+    filter), and is left as logged otherwise."""
     T = rate.times(t)
     est: dict[str, tuple[float, float, int]] = {}
     for name, w in groups.items():
@@ -507,12 +518,11 @@ def velocity_gains(t: np.ndarray, groups: dict[str, _Windows], rate: Rate, limit
         return tuple(VelocityGain(n, est[n][0], est[n][1], est[n][2], False, "undetermined") for n in groups)
     out: dict[str, VelocityGain] = {}
     for name, (k, sd, n) in est.items():
-        if sd / max(abs(k), 1e-9) > limits.determined:
-            continue
-        out[name] = VelocityGain(name, k, sd, n, abs(k - 1.0) > limits.z * sd, "estimated")
+        if sd / max(abs(k), 1e-9) <= limits.determined:
+            out[name] = VelocityGain(name, k, sd, n, abs(k - 1.0) > limits.z * sd, "estimated")
     applied = [g for g in out.values() if g.applied]
     common = None
-    if applied:
+    if applied:  # one factor for the velocities where the groups that show one agree on it
         ks = np.array([g.gain for g in applied])
         ws = 1.0 / np.array([g.sd for g in applied]) ** 2
         mean = float(ks @ ws / ws.sum())
@@ -522,7 +532,7 @@ def velocity_gains(t: np.ndarray, groups: dict[str, _Windows], rate: Rate, limit
         if name in out:
             continue
         k, sd, n = est[name]
-        if common is not None:
+        if common is not None and (not np.isfinite(sd) or abs(k - common[0]) <= limits.z * sd):
             out[name] = VelocityGain(name, common[0], common[1], n, True, "as the other velocities")
         else:
             out[name] = VelocityGain(name, k, sd, n, False, "undetermined")
