@@ -35,7 +35,7 @@ import numpy as np
 from symrom.data.consistency import ConsistencyLimits, time_scale, vertical_impulse
 from symrom.data.rawlog import RawLog
 from symrom.data.repair_body import (ContactEstimate, GainEstimate, HeightEstimate, body_state, contact_lag,
-                                     estimate_gain, estimate_height, shift_flags)
+                                     estimate_gain, estimate_height, grounded, shift_flags)
 from symrom.data.repair_clock import (VELOCITY_GROUPS, ClockEstimate, RepairError, RepairLimits, VelocityGain,
                                       estimate_clock)
 from symrom.names import BASE_POS
@@ -131,10 +131,6 @@ def repairs_record(repairs: list[JumpRepair], limits: RepairLimits) -> dict:
     return {"version": REPAIR_VERSION, "limits": limits.to_dict(), "jumps": [r.to_dict() for r in repairs]}
 
 
-def _passes(found: list[dict]) -> bool:
-    return not found
-
-
 def _keep_or_refuse(reason: str, passes: bool, lenient: bool, kept: list[str]) -> None:
     """A fault the data do not determine: kept as logged where the jump passes the
     consistency check as it is (or with ``lenient``), refused otherwise."""
@@ -143,7 +139,7 @@ def _keep_or_refuse(reason: str, passes: bool, lenient: bool, kept: list[str]) -
     elif lenient:
         kept.append(reason.split(": ", 1)[-1])
     else:
-        raise RepairError(reason + "; the jump fails the consistency check as logged (--lenient keeps it)")
+        raise RepairError(reason + "; the jump fails the consistency check as logged (lenient keeps it as logged)")
 
 
 def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
@@ -166,7 +162,8 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
         kept: list[str] = []
         try:
             state = body_state(robot, q, dq)
-            fit = estimate_clock(where, t, q, dq, contact, state.com_z, limits, physics_or_default.min_motion)
+            fit = estimate_clock(where, t, q, dq, contact, state.com_z, limits, physics_or_default.min_motion,
+                                 grounded(state, contact, limits))
         except RepairError as e:
             if not lenient:
                 raise
@@ -179,7 +176,7 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
         else:
             clock, velocities = fit.clock, fit.velocities
             if fit.undetermined:
-                passes = physics is None or _passes(time_scale(where, t, q, dq, physics))
+                passes = physics is None or not time_scale(where, t, q, dq, physics)
                 _keep_or_refuse(fit.undetermined, passes, lenient, kept)
         retimed = clock.applied or any(v.applied for v in velocities)
         if clock.applied:
@@ -212,7 +209,7 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
             changed_flags = int(np.sum(contact != lg.contact[a:b]))
         if gain_why:
             fz = None if physics is None else vertical_impulse(where, robot, t, q, dq, tau, contact, physics)
-            _keep_or_refuse(f"{where}: {gain_why}", physics is None or _passes(fz), lenient, kept)
+            _keep_or_refuse(f"{where}: {gain_why}", physics is None or not fz, lenient, kept)
         if gain.applied:
             tau = tau / gain.per_joint()
         if height is not None and height.applied:
@@ -224,7 +221,7 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
             note = (f"contacts {abs(lag)} row{'s' if abs(lag) > 1 else ''} "
                     f"{'late' if lag > 0 else 'early'}, moved back ({changed_flags} foot-rows)")
         else:
-            note = "contacts agree with the feet"
+            note = "contacts as logged (no lag)"
         contacts = ContactEstimate("derived" if derived else "logged", lag, dict(td), dict(lo), changed_flags,
                                    changed_flags > 0, note)
 

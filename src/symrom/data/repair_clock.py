@@ -388,13 +388,19 @@ class ClockFit:
 
 
 def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, contact: np.ndarray,
-                   com_z: np.ndarray, limits: RepairLimits, min_motion: float) -> ClockFit:
+                   com_z: np.ndarray, limits: RepairLimits, min_motion: float,
+                   grounded: np.ndarray | None = None) -> ClockFit:
     """The time base of one jump (module docstring): t (n,) logged s since its first row, q,
     dq (n, 18), contact (n, 4), com_z (n,) m the centre of mass's height; min_motion: the
-    time-scale check's least RMS change per window. ``where``: 'FILE, jump J'."""
+    time-scale check's least RMS change per window; grounded (n, 4): the feet the heights and
+    speeds put on the ground, whose flights stand in where the flags show none (a contact
+    sensor that never lets go). ``where``: 'FILE, jump J'."""
     groups = {name: _windows(t, q, dq, cols, limits, min_motion) for name, cols in VELOCITY_GROUPS}
     primary = next((g for g in ("joints", "base position") if groups[g].ratio.size >= 3), None)
     runs = flight_runs(contact, t, limits)
+    from_feet = not runs and grounded is not None
+    if from_feet:
+        runs = flight_runs(grounded, t, limits)
     if primary is None:  # nothing moves enough to say
         fg, fsd, frows = flight_fall(t, com_z, runs, limits.flight_floor)
         clock = ClockEstimate("none", 1.0, float("nan"), 0, "", 0.0, False, 1.0, 0.0, 1.0, 1.0, (), (), 0.0,
@@ -469,6 +475,8 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
             scale = rate.scaled(kappa)
             note = (f"the flight falls at {fg / kappa ** 2:.4g} +- {fsd / kappa ** 2:.2g} g on the repaired clock"
                     + (f" (velocities off by {kappa:.4g})" if finding != "clock" else ""))
+    if from_feet and runs:
+        note += " (the flights from the feet's heights: the flags show none)"
     applied = finding not in ("none", "undetermined", "velocities")
     T = scale.times(t) if applied else None
     duration = float(t[-1]) if t[-1] > 0 else 1.0
