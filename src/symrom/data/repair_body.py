@@ -47,7 +47,7 @@ import numpy as np
 from scipy.integrate import trapezoid
 
 from symrom.data.consistency import G
-from symrom.data.repair_clock import RepairLimits, robust_fit
+from symrom.data.repair_clock import RepairLimits, loo_error, robust_fit
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
 from symrom.robots import get_robot, leg_kinematics, mass_model
 from symrom.robots.kinematics import rpy_to_matrix
@@ -232,13 +232,17 @@ def estimate_gain(t: np.ndarray, state: BodyState, tau: np.ndarray, contact: np.
     if undetermined is None and xs.size >= 6:
         # the hips' (hx, hy) and the knees' gains apart, over every window: where the windows
         # tell them apart (each within ``determined``, apart by more than z uncertainties and
-        # ``kind_min``); hx moves no foot vertically and goes with hy (the hip's motors alike)
-        beta, cov, _ = robust_fit(np.c_[xs - knees, knees], ys)
+        # ``kind_min``, and predicting the windows better); hx moves no foot vertically and goes
+        # with hy (the hip's motors alike)
+        X2 = np.c_[xs - knees, knees]
+        beta, cov, _ = robust_fit(X2, ys)
         if np.all(beta > 0):
             g2 = 1.0 / beta
             sd2 = np.sqrt(np.diag(cov)) * g2 ** 2
+            # and it predicts each window from the others with at most warp_cv of one gain's error
             if (np.all(sd2 <= limits.determined * g2) and abs(g2[0] - g2[1]) > limits.z * np.hypot(*sd2)
-                    and abs(g2[0] / g2[1] - 1) > limits.kind_min):
+                    and abs(g2[0] / g2[1] - 1) > limits.kind_min
+                    and loo_error(X2, ys) < limits.warp_cv * loo_error(xs[:, None], ys)):
                 kinds = (float(g2[0]), float(g2[0]), float(g2[1]))
                 kinds_sd = (float(sd2[0]), float(sd2[0]), float(sd2[1]))
                 note = f"per joint kind, the hips' and the knees' apart over {xs.size} windows"

@@ -68,7 +68,8 @@ class RepairLimits:
     window: s, the time-scale windows; knot: s, the spacing of a time warp's knots;
     warp_min: a rate changing by less than this (relative) within a jump is uniform;
     warp_cv: a warp is fitted where it predicts each window from the others with at most
-    this fraction of a uniform scale's error (median over the windows);
+    this fraction of a uniform scale's error (median over the windows), and torque gains per
+    joint kind where they predict the momentum windows so against one gain;
     scatter: the windows' largest robust scatter about the fitted rate (relative) before the
     rate is taken to change faster than the windows resolve; ratio_floor: relative floor of
     the position/velocity ratio's uncertainty; determined: a velocity group whose gain is
@@ -290,7 +291,7 @@ def _level(w: _Windows, floor: float) -> tuple[float, float, float, float]:
     return level, float(np.hypot(np.sqrt(cov[0, 0]), floor * abs(level))), scale, -float(beta[1]) / level
 
 
-def _loo_error(X: np.ndarray, y: np.ndarray) -> float:
+def loo_error(X: np.ndarray, y: np.ndarray) -> float:
     """The median absolute error of predicting each row of y from the others, by the robust
     fit's final weights (the weighted least squares' leave-one-out residuals r / (1 - h))."""
     beta, _, scale = robust_fit(X, y)
@@ -310,14 +311,14 @@ def _spline_rate(w: _Windows, limits: RepairLimits) -> tuple[Rate, np.ndarray, f
     # cut anywhere) are where the windows fit worst, and an end coefficient would follow them
     lo, hi = float(w.centre[1]), float(w.centre[-2])
     most = max(1, min(int(round((hi - lo) / limits.knot)), (w.ratio.size - 5) // 3))
-    base = _loo_error(np.c_[np.ones(w.ratio.size), w.lead], w.ratio)
+    base = loo_error(np.c_[np.ones(w.ratio.size), w.lead], w.ratio)
     best = None
     pieces = 1
     while True:
         knots = np.r_[[lo] * 4, np.linspace(lo, hi, pieces + 1)[1:-1], [hi] * 4]
         B = BSpline.design_matrix(np.clip(w.centre, lo, hi), knots, 3).toarray()
         X = np.c_[B, w.lead]
-        err = _loo_error(X, w.ratio)
+        err = loo_error(X, w.ratio)
         if best is None or err < best[0]:
             best = (err, knots, B, X)
         if pieces >= most:
