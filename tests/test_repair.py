@@ -379,6 +379,28 @@ def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
         assert got.generator["files"][0]["consistency"] == []
 
 
+@pytest.mark.parametrize("retime", [False, True])
+def test_stale_rows_do_not_pass_for_faults(tmp_path, retime):
+    """16 % of the joint rows and 40 % of the base rows repeat the previous one (stale reads,
+    as a real logger's), as logged or retimed (--retime-stale): nothing to repair, and the
+    planted velocity and torque faults still found."""
+    m = jump(sim_go1(), 2)
+    rng = np.random.default_rng(5)
+    stale = _copy(m)
+    for i in np.flatnonzero(rng.random(m["t"].size - 2) < 0.16) + 1:
+        stale["q"][i, :12], stale["dq"][i, :12], stale["tau"][i] = stale["q"][i - 1, :12], stale["dq"][i - 1, :12], \
+            stale["tau"][i - 1]
+    for i in np.flatnonzero(rng.random(m["t"].size - 2) < 0.4) + 1:
+        stale["q"][i, 12:], stale["dq"][i, 12:] = stale["q"][i - 1, 12:], stale["dq"][i - 1, 12:]
+    _, rec = _repaired(tmp_path, "go1", stale, name="stale.csv", retime=retime)
+    assert not rec["changed"], rec["line"]
+    stale["dq"] = stale["dq"] / 1.06
+    stale["tau"] = 0.56 * stale["tau"]
+    _, rec = _repaired(tmp_path, "go1", stale, name="faults.csv", retime=retime)
+    assert rec["clock"]["finding"] == "velocities" and abs(rec["velocities"][0]["gain"] * 1.06 - 1) < 0.005
+    assert abs(rec["gain"]["gain"] / 0.56 - 1) < 0.03 and rec["gain"]["kinds"] is None
+
+
 # ----------------------------------------------------------------- refusals
 
 def test_a_ratio_without_a_flight_to_tell_clock_from_velocities_is_refused(tmp_path):

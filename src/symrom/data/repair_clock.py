@@ -227,6 +227,7 @@ class Rate:
     spline: BSpline | None = None
     lo: float = 0.0
     hi: float = 0.0
+    sd: float = 0.0  # the uncertainty of its mean over [lo, hi]
 
     def __call__(self, t: np.ndarray) -> np.ndarray:
         t = np.asarray(t, float)
@@ -247,7 +248,7 @@ class Rate:
 
     def scaled(self, k: float) -> "Rate":
         return Rate(self.level * k, None if self.spline is None else
-                    BSpline(self.spline.t, self.spline.c * k, self.spline.k), self.lo, self.hi)
+                    BSpline(self.spline.t, self.spline.c * k, self.spline.k), self.lo, self.hi, self.sd * k)
 
 
 # ----------------------------------------------------------------- windows and the rate
@@ -325,9 +326,11 @@ def _spline_rate(w: _Windows, limits: RepairLimits) -> tuple[Rate, np.ndarray, f
             break
         pieces = min(2 * pieces, most)
     err, knots, B, X = best
-    beta, _, scale = robust_fit(X, w.ratio)
+    beta, cov, scale = robust_fit(X, w.ratio)
     fit = B @ beta[:-1]
-    return (Rate(float(np.mean(fit)), BSpline(knots, beta[:-1], 3), lo, hi), fit, scale,
+    mean = BSpline.design_matrix(np.linspace(lo, hi, 101), knots, 3).toarray().mean(axis=0)
+    mean_sd = float(np.sqrt(mean @ cov[:-1, :-1] @ mean))
+    return (Rate(float(np.mean(fit)), BSpline(knots, beta[:-1], 3), lo, hi, mean_sd), fit, scale,
             err / max(base, 1e-300))
 
 
@@ -417,6 +420,7 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
         spline, fit, spline_scatter, cv = _spline_rate(w, limits)
         if cv < limits.warp_cv and np.max(np.abs(fit - level)) > limits.warp_min:
             rate, warp, scatter = spline, True, spline_scatter
+            level, level_sd = spline.level, float(np.hypot(spline.sd, limits.ratio_floor * spline.level))
     noise = float(np.median(w.noise))
     if scatter > limits.scatter and scatter > 3 * noise:
         raise RepairError(f"{where}: the rate of the clock changes faster than the {1e3 * limits.window:g} ms "
