@@ -18,7 +18,7 @@ what the ones before it repaired):
    derived again from the repaired torques and heights, and the two estimated once more.
 
 A fault the data cannot determine (no flight to tell a clock from velocities, no foot down
-to weigh the robot with, quasi-static and dynamic rows that disagree on the gain) is left
+to weigh the robot with, dynamic rows a factor 1.3 off the quasi-static ones' gain) is left
 as logged where the jump passes the import's consistency check as it is, and refused
 otherwise (``RepairError``, one line naming the file, jump and figures); ``lenient`` keeps
 it as logged and records the line instead. So is a rate that changes faster than the

@@ -18,10 +18,12 @@ kappa = 1 is a wrong clock, kappa = 1 / rho wrong velocities.
 Per jump (``estimate_clock``):
 
 1. rho window by window (50 ms, in the logged time), on the joints (the base position where
-   the joints barely move); its level (a robust mean) and, where it changes within the jump
-   by more than ``RepairLimits.warp_min`` and its uncertainty, a smooth rate: a cubic spline
-   in the logged time with knots ``RepairLimits.knot`` s apart, fitted robustly to the
-   windows (a rate changing within a jump is a clock: a velocity gain is a constant);
+   the joints barely move), fitted robustly together with a lag of the positions behind the
+   velocities (a filter, a sampling offset); its level and, where the rate changes within
+   the jump, a smooth rate: a cubic spline in the logged time with 1, 2, 4 ... pieces (at
+   most one per ``RepairLimits.knot`` s), taken where it predicts each window from the
+   others with at most ``warp_cv`` of a constant's error and moves by more than
+   ``warp_min`` (a rate changing within a jump is a clock: a velocity gain is a constant);
 2. the flight: a parabola in the rho-corrected time through the centre of mass's height
    over every flight (no foot down for ``min_flight`` s, ``flight_trim`` rows cut at each end
    for the touch-down and lift-off), one acceleration shared by the flights;
@@ -49,13 +51,14 @@ from scipy.integrate import trapezoid
 from scipy.interpolate import BSpline
 
 from symrom.data.consistency import G, window_ratios
+from symrom.data.rawlog import LogError
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
 
 # Velocity groups, each with its own gain: (name, q columns).
 VELOCITY_GROUPS = (("joints", JOINTS), ("base position", BASE_POS), ("base angles", BASE_RPY))
 
 
-class RepairError(ValueError):
+class RepairError(LogError):
     """A fault of a log that the data cannot determine; one line naming the file and jump."""
 
 
