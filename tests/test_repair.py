@@ -256,6 +256,24 @@ def test_a_height_offset_is_found_from_the_stance_feet(tmp_path, robot, offset):
     assert ("below" if offset < 0 else "above") in rec["line"]
 
 
+def test_rebased_segments_get_their_height_back_as_without_the_repair(tmp_path):
+    """Loggers that start every segment at z = 0: whole jumps and flight-only segments (no
+    foot down: the repair cannot weigh or place them) are raised as without --repair, and
+    the repair then finds nothing more."""
+    from _logs import flight_segment
+
+    ds = sim_go1()
+    whole = _copy(jump(ds, 0))
+    whole["q"][:, 12:15] -= whole["q"][0, 12:15]
+    log = write_plain(tmp_path / "rebased.csv", [whole] + [flight_segment(ds, j) for j in (1, 2)])
+    plain = import_logs([log], robot="go1")
+    fixed = import_logs([log], robot="go1", repair=REPAIR)
+    for key in ARRAYS:
+        np.testing.assert_array_equal(getattr(fixed, key), getattr(plain, key), err_msg=key)
+    assert len(fixed.generator["rebased"]) == 3
+    assert not any(r["changed"] for r in fixed.generator["repairs"]["jumps"])
+
+
 @pytest.mark.parametrize("robot", ["go1", "a1"])
 def test_a_one_row_contact_lag_is_undone_exactly(tmp_path, robot):
     """Every flag change logged one row late: the feet's heights and speeds say where each

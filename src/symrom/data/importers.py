@@ -44,7 +44,7 @@ The import then, in this order:
 2. reports stale rows (a group of columns repeating the previous row) and,
    with ``retime``, interpolates them between the fresh rows (``consistency``);
 3. gives rebased jumps their height back (``restore_height``: a logger that
-   starts every segment's position at 0); or, with ``repair``, repairs each jump
+   starts every segment's position at 0); with ``repair``, then repairs each jump
    from physics (``repair``: its clock and velocities, contact flags, torque gain
    and height offset of any size), the values' units checked first;
 4. checks every value against the robot's description (``checks``; the
@@ -568,11 +568,9 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                     x["retimed"] = done.get(x["group"], 0)
             per_file += found
         stale.append(per_file)
-        back = []
-        if repair is None:
-            back = restore_height(lg, robot, positions)
-            restored += back
-        else:  # units first (a repair cannot undo degrees for radians), then the repair
+        back = restore_height(lg, robot, positions)
+        restored += back
+        if repair is not None:  # units first (a repair cannot undo degrees for radians), then the repair
             units = plausibility(lg, robot, replace(limits, height=(-math.inf, math.inf), torques="measured",
                                                     torque_factor=4 * limits.torque_factor))
             if units and not lenient:

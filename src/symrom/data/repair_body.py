@@ -123,8 +123,9 @@ def vertical_forces(state: BodyState, tau: np.ndarray, contact: np.ndarray | Non
 @dataclass(frozen=True)
 class GainEstimate:
     """The torque gain of one jump (module docstring): the logged torques are ``gain`` times
-    the true ones by the data (sd its uncertainty; applied or not); static, static_sd, static_windows and dynamic,
-    dynamic_sd, dynamic_windows: the quasi-static and the dynamic windows' own estimates
+    the true ones by the data (sd its uncertainty; applied or not); static, static_sd,
+    static_windows and dynamic, dynamic_sd, dynamic_windows: the quasi-static and the
+    dynamic windows' own estimates
     (nan without such windows); flight_force: the flight rows' mean vertical push of the
     torques (divided by the gain, every foot as if down) in units of the weight (nan without
     a flight); applied: the torques were divided by the gain; note: one line."""

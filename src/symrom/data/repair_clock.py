@@ -117,10 +117,9 @@ class RepairLimits:
     foot_speed: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("z", "window", "knot", "warp_min", "warp_cv", "scatter", "ratio_floor", "determined", "min_flight",
-                     "flight_floor", "gain_window", "static", "static_floor", "dynamic_floor", "gain_spread", "kind_min",
-                     "height_floor",
-                     "foot_clearance", "foot_speed"):
+        for name in ("z", "window", "knot", "warp_min", "warp_cv", "scatter", "ratio_floor", "determined",
+                     "min_flight", "flight_floor", "gain_window", "static", "static_floor", "dynamic_floor",
+                     "gain_spread", "kind_min", "height_floor", "foot_clearance", "foot_speed"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"repair limit {name} = {v}: must be a positive number")
@@ -169,8 +168,9 @@ class ClockEstimate:
     finding: ``none``, ``clock``, ``velocities``, ``clock and velocities`` or
     ``undetermined``; ratio, ratio_sd: the positions change ``ratio`` times as fast as the
     logged velocities integrate to (the primary group's level over ``windows`` windows);
-    group: that group; lag: s, the positions' lag behind the velocities fitted with it; warp: the rate changes within the jump (a time warp); scale,
-    scale_sd: the true duration over the logged one (1.0: the clock as logged); rate_low,
+    group: that group; lag: s, the positions' lag behind the velocities fitted with it;
+    warp: the rate changes within the jump (a time warp); scale, scale_sd: the true
+    duration over the logged one (1.0: the clock as logged); rate_low,
     rate_high: the lowest and highest rate (true s per logged s); knots, rates: the warp's
     rate at its knots (logged s; empty for a uniform scale); scatter: the windows' robust
     scatter about the fitted rate; flight_g, flight_g_sd: the centre of mass's acceleration
