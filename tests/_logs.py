@@ -1,5 +1,6 @@
-"""Robot logs made by the tests: simulated Go1 jumps written as CSV in the hardware and
-plain layouts, at other rates, with jitter, gaps, unit mistakes or as rebased segments."""
+"""Robot logs made by the tests: simulated Go1 (and A1 froggy) jumps written as CSV in the
+hardware and plain layouts, at other rates, on a drifting clock, with jitter, gaps, unit
+mistakes or as rebased segments, and as ROS bags."""
 
 from __future__ import annotations
 
@@ -37,6 +38,12 @@ def proxy_go1(n_jumps: int = 6, seed: int = 11):
     return generate(GenerateConfig("go1", "pronk", n_jumps, seed=seed, proxy=True), out)
 
 
+@cache
+def sim_a1_froggy():
+    """Three simulated A1 froggy jumps (500 Hz), shared with the simulation tests."""
+    return read_dataset(reference_file("froggy"))
+
+
 def jump(ds, j: int, rows: slice = slice(None)) -> dict[str, np.ndarray]:
     """Jump j of a dataset (optionally some of its rows, t restarted at 0) as log arrays."""
     a, b = ds.jump_bounds()[j]
@@ -53,6 +60,18 @@ def at_times(m: dict[str, np.ndarray], t_new: np.ndarray) -> dict[str, np.ndarra
     for k in ("q", "dq", "ddq", "tau"):
         out[k] = CubicSpline(t, m[k], axis=0)(t_new)
     out["contact"] = m["contact"][np.clip(np.searchsorted(t, t_new + 1e-12, side="right") - 1, 0, len(t) - 1)]
+    return out
+
+
+def on_clock(m: dict[str, np.ndarray], rate, dt: float = 0.002) -> dict[str, np.ndarray]:
+    """The jump ``m`` logged by a loop whose rate drifts: row k is written at t = k dt but
+    taken at the true time T_k, T_k+1 - T_k = dt rate((k + 1/2) dt) (``rate``: true s per
+    logged s, of the logged time); also ``t_true`` (the T_k). Samples as ``at_times``."""
+    T = [0.0]
+    while T[-1] + dt * rate((len(T) - 0.5) * dt) <= m["t"][-1]:
+        T.append(T[-1] + dt * rate((len(T) - 0.5) * dt))
+    out = at_times(m, np.array(T))
+    out["t_true"], out["t"] = out["t"], np.arange(len(T)) * dt
     return out
 
 
@@ -121,9 +140,10 @@ ROS_TOPICS = {"joints": "/joint_states", "base": "/odom", "contacts": "/foot_con
 
 
 def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000_000,
-                 contacts: bool = True, store=None, topics: dict | None = None):
+                 contacts: bool = True, store=None, topics: dict | None = None, contact_delay: float = 0.0):
     """The jump ``m`` as ROS 2 messages: [(topic, msgtype, stamp_ns, msg)], joints in the URDF's
-    names and signs, odometry with its twist in the base frame, contact flags as UInt8MultiArray."""
+    names and signs, odometry with its twist in the base frame, contact flags as UInt8MultiArray
+    (no header: their time is when they are written, ``contact_delay`` s after the joints')."""
     from rosbags.typesys import Stores, get_typestore
     from scipy.spatial.transform import Rotation
 
@@ -163,7 +183,7 @@ def ros_messages(m: dict, robot: str = "go1", t0_ns: int = 1_700_000_000_000_000
         if contacts:
             layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
             c = T["std_msgs/msg/UInt8MultiArray"](layout=layout, data=m["contact"][i].astype(np.uint8))
-            out.append((tp["contacts"], "std_msgs/msg/UInt8MultiArray", ns, c))
+            out.append((tp["contacts"], "std_msgs/msg/UInt8MultiArray", ns + int(round(contact_delay * 1e9)), c))
     return out
 
 

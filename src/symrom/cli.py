@@ -179,7 +179,10 @@ Bags (--topics or --mapping change the topics):
 Every log is checked against the robot (ranges; torque limits by
 --torques) and against physics (velocities vs positions, stale rows,
 vertical momentum vs weight, stance feet on the ground). A recording
-holding several flights is cut into one jump per flight.
+holding several flights is cut into one jump per flight. --repair
+first repairs what physics determines per jump: a wrong clock or
+wrong velocities (the flight falls at g), a contact lag, a torque
+gain (the weight), a base-height offset (the feet in contact).
 Details: docs/import.md."""
 
 
@@ -205,6 +208,7 @@ def import_cmd(
     max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
     no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
     positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
+    repair: Annotated[bool, typer.Option("--repair", help="Repair each jump from physics before the checks: clock or velocities (by the flight), contact lag, torque gain (by the weight), height offset (by the feet); a fault the data cannot determine is refused.")] = False,
     force: Force = False,
 ) -> None:
     from symrom.atomic import check_output_file
@@ -213,6 +217,7 @@ def import_cmd(
     from symrom.data.consistency import ConsistencyLimits
     from symrom.data.importers import import_logs
     from symrom.data.io import write_dataset
+    from symrom.data.repair import RepairLimits
     from symrom.data.timebase import TimeBase
 
     check_output_file(out, force, inputs=tuple(logs))
@@ -223,7 +228,8 @@ def import_cmd(
                          split=split, diff_method=diff, lenient=lenient, time_base=time_base,
                          positions=positions, limits=PlausibilityLimits(torques=torques),
                          physics=ConsistencyLimits() if physics else None, segment=segment,
-                         retime=retime_stale, diff_window=diff_window, topics=by_role or None)
+                         retime=retime_stale, diff_window=diff_window, topics=by_role or None,
+                         repair=RepairLimits() if repair else None)
         write_dataset(ds, out)
     _import_report(ds)
     counts = ", ".join(f"{s} {int((ds.split == s).sum())}" for s in ("train", "val", "test"))
@@ -274,6 +280,8 @@ def _import_report(ds) -> None:
                           for x in sg["segments"]), highlight=False, soft_wrap=True)
     if g.get("torques"):
         console.print(f"torques: {g['torques']}", highlight=False, soft_wrap=True)
+    for rp in (g.get("repairs") or {}).get("jumps", []):
+        console.print(f"repair: {rp['line']}", highlight=False, soft_wrap=True)
     rebased = g.get("rebased") or []
     if rebased:
         offsets = [r["z_offset"] for r in rebased]

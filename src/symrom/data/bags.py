@@ -19,8 +19,12 @@ mapping file, ``load_mapping``, override them):
   to the joint rows' times (exact where the stamps coincide).
 - ``contacts`` (optional): a message whose ``data`` holds 4 values in leg
   order FR FL RR RL (``std_msgs/msg/UInt8MultiArray``, ``Int8MultiArray``,
-  ``Float32MultiArray`` ...), > 0.5 meaning the foot is down; the last
-  message at or before each row holds. Without the topic, a foot is down
+  ``Float32MultiArray`` ...), > 0.5 meaning the foot is down. Each message
+  sets the joint row nearest to its time, if within half the joints' period
+  (``nearest_rows``), and holds until the next one: a header-less message's time
+  is when it was received, which trails the joints' header stamps, and the last
+  message at or before a row would put every contact change one row late.
+  Without the topic, a foot is down
   where the vertical force its leg's torques give (``preprocess``: through the
   leg Jacobian) exceeds ``CONTACT_FORCE`` of the robot's weight and, if the
   base position is absolute, its centre is within ``CONTACT_HEIGHT`` of one
@@ -219,7 +223,7 @@ def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None 
         if flags.shape[1:] != (4,):
             raise LogError(f"{path}, {topics['contacts']}: a contact message holds {flags.shape[1:]} values, "
                            f"expected 4 (FR FL RR RL)")
-        lo = max(lo, tc[0])
+        lo = max(lo, tc[0] - _half_period(t_ns))
     keep = (t_ns >= lo) & (t_ns <= hi)
     if keep.sum() < 2:
         raise LogError(f"{path}: the joint messages ({topics['joints']}) and the base messages "
@@ -231,7 +235,7 @@ def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None 
     q = np.concatenate([q_j, at[:, 0:6]], axis=1)
     dq = np.concatenate([dq_j, at[:, 6:12]], axis=1)
     if contact_src:
-        k = np.searchsorted(tc, t_ns, side="right") - 1
+        k = nearest_rows(t_ns, tc)
         contact = (flags[k] > 0.5).astype(np.uint8)
         how = f"topic {topics['contacts']}"
     else:
@@ -247,6 +251,32 @@ def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None 
     return RawLog(path=path, layout=f"{kind} bag" if kind != "mcap" else "mcap", sha256=sha256_file(path),
                   jump=np.zeros(n, np.int32), t=rel, q=q, dq=dq, ddq=None, tau=tau, contact=contact,
                   lines=None, columns=names, topics=used)
+
+
+def _half_period(t_ns: np.ndarray) -> int:
+    """Half the median step of the joint rows' stamps (ns)."""
+    return int(np.median(np.diff(t_ns)) // 2) if t_ns.size > 1 else 0
+
+
+def nearest_rows(t_ns: np.ndarray, tc: np.ndarray) -> np.ndarray:
+    """For each joint row (stamps t_ns (n,) ns, increasing), the index of the contact message
+    (times tc (m,) ns, increasing) that holds there: each message sets the row nearest to
+    its time if within half the rows' median period (of two messages nearest one row, the
+    nearer; ties: the later), and holds until the next message sets a row. Rows before the
+    first message set take the first message."""
+    half = _half_period(t_ns)
+    right = np.clip(np.searchsorted(t_ns, tc), 0, t_ns.size - 1)
+    left = np.clip(right - 1, 0, t_ns.size - 1)
+    row = np.where(np.abs(t_ns[left] - tc) < np.abs(t_ns[right] - tc), left, right)
+    dist = np.abs(t_ns[row] - tc)
+    sets = np.full(t_ns.size, -1)
+    best = np.full(t_ns.size, np.iinfo(np.int64).max)
+    for m in np.flatnonzero(dist <= half):
+        if dist[m] <= best[row[m]]:
+            sets[row[m]], best[row[m]] = m, dist[m]
+    held = np.maximum.accumulate(np.where(sets >= 0, sets, -1))
+    first = sets[sets >= 0][0] if (sets >= 0).any() else 0
+    return np.where(held >= 0, held, first)
 
 
 def derived_contact(robot: str, q: np.ndarray, tau: np.ndarray) -> np.ndarray:

@@ -85,6 +85,34 @@ def _rows(a: int, b: int) -> str:
     return f"rows {a}-{b - 1}"
 
 
+def window_ratios(t: np.ndarray, x: np.ndarray, v: np.ndarray, window: float,
+                  min_motion: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions against their integrated velocities, window by window: t (n,) s, x, v (n, d)
+    one group's positions and velocities. Windows of ``window`` s of t share their edge
+    samples; a window whose velocities integrate to an RMS change below ``min_motion`` is
+    left out. Returns per window kept its first and last row (k, 2), its ratio (k,) (the
+    least-squares factor of the change of x over the trapezoidal integral of v) and its
+    integral's sum of squares (k,)."""
+    n = t.size
+    rows, ratios, power = [], [], []
+    if n < 3:
+        return np.zeros((0, 2), int), np.zeros(0), np.zeros(0)
+    edges = np.searchsorted(t, np.arange(t[0], t[-1] + window, window))
+    edges = np.unique(np.r_[edges, n])
+    for a, b in zip(edges[:-1], edges[1:]):
+        b = min(b + 1, n)  # windows share their edge sample
+        if b - a < 3:
+            continue
+        change = x[b - 1] - x[a]
+        integral = trapezoid(v[a:b], t[a:b], axis=0)
+        if np.sqrt(np.mean(integral ** 2)) < min_motion:
+            continue
+        rows.append((a, b - 1))
+        ratios.append(float(change @ integral / (integral @ integral)))
+        power.append(float(integral @ integral))
+    return np.array(rows, int).reshape(-1, 2), np.array(ratios), np.array(power)
+
+
 def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
                limits: ConsistencyLimits) -> list[dict]:
     """Problems of one jump's time scale: t (n,) s, q, dq (n, 18). ``where``: 'FILE, jump J'."""
@@ -92,21 +120,9 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
     n = t.size
     if n < 3:
         return out
-    edges = np.searchsorted(t, np.arange(t[0], t[-1] + limits.window, limits.window))
-    edges = np.unique(np.r_[edges, n])
     for name, cols, unit in SCALE_GROUPS:
         x = np.unwrap(q[:, cols], axis=0) if name == "base angles" else q[:, cols]
-        v = dq[:, cols]
-        ratios = []
-        for a, b in zip(edges[:-1], edges[1:]):
-            b = min(b + 1, n)  # windows share their edge sample
-            if b - a < 3:
-                continue
-            change = x[b - 1] - x[a]
-            integral = trapezoid(v[a:b], t[a:b], axis=0)
-            if np.sqrt(np.mean(integral ** 2)) < limits.min_motion:
-                continue
-            ratios.append(float(change @ integral / (integral @ integral)))
+        ratios = list(window_ratios(t, x, dq[:, cols], limits.window, limits.min_motion)[1])
         if len(ratios) < 3:
             continue
         r = float(np.median(ratios))

@@ -44,7 +44,9 @@ The import then, in this order:
 2. reports stale rows (a group of columns repeating the previous row) and,
    with ``retime``, interpolates them between the fresh rows (``consistency``);
 3. gives rebased jumps their height back (``restore_height``: a logger that
-   starts every segment's position at 0);
+   starts every segment's position at 0); with ``repair``, then repairs each jump
+   from physics (``repair``: its clock and velocities, contact flags, torque gain
+   and height offset of any size), the values' units checked first;
 4. checks every value against the robot's description (``checks``; the
    torques as commanded or measured): the first implausible one is refused in
    one line naming the file, jump, row, line, column, value and limit, with
@@ -66,7 +68,7 @@ from __future__ import annotations
 import csv
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -76,6 +78,7 @@ from symrom.data.consistency import (ConsistencyLimits, foot_height, retime_stal
                                      vertical_impulse)
 from symrom.data.dataset import Dataset
 from symrom.data.rawlog import LogError, RawLog, log_kind, sha256_file
+from symrom.data.repair import RepairLimits, repair_log, repairs_record
 from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
 from symrom.data.segment import SEGMENT, segment_log
 from symrom.data.timebase import METHOD as TIMEBASE_METHOD
@@ -503,7 +506,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 time_base: TimeBase = TimeBase(), positions: str = "auto",
                 physics: ConsistencyLimits | None = ConsistencyLimits(), segment: str = "auto",
                 retime: bool = False, diff_window: float = DIFF_WINDOW,
-                topics: dict[str, str] | None = None) -> Dataset:
+                topics: dict[str, str] | None = None, repair: RepairLimits | None = None) -> Dataset:
     """Read logs (CSV, ROS 1/2 bags, MCAP; concatenated as consecutive jumps) into a checked,
     validated dataset.
 
@@ -527,6 +530,13 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     time_base: the dataset's sample period and how jumps at other rates are brought
     to it (``timebase``); what was done per jump is in ``generator["time_base"]``.
     topics: bag topics by role (``bags.DEFAULT_TOPICS``).
+    repair: repair each jump from physics before the checks (``repair.repair_log``, with
+    these limits; None: as logged): its clock and velocities, contact flags, torque gain
+    and height offset (``positions="absolute"`` leaves z as logged); the values' units are
+    checked first (the base height and the torques' size only after it); what was found per
+    jump is in ``generator["repairs"]``. A fault the data cannot determine, where the jump
+    fails the consistency checks as logged, raises ``repair.RepairError`` (``lenient`` keeps
+    it as logged).
     """
     robot = get_robot(robot).key
     get_motion(motion)
@@ -547,7 +557,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     n_jumps = sum(lg.n_jumps for lg in logs)
     splits = parse_split(split, n_jumps)
 
-    restored, checks, physical, stale = [], [], [], []
+    restored, checks, physical, stale, repairs = [], [], [], [], []
     for lg in logs:
         per_file = []
         for j, (a, b) in enumerate(lg.bounds()):
@@ -560,6 +570,12 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
         stale.append(per_file)
         back = restore_height(lg, robot, positions)
         restored += back
+        if repair is not None:  # units first (a repair cannot undo degrees for radians), then the repair
+            units = plausibility(lg, robot, replace(limits, height=(-math.inf, math.inf), torques="measured",
+                                                    torque_factor=4 * limits.torque_factor))
+            if units and not lenient:
+                _refuse(units)
+            repairs += repair_log(lg, robot, repair, physics, lenient, heights=positions != "absolute")
         problems = plausibility(lg, robot, limits)
         if problems and not lenient:
             _refuse(problems)
@@ -580,10 +596,10 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     parts: dict[str, list] = {k: [] for k in ("t", "q", "dq", "ddq", "tau", "contact", "jump")}
     jump_no = 0
     for lg, per_file in zip(logs, timings):
-        for (a, b), timing in zip(lg.bounds(), per_file):
+        for j, ((a, b), timing) in enumerate(zip(lg.bounds(), per_file)):
             t = lg.t[a:b]
             signals = {"q": lg.q[a:b], "dq": lg.dq[a:b], "tau": lg.tau[a:b],
-                       "ddq": None if lg.ddq is None else lg.ddq[a:b]}
+                       "ddq": None if lg.ddq is None or j in lg.ddq_dropped else lg.ddq[a:b]}
             if on_grid(t, dt, time_base.grid_tol):
                 timing.stored = "as logged"
                 t_new, sig, contact = np.arange(t.size) * dt, signals, lg.contact[a:b]
@@ -628,7 +644,8 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                     "diff": diff_method, "diff_window": diff_window, "lenient": lenient,
                     "positions": positions, "limits": limits.to_dict(), "time_base": asdict(time_base),
                     "physics": None if physics is None else physics.to_dict(), "segment": segment,
-                    "retime": retime, **({"topics": topics} if topics else {})},
+                    "retime": retime, **({"topics": topics} if topics else {}),
+                    **({"repair": repair.to_dict()} if repair is not None else {})},
         "torques": limits.torques,
         "dt": dt,
         "time_base": {"dt": dt, "rule": "given (--dt)" if time_base.dt is not None
@@ -636,6 +653,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                       "jumps": [x.to_dict() for x in flat]},
         "rebased": restored,
         "segments": segments,
+        **({"repairs": repairs_record(repairs, repair)} if repair is not None else {}),
     }
     return assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
                     tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +27,9 @@ class RawLog:
     ``tau`` (n, 12) N m; ``contact`` (n, 4) uint8; ``lines`` (n,) the file's
     line of each sample (None for a bag: rows are counted); ``columns``: the
     header's name of each field's columns (``q``, ``dq``, ``tau``), for messages;
-    ``topics``: a bag's topic of each role.
+    ``topics``: a bag's topic of each role; ``ddq_dropped``: the jumps whose logged
+    accelerations no longer hold (their time base or velocities repaired: ``data.repair``),
+    differentiated again by the import.
     """
 
     path: Path
@@ -43,6 +45,7 @@ class RawLog:
     lines: np.ndarray | None = None
     columns: dict[str, tuple[str, ...]] | None = None
     topics: dict[str, str] | None = None
+    ddq_dropped: set[int] = field(default_factory=set)
 
     @property
     def n_jumps(self) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 
 from symrom.robots.description import ActuatorEffects, RobotDescription, RobotDescriptionError, load_description
 from symrom.robots.kinematics import LegKinematics
+from symrom.robots.masses import MassModel
 
 _HERE = Path(__file__).resolve().parent
 
@@ -25,8 +26,8 @@ ROBOTS: dict[str, Path] = {
     "laikago": _HERE / "laikago" / "laikago.toml",
 }
 
-__all__ = ["ROBOTS", "ActuatorEffects", "LegKinematics", "RobotDescription", "RobotDescriptionError", "get_robot",
-           "leg_kinematics", "robot_key", "torque_limits", "total_mass"]
+__all__ = ["ROBOTS", "ActuatorEffects", "LegKinematics", "MassModel", "RobotDescription", "RobotDescriptionError",
+           "get_robot", "leg_kinematics", "mass_model", "robot_key", "torque_limits", "total_mass"]
 
 
 def robot_key(robot: str | Path) -> str:
@@ -59,6 +60,18 @@ def _kinematics(key: str) -> LegKinematics:
 def leg_kinematics(robot: str | Path) -> LegKinematics:
     """Leg kinematics of ``robot`` (symrom's joint signs), parsed once from its URDF."""
     return _kinematics(robot_key(robot))
+
+
+@cache
+def _masses(key: str) -> MassModel:
+    d = _load(key)
+    return MassModel(d.urdf_path, d.base_link, list(d.joint_names), d.joint_signs)
+
+
+def mass_model(robot: str | Path) -> MassModel:
+    """The mass distribution of ``robot`` (whole-body centre of mass, the legs' holding
+    torques), parsed once from its URDF."""
+    return _masses(robot_key(robot))
 
 
 def torque_limits(robot: str | Path) -> np.ndarray:
