@@ -56,7 +56,7 @@ def test_the_mass_model_holds_the_legs_as_pybullet_does():
     from symrom.robots import mass_model
     from symrom.robots.kinematics import rpy_to_matrix
     from symrom.robots.stance import standing_joints
-    from symrom.sim.dynamics import LegGravity, body_model
+    from symrom.sim.controllers.body import LegGravity, body_model
 
     rng = np.random.default_rng(4)
     for robot in ("go1", "a1", "laikago"):
