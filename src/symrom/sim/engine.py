@@ -24,7 +24,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from symrom.robots import ActuatorEffects, RobotDescription
+from symrom.robots import ActuatorEffects, RobotDescription, get_robot
 from symrom.sim.world import RobotState, WorldConfig
 
 # name -> "module:class"; imported only when asked for
@@ -33,10 +33,15 @@ ENGINES: dict[str, str] = {
     "mujoco": "symrom.sim.mujoco_world:MujocoWorld",
 }
 DEFAULT_ENGINE = "pybullet"
+NEEDS_URDF = ("pybullet",)  # engines that simulate a URDF: not a robot given as an MJCF alone
 
 
 class UnknownEngineError(ValueError):
     """No engine of that name in ``ENGINES``."""
+
+
+class EngineRobotError(ValueError):
+    """A robot an engine cannot simulate (PyBullet: a robot given as an MJCF alone)."""
 
 
 @runtime_checkable
@@ -110,10 +115,16 @@ def engine_names() -> list[str]:
     return list(ENGINES)
 
 
-def check_engine(name: str) -> str:
-    """``name`` if it is a known engine, else ``UnknownEngineError`` naming the known ones."""
+def check_engine(name: str, robot: str | None = None) -> str:
+    """``name`` if it is a known engine, else ``UnknownEngineError`` naming the known ones;
+    with ``robot``, ``EngineRobotError`` if that engine cannot simulate it."""
     if name not in ENGINES:
         raise UnknownEngineError(f"unknown engine {name!r}; known: {', '.join(ENGINES)}")
+    if robot is not None and name in NEEDS_URDF:
+        desc = get_robot(robot)
+        if desc.urdf_derived:
+            raise EngineRobotError(f"robot {desc.name!r} is given as an MJCF alone ({desc.mjcf_path}): the {name} "
+                                   f"engine simulates URDFs; use the mujoco engine")
     return name
 
 
@@ -128,8 +139,8 @@ def make_world(engine: str, robot: str, config: WorldConfig = WorldConfig(),
 
     effects: the actuator effects to simulate (default: the description's ``[actuators]``).
     """
-    return engine_class(engine)(robot, config, effects=effects)
+    return engine_class(check_engine(engine, robot))(robot, config, effects=effects)
 
 
-__all__ = ["DEFAULT_ENGINE", "ENGINES", "UnknownEngineError", "World", "check_engine", "engine_class",
-           "engine_names", "make_world"]
+__all__ = ["DEFAULT_ENGINE", "ENGINES", "NEEDS_URDF", "EngineRobotError", "UnknownEngineError", "World",
+           "check_engine", "engine_class", "engine_names", "make_world"]

@@ -34,7 +34,7 @@ from symrom.execution import Backend, LocalBackend
 from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
-from symrom.sim.engine import ENGINES, UnknownEngineError, check_engine
+from symrom.sim.engine import ENGINES, EngineRobotError, UnknownEngineError, check_engine
 from symrom.sim.mpc import QP_SOLVERS
 from symrom.sim.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.parts import jsonable, part_path, parts_dir, read_part, write_part
@@ -151,8 +151,8 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         entry = get_motion(cfg.motion)
         robot = robot_key(cfg.robot)
         get_robot(robot)
-        check_engine(cfg.engine)
-    except (UnknownMotionError, RobotDescriptionError, UnknownEngineError) as e:
+        check_engine(cfg.engine, robot)
+    except (UnknownMotionError, RobotDescriptionError, UnknownEngineError, EngineRobotError) as e:
         raise GenerationError(str(e)) from None
     if cfg.proxy and cfg.randomize:
         raise GenerationError("--proxy and --randomize are two variants; choose one")
