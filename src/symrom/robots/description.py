@@ -274,13 +274,12 @@ def _check_format(path: Path, doc: dict) -> int:
     if isinstance(fmt, bool) or fmt not in FORMATS:
         raise _fail(path, "format", f"{fmt!r} is not supported (this symrom reads {', '.join(map(str, FORMATS))})")
     if fmt == 1:
+        if "urdf" not in doc and "mjcf" in doc:
+            raise _fail(path, "urdf", "missing (format 1 needs a URDF; a description of an MJCF alone "
+                                      "is format = 2)")
         used = [f"feet.{k}" for k in doc["feet"] if k != "link"]
         used += ["stance.knee"] if isinstance(doc["stance"].get("knee"), list) and any(
             isinstance(x, list) for x in doc["stance"]["knee"]) else []
-        used += ["urdf"] if "urdf" not in doc and "mjcf" in doc else []
-        if used == ["urdf"]:
-            raise _fail(path, "urdf", "missing (format 1 needs a URDF; a description of an MJCF alone "
-                                      "is format = 2)")
         if used:
             raise _fail(path, used[0], "needs format = 2 (feet by body, geom or site; knee ranges per leg)")
     return fmt

@@ -57,7 +57,12 @@ _ROLE = {"hx": "hip abduction", "hy": "hip flexion", "kn": "knee"}
 
 class RobotInitError(ValueError):
     """A robot model ``robot init`` cannot describe; the message names the model, what is
-    missing and the description key to give by hand."""
+    missing and the description key to give by hand (``key``; None where the model itself
+    must change)."""
+
+    def __init__(self, message: str, key: str | None = None):
+        super().__init__(message)
+        self.key = key
 
 
 @dataclass(frozen=True)
@@ -166,8 +171,8 @@ def _base(m, path: Path, urdf: bool) -> int:
     return base
 
 
-def _err(path: Path, what: str) -> RobotInitError:
-    return RobotInitError(f"robot init {path}: {what}")
+def _err(path: Path, what: str, key: str | None = None) -> RobotInitError:
+    return RobotInitError(f"robot init {path}: {what}", key)
 
 
 def _limbs(m, path: Path, base: int) -> list[list[int]]:
@@ -430,7 +435,7 @@ def init_robot(model: str | os.PathLike, out: str | os.PathLike, *, name: str | 
             if not np.isfinite(bound) and "limits.torque" not in given:
                 raise _err(path, f"joint {n!r} ({_ROLE[role]} of leg {label}): the model bounds no torque on it "
                                  f"(actuator forcerange, motor ctrlrange, joint actuatorfrcrange"
-                                 f"{', URDF effort' if urdf else ''}); give key 'limits.torque'")
+                                 f"{', URDF effort' if urdf else ''}); give key 'limits.torque'", "limits.torque")
             torque.append(_num(bound))
             sources |= {f"{w.split(' ')[0]} {w.split(' ')[-1]}" for w in src.split(", ") if w}
     dof = [m.jnt_dofadr[j] for leg in legs for j in leg.joints]
@@ -578,7 +583,7 @@ def _knee_ranges(m, path: Path, legs: list[_Leg], labels: list[str], jname: list
             why = "the model has no standing keyframe" if kq is None else "the keyframe holds it straight"
             raise _err(path, f"knee joint {jname[k][2]!r} of leg {label} may bend either way (range "
                              f"[{lo:.3g}, {hi:.3g}] rad) and {why}: cannot tell which way it bends; give key "
-                             f"'stance.knee' ([lower, upper] rad, or one per leg FR FL RR RL)")
+                             f"'stance.knee' ([lower, upper] rad, or one per leg FR FL RR RL)", "stance.knee")
         a, b = (-KNEE_SIDE[1], -KNEE_SIDE[0]) if kq[3 * k + 2] < 0 else KNEE_SIDE
         knees.append((_num(max(a, lo)), _num(min(b, hi))))
         note = (f"rad: the built-ins' range, on the side keyframe {m.key(key).name!r} bends the knees to "
@@ -634,7 +639,7 @@ def _check_stance(path: Path, desc: RobotDescription, kin: LegKinematics) -> Non
     if miss > 1e-5 or np.any(q[2::3] < lo - 1e-9) or np.any(q[2::3] > hi + 1e-9):
         raise _err(path, f"the leg IK cannot stand the robot at {desc.start_height:.4g} m with the knees in "
                          f"{desc.knee_ranges[0]} rad (the feet miss by {miss:.3g} m); give key 'stance.height' "
-                         f"or 'stance.knee'")
+                         f"or 'stance.knee'", "stance.height")
 
 
 __all__ = ["OVERRIDABLE", "RobotInit", "RobotInitError", "init_robot"]
