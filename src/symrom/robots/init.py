@@ -186,7 +186,8 @@ def _limbs(m, path: Path, base: int) -> list[list[int]]:
         if b == base:
             continue
         if n > 1:
-            raise _err(path, f"body {name_of(m, 'body', b)!r} moves by {n} joints; symrom's legs have one hinge per body")
+            raise _err(path, f"body {name_of(m, 'body', b)!r} moves by {n} joints; symrom's legs have one hinge "
+                             f"per body")
         if n == 1:
             if m.jnt_type[a] != mujoco.mjtJoint.mjJNT_HINGE:
                 raise _err(path, f"joint {name_of(m, 'joint', a)!r} is not a hinge; symrom's legs have hinges only")
@@ -209,8 +210,9 @@ def _limbs(m, path: Path, base: int) -> list[list[int]]:
         body = name_of(m, "body", m.jnt_bodyid[j1]) or f"#{m.jnt_bodyid[j1]}"
         if len(chain) != 3 or not serial:
             names = ", ".join(name_of(m, "joint", h) or f"#{h}" for h in chain)
-            raise _err(path, f"the limb at body {body!r} has {len(chain)} hinge joints{' in branches' if not serial else ''} "
-                             f"({names}); symrom's legs have three in a row (hip abduction, hip flexion, knee)")
+            branches = "" if serial else " in branches"
+            raise _err(path, f"the limb at body {body!r} has {len(chain)} hinge joints{branches} ({names}); "
+                             f"symrom's legs have three in a row (hip abduction, hip flexion, knee)")
         limbs.append(chain)
     if len(limbs) != N_LEGS:
         names = ", ".join(name_of(m, "body", m.jnt_bodyid[c[0]]) for c in limbs)
@@ -400,7 +402,8 @@ def init_robot(model: str | os.PathLike, out: str | os.PathLike, *, name: str | 
     tokens = _tokens([[jname[k][r] for k in range(N_LEGS)] for r in range(3)])
     if tokens is None:
         raise _err(path, f"the leg joints' names ({', '.join(n for names in jname for n in names[:1])}, ...) share "
-                         f"no pattern with the leg as its only difference; rename them in the model (keys legs, joints)")
+                         f"no pattern with the leg as its only difference; rename them in the model (keys legs, "
+                         f"joints)")
     templates = [_template([jname[k][r] for k in range(N_LEGS)], tokens) for r in range(3)]
 
     # the feet, named the first way all four legs share
@@ -527,7 +530,8 @@ def init_robot(model: str | os.PathLike, out: str | os.PathLike, *, name: str | 
             for k, v in effects.items():
                 put(f"actuators.{k}", _collapse(v), _EFFECT_TEXT[k])
         else:
-            doc.lines += [("", ""), ("", "no [actuators]: the model states no joint damping, armature or friction loss")]
+            doc.lines += [("", ""), ("", "no [actuators]: the model states no joint damping, armature or "
+                                         "friction loss")]
         return doc.text([f"symrom robot description (format 2), written by `symrom robot init` from {path.name}.",
                          f"Total mass {mass:.4g} kg (the model's bodies). docs/design.md, \"Robot description file\", "
                          f"says what", "each key means; each comment says where its value came from."])

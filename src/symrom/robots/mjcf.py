@@ -307,7 +307,7 @@ def urdf_text(model, base: str, joint_names: tuple[str, ...], feet: Feet, name: 
     for b in bodies:
         names[b] = name_of(model, "body", b) or f"symrom_body_{b}"
     origin: dict[int, np.ndarray] = {}  # link origin, base frame, zero pose
-    lines = [f'<?xml version="1.0"?>', f"<!-- {note} -->" if note else "", f'<robot name="{name}">']
+    lines = ['<?xml version="1.0"?>', f"<!-- {note} -->" if note else "", f'<robot name="{name}">']
     for b in bodies:
         nj, ja = model.body_jntnum[b], model.body_jntadr[b]
         kinds = [model.jnt_type[ja + i] for i in range(nj)]
@@ -326,12 +326,13 @@ def urdf_text(model, base: str, joint_names: tuple[str, ...], feet: Feet, name: 
         R = bf.matrix(data.ximat[b].reshape(3, 3))
         c = bf.point(data.xipos[b]) - origin[b]
         I = model.body_inertia[b]
-        inertial = (f'<inertial><origin xyz="{_v(c)}" rpy="{_v(matrix_to_rpy(R))}"/><mass value="{_f(model.body_mass[b])}"/>'
-                    f'<inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
+        inertial = (f'<inertial><origin xyz="{_v(c)}" rpy="{_v(matrix_to_rpy(R))}"/>'
+                    f'<mass value="{_f(model.body_mass[b])}"/><inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
         if b == b0:
             # PyBullet takes a base's principal axes for its frame (its inverse dynamics then read gravity
             # in them): the base link holds no mass; its body's inertia hangs on a fixed child.
-            lines += [f'  <link name="{names[b]}">{_MASSLESS}</link>', f'  <link name="{BASE_INERTIA}">{inertial}</link>',
+            lines += [f'  <link name="{names[b]}">{_MASSLESS}</link>',
+                      f'  <link name="{BASE_INERTIA}">{inertial}</link>',
                       f'  <joint name="{BASE_INERTIA}_joint" type="fixed"><origin xyz="0 0 0" rpy="0 0 0"/>'
                       f'<parent link="{names[b]}"/><child link="{BASE_INERTIA}"/></joint>']
             continue
@@ -431,6 +432,7 @@ def derived_urdf(mjcf: str | os.PathLike, base: str, joint_names: tuple[str, ...
     return path
 
 
-__all__ = ["BASE_INERTIA", "CACHE_ENV", "FOOT_KINDS", "FOOT_LINK", "BaseFrame", "Feet", "FootFrame", "RobotModelError", "actuated",
-           "cache_dir", "compile_model", "derived_urdf", "foot_frames", "matrix_to_rpy", "model_hash",
-           "torque_bound", "urdf_text", "zero_pose", "N_LEGS"]
+__all__ = ["BASE_INERTIA", "CACHE_ENV", "FOOT_KINDS", "FOOT_LINK", "BaseFrame", "Feet", "FootFrame",
+           "RobotModelError", "actuated", "cache_dir", "colliding", "compile_model", "derived_urdf", "element_id",
+           "foot_frames", "matrix_to_rpy", "model_hash", "name_of", "subtree", "torque_bound", "urdf_text",
+           "zero_pose"]
