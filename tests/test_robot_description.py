@@ -71,7 +71,9 @@ def _bad(tmp_path: Path, old: str, new: str) -> Path:
 
 
 BAD = [  # (old text, new text, key named in the error, what it says)
-    ("format = 1", "format = 2", "format", "not supported"),
+    ("format = 1", "format = 3", "format", "not supported"),
+    ("[feet]", "[feet]\npoint = [0, 0, 0]", "feet.point", "needs format = 2"),
+    ('link = "{leg}_foot"', 'geom = "{leg}"', "feet.geom", "needs format = 2"),
     ("height = 0.3165 ", "", "stance.height", "missing"),
     ("height = 0.3165", "heigth = 0.3165", "stance.heigth", "unknown key"),
     ("torque = [23.7, 23.7, 35.55]", "torque = [23.7, 23.7]", "limits.torque", "expected 3 or 12 numbers"),

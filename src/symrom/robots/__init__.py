@@ -1,4 +1,6 @@
-"""Robots as descriptions: a URDF plus a small TOML file (``robots.description``).
+"""Robots as descriptions: a robot model (a URDF, or an MJCF alone) plus a small TOML file
+(``robots.description``; ``robots.init`` writes one from the model, ``robots.mjcf`` derives the
+URDF of an MJCF).
 
 ``get_robot`` takes a built-in name (``ROBOTS``: name -> description file) or
 the path of any description file, so a quadruped that is not built in works

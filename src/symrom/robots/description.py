@@ -1,10 +1,11 @@
-"""The robot description file: a URDF plus the few facts symrom needs beyond it.
+"""The robot description file: a robot model (URDF or MJCF) plus the few facts symrom needs beyond it.
 
-A description (TOML, ``format = 1``) names which URDF joints and links play
-symrom's roles (legs FR FL RR RL x joints hx hy kn, four feet), the sign that
-turns each URDF joint angle into symrom's convention (hx about +x, hy and kn
-about +y of the base), a standing pose and the actuator torque limits.
-Geometry, masses and inertias stay in the URDF, the one source of them.
+A description (TOML, ``format = 1`` or ``2``) names which joints and links of the
+model play symrom's roles (legs FR FL RR RL x joints hx hy kn, four feet), the sign
+that turns each model joint angle into symrom's convention (hx about +x, hy and kn
+about +y of the base), a standing pose and the actuator torque limits. Geometry,
+masses and inertias stay in the model, the one source of them: a URDF, or an MJCF
+alone (format 2), from which a URDF is derived once and cached (``robots.mjcf``).
 
 Every problem is reported as one ``RobotDescriptionError`` naming the file and
 the key. docs/design.md, "Robot description file", is the reference.
@@ -21,17 +22,20 @@ from pathlib import Path
 import numpy as np
 
 from symrom.names import LEG_JOINTS, LEGS
+from symrom.robots.mjcf import FOOT_KINDS, FOOT_LINK, Feet, RobotModelError
 
-FORMAT = 1
+FORMAT = 2  # the newest format this symrom reads and writes
+FORMATS = (1, 2)  # the formats it reads
 PYBULLET_DATA = "pybullet_data:"  # urdf prefix: a path inside the pybullet_data package
 
 _KEYS: dict[str, tuple[str, ...] | None] = {  # top-level key -> allowed sub-keys (None: a value)
     "format": None, "name": None, "urdf": None, "base_link": None,
-    "legs": LEGS, "joints": LEG_JOINTS, "feet": ("link",), "signs": LEG_JOINTS,
+    "legs": LEGS, "joints": LEG_JOINTS, "feet": (*FOOT_KINDS, "point"), "signs": LEG_JOINTS,
     "stance": ("height", "joints", "knee"), "limits": ("torque",),
     "mjcf": None, "actuators": ("damping", "armature", "friction_loss"),
 }
-_OPTIONAL = ("mjcf", "actuators")  # keys a format-1 file may leave out
+_OPTIONAL = ("urdf", "mjcf", "actuators")  # keys a file may leave out (urdf: given an mjcf, format 2)
+_FREE_TABLES = ("feet", "actuators")  # tables whose sub-keys are each optional (feet: one kind)
 
 
 
@@ -83,15 +87,19 @@ class RobotDescription:
     """One robot, as read from its description file (arrays in symrom's joint order).
 
     key: what names the robot in a dataset's ``robot`` attribute (a built-in
-    name, else the description file's absolute path); urdf_path: the URDF;
-    joint_names (12) and foot_links (4): URDF names, FR FL RR RL x hx hy kn;
-    joint_signs (12): +1 or -1, symrom angle = sign x URDF angle (and the same
+    name, else the description file's absolute path); urdf_path: the URDF (the
+    description's, or the one derived from its MJCF: ``urdf_derived``);
+    joint_names (12) and foot_links (4): URDF names, FR FL RR RL x hx hy kn (joint
+    names are the MJCF's too; a derived URDF's foot links are ``mjcf.FOOT_LINK``);
+    joint_signs (12): +1 or -1, symrom angle = sign x model angle (and the same
     for rates and torques); stance_joints (12) rad: a standing leg posture
-    where the leg IK starts; knee_range (2,) rad: the range the leg IK keeps
-    the knees in; start_height m: base height standing; torque_limit (12) N m;
-    actuators: joint damping, armature and friction loss (``ActuatorEffects``; all
-    zero without an ``[actuators]`` table); mjcf_path: an MJCF model of the same
-    robot for the MuJoCo engine (optional key ``mjcf``; None: MuJoCo compiles the URDF).
+    where the leg IK starts; knee_ranges (4 x (lower, upper)) rad: per leg, the
+    range the leg IK keeps the knee in; start_height m: base height standing;
+    torque_limit (12) N m; actuators: joint damping, armature and friction loss
+    (``ActuatorEffects``; all zero without an ``[actuators]`` table); mjcf_path: an
+    MJCF model of the robot for the MuJoCo engine (key ``mjcf``; None: MuJoCo
+    compiles the URDF); feet: the ``[feet]`` table as read (``mjcf.Feet``: what the
+    MuJoCo engine finds the feet by); format: the file's format.
     """
 
     key: str
@@ -102,16 +110,25 @@ class RobotDescription:
     foot_links: tuple[str, ...]
     joint_signs: tuple[float, ...]
     stance_joints: tuple[float, ...]
-    knee_range: tuple[float, float]
+    knee_ranges: tuple[tuple[float, float], ...]
     start_height: float
     torque_limit: tuple[float, ...]
     source: Path = field(compare=False)
     actuators: ActuatorEffects = field(default_factory=ActuatorEffects)
     mjcf_path: Path | None = None
+    feet: Feet | None = None
+    urdf_derived: bool = False
+    format: int = 1
+
+    @property
+    def knee_range(self) -> np.ndarray:
+        """(2, 4) rad: the knee's lower and upper bound per leg (FR FL RR RL)."""
+        return np.asarray(self.knee_ranges, dtype=float).T
 
     @cached_property
     def mass(self) -> float:
-        """Total mass, kg: the sum of every link's ``<inertial><mass>`` in the URDF."""
+        """Total mass, kg: the sum of every link's ``<inertial><mass>`` in the URDF (a derived
+        URDF's are the MJCF's bodies')."""
         root = ET.parse(self.urdf_path).getroot()
         masses = [float(m.get("value")) for m in root.findall("link/inertial/mass") if m.get("value") is not None]
         if not masses:
@@ -247,8 +264,25 @@ def _check_keys(path: Path, doc: dict) -> None:
             if s not in subs:
                 raise _fail(path, f"{k}.{s}", f"unknown key; known: {', '.join(subs)}")
         for s in subs:
-            if s not in doc[k] and k not in _OPTIONAL:
+            if s not in doc[k] and k not in _OPTIONAL and k not in _FREE_TABLES:
                 raise _fail(path, f"{k}.{s}", "missing")
+
+
+def _check_format(path: Path, doc: dict) -> int:
+    """The file's format; a format-2 feature in a format-1 file is refused by its key."""
+    fmt = doc["format"]
+    if isinstance(fmt, bool) or fmt not in FORMATS:
+        raise _fail(path, "format", f"{fmt!r} is not supported (this symrom reads {', '.join(map(str, FORMATS))})")
+    if fmt == 1:
+        if "urdf" not in doc and "mjcf" in doc:
+            raise _fail(path, "urdf", "missing (format 1 needs a URDF; a description of an MJCF alone "
+                                      "is format = 2)")
+        used = [f"feet.{k}" for k in doc["feet"] if k != "link"]
+        used += ["stance.knee"] if isinstance(doc["stance"].get("knee"), list) and any(
+            isinstance(x, list) for x in doc["stance"]["knee"]) else []
+        if used:
+            raise _fail(path, used[0], "needs format = 2 (feet by body, geom or site; knee ranges per leg)")
+    return fmt
 
 
 def _check_urdf(path: Path, urdf: Path, base_link: str, joints: list[str], feet: list[str]) -> None:
@@ -272,9 +306,49 @@ def _check_urdf(path: Path, urdf: Path, base_link: str, joints: list[str], feet:
             raise _fail(path, "feet.link", f"no link {name!r} in {urdf.name}")
 
 
+def _feet(path: Path, table: dict, prefixes: list[str], has_urdf: bool) -> Feet:
+    kinds = [k for k in FOOT_KINDS if k in table]
+    if len(kinds) != 1:
+        raise _fail(path, "feet", f"name the feet by exactly one of {', '.join(FOOT_KINDS)}, got "
+                                  f"{', '.join(kinds) or 'none'}")
+    kind = kinds[0]
+    if has_urdf and kind != "link":
+        raise _fail(path, f"feet.{kind}", "a description with a URDF names its feet by their links (feet.link)")
+    if not has_urdf and kind == "link":
+        raise _fail(path, "feet.link", "this description has no URDF: name the feet in its MJCF by "
+                                       "feet.body, feet.geom or feet.site")
+    names = tuple(_template(path, f"feet.{kind}", table[kind], p) for p in prefixes)
+    points = None
+    if "point" in table:
+        if kind != "body":
+            raise _fail(path, "feet.point", "a point is given in a body's frame: only with feet.body")
+        v = table["point"]
+        rows = v if isinstance(v, list) and v and all(isinstance(r, list) for r in v) else [v]
+        if len(rows) not in (1, 4):
+            raise _fail(path, "feet.point", f"expected [x, y, z] or 4 of them (FR FL RR RL), got {v!r}")
+        rows = [_numbers(path, "feet.point", r, (3,)) for r in rows]
+        points = tuple(tuple(r) for r in (rows * 4 if len(rows) == 1 else rows))
+    return Feet(kind, names, points)
+
+
+def _knees(path: Path, v) -> tuple[tuple[float, float], ...]:
+    """[lower, upper] for every leg, or 4 of them (FR FL RR RL)."""
+    rows = v if isinstance(v, list) and v and all(isinstance(r, list) for r in v) else [v]
+    if len(rows) not in (1, 4):
+        raise _fail(path, "stance.knee", f"expected [lower, upper] or 4 of them (FR FL RR RL), got {v!r}")
+    out = []
+    for r in rows:
+        knee = _numbers(path, "stance.knee", r, (2,))
+        if knee[0] >= knee[1]:
+            raise _fail(path, "stance.knee", f"expected [lower, upper] with lower < upper, got {knee}")
+        out.append((knee[0], knee[1]))
+    return tuple(out * 4 if len(out) == 1 else out)
+
+
 def load_description(path: str | Path, key: str | None = None) -> RobotDescription:
     """Read and check the description file ``path``; ``key`` names the robot in datasets
-    (default: the file's absolute path)."""
+    (default: the file's absolute path). A description naming an MJCF and no URDF gets the URDF
+    derived from it (``robots.mjcf.derived_urdf``, cached on disk)."""
     path = Path(path).resolve()
     try:
         doc = tomllib.loads(path.read_text())
@@ -285,14 +359,26 @@ def load_description(path: str | Path, key: str | None = None) -> RobotDescripti
     except tomllib.TOMLDecodeError as e:
         raise RobotDescriptionError(f"robot description {path}: not valid TOML ({e})") from None
     _check_keys(path, doc)
-    if doc["format"] != FORMAT:
-        raise _fail(path, "format", f"{doc['format']!r} is not supported (this symrom reads {FORMAT})")
-    urdf = _urdf(path, doc["urdf"])
+    fmt = _check_format(path, doc)
+    if "urdf" not in doc and "mjcf" not in doc:
+        raise _fail(path, "urdf", "missing (or, format 2, an mjcf alone)")
+    mjcf = _path(path, "mjcf", doc["mjcf"]) if "mjcf" in doc else None
     prefixes = [_text(path, f"legs.{leg}", doc["legs"][leg]) for leg in LEGS]
     joints = [_template(path, f"joints.{j}", doc["joints"][j], p) for p in prefixes for j in LEG_JOINTS]
-    feet = [_template(path, "feet.link", doc["feet"]["link"], p) for p in prefixes]
+    feet = _feet(path, doc["feet"], prefixes, "urdf" in doc)
     base_link = _text(path, "base_link", doc["base_link"])
-    _check_urdf(path, urdf, base_link, joints, feet)
+    name = _text(path, "name", doc["name"])
+    if "urdf" in doc:
+        urdf, foot_links = _urdf(path, doc["urdf"]), list(feet.names)
+        _check_urdf(path, urdf, base_link, joints, foot_links)
+    else:
+        from symrom.robots.mjcf import derived_urdf
+
+        try:
+            urdf = derived_urdf(mjcf, base_link, tuple(joints), feet, name)
+        except RobotModelError as e:
+            raise _fail(path, e.key or "mjcf", str(e)) from None
+        foot_links = [FOOT_LINK.format(leg=leg) for leg in LEGS]
     signs = []
     for j in LEG_JOINTS:
         s = _numbers(path, f"signs.{j}", doc["signs"][j], (1, 4))
@@ -303,17 +389,15 @@ def load_description(path: str | Path, key: str | None = None) -> RobotDescripti
     height = _number(path, "stance.height", stance["height"])
     if height <= 0:
         raise _fail(path, "stance.height", f"must be positive, got {height}")
-    knee = _numbers(path, "stance.knee", stance["knee"], (2,))
-    if knee[0] >= knee[1]:
-        raise _fail(path, "stance.knee", f"expected [lower, upper] with lower < upper, got {knee}")
+    knees = _knees(path, stance["knee"])
     torque = _numbers(path, "limits.torque", doc["limits"]["torque"], (3, 12))
     if min(torque) <= 0:
         raise _fail(path, "limits.torque", f"limits must be positive, got {torque}")
     return RobotDescription(
-        key=str(path) if key is None else key, name=_text(path, "name", doc["name"]), urdf_path=urdf,
-        base_link=base_link, joint_names=tuple(joints), foot_links=tuple(feet),
+        key=str(path) if key is None else key, name=name, urdf_path=urdf,
+        base_link=base_link, joint_names=tuple(joints), foot_links=tuple(foot_links),
         joint_signs=tuple(signs[k][leg] for leg in range(4) for k in range(3)),
         stance_joints=tuple(_per_joint(_numbers(path, "stance.joints", stance["joints"], (3, 12)))),
-        knee_range=(knee[0], knee[1]), start_height=height,
+        knee_ranges=knees, start_height=height,
         torque_limit=tuple(_per_joint(torque)), source=path, actuators=_actuators(path, doc.get("actuators")),
-        mjcf_path=_path(path, "mjcf", doc["mjcf"]) if "mjcf" in doc else None)
+        mjcf_path=mjcf, feet=feet, urdf_derived="urdf" not in doc, format=fmt)

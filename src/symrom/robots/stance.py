@@ -13,6 +13,8 @@ import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import get_robot, leg_kinematics
+from symrom.robots.description import RobotDescription
+from symrom.robots.kinematics import LegKinematics
 
 # m the feet start inside the ground (as loaded foot pads would), so contact exists from t = 0
 FOOT_PRELOAD = 5e-4
@@ -25,7 +27,13 @@ def leg_ik(robot: str, feet_base: np.ndarray, q_guess: np.ndarray | None = None,
     Damped Newton iterations on the URDF kinematics from ``q_guess`` (default the
     description's standing posture); knees are kept in the description's range.
     """
-    desc, kin = get_robot(robot), leg_kinematics(robot)
+    return solve_leg_ik(get_robot(robot), leg_kinematics(robot), feet_base, q_guess, iters)
+
+
+def solve_leg_ik(desc: RobotDescription, kin: LegKinematics, feet_base: np.ndarray,
+                 q_guess: np.ndarray | None = None, iters: int = 30) -> np.ndarray:
+    """``leg_ik`` of a description and its kinematics given as objects (a description being
+    written, not yet a robot by name)."""
     q = np.array(desc.stance_joints if q_guess is None else q_guess, dtype=float)
     for _ in range(iters):
         p, J = kin.foot_positions_and_jacobians(q[None])
@@ -45,7 +53,11 @@ def nominal_feet(robot: str) -> np.ndarray:
     Laikago's feet sit 0.16 m behind its hips at zero angles: standing there would put
     four fifths of its weight on the front legs). Where it is plumb (A1, Go1) the two are
     the same numbers."""
-    kin = leg_kinematics(robot)
+    return feet_under_hips(leg_kinematics(robot))
+
+
+def feet_under_hips(kin: LegKinematics) -> np.ndarray:
+    """``nominal_feet`` of leg kinematics given as an object: (4, 3) m, base frame."""
     feet = kin.foot_positions(np.zeros((1, N_JOINTS)))[0]
     feet[:, 0] = kin.hip_positions()[:, 0]
     return feet
@@ -54,12 +66,16 @@ def nominal_feet(robot: str) -> np.ndarray:
 def standing_joints(robot: str, height: float | None = None, dx: float = 0.0) -> np.ndarray:
     """(12,) joint angles for the base at ``height`` m (default: the start height) above
     level ground, feet under the hips shifted ``dx`` m forward (base frame)."""
-    desc = get_robot(robot)
+    return stand(get_robot(robot), leg_kinematics(robot), height, dx)
+
+
+def stand(desc: RobotDescription, kin: LegKinematics, height: float | None = None, dx: float = 0.0) -> np.ndarray:
+    """``standing_joints`` of a description and its kinematics given as objects: (12,) rad."""
     h = desc.start_height if height is None else height
-    feet = nominal_feet(robot).copy()
+    feet = feet_under_hips(kin).copy()
     feet[:, 0] += dx
     feet[:, 2] = -(h - desc.foot_radius)
-    return leg_ik(robot, feet)
+    return solve_leg_ik(desc, kin, feet)
 
 
 def start_pose(robot: str, height: float | None = None, yaw: float = 0.0) -> np.ndarray:

@@ -5,9 +5,16 @@ a free joint added to the base link and its fixed links kept as bodies (the feet
 must stay bodies of their own); an inertia that breaks the triangle inequality is
 balanced (MuJoCo's ``balanceinertia``; PyBullet zeroes it); visual meshes are dropped, and collision meshes
 whose files are missing too (the primitives remain; the feet are the URDF's
-spheres). A description may name an MJCF model of the same robot instead
-(``mjcf = "..."``, e.g. a MuJoCo Menagerie model): its joint, foot and base names
-must be the description's. Then:
+spheres). A description may name an MJCF model of the robot instead
+(``mjcf = "..."``, e.g. a MuJoCo Menagerie model), simulated as published: its own
+contact parameters (friction, condim, solref, solimp, priority; ``contact_stiffness``
+/ ``contact_damping`` still override the solref), options (friction cone, impratio),
+joint limits, visual geoms kept out of contacts; its actuators, keyframes and sensors
+are replaced by symrom's torque actuators. Its joints and base are named as the
+description's; its feet are found as the description's ``[feet]`` says (a body, a
+geom, a site or a point in a body: ``robots.mjcf.foot_frames``), each given a massless
+frame body at the foot's point, named as the foot link of the URDF symrom derives.
+Then:
 
 - every joint gets a torque actuator (a general actuator of gain 1); ``step``
   saturates the request at the description's torque limits;
@@ -18,7 +25,8 @@ must be the description's. Then:
   description's ``[actuators]`` unless given), MuJoCo's own joint properties;
 - robot geoms collide with the ground only (``WorldConfig.self_collision`` adds
   robot-robot contacts); foot/ground friction is ``lateral_friction`` (MuJoCo takes
-  the larger of two geoms' values, so every geom carries it); contacts have three
+  the larger of two geoms' values, so every geom of a URDF carries it; an MJCF's
+  geoms keep theirs and the ground carries it); a URDF's contacts have three
   dimensions (no spinning or rolling friction); ``contact_stiffness`` /
   ``contact_damping`` become MuJoCo's direct ``solref = (-k, -d)``, else
   ``SOLREF`` (time constant s, damping ratio);
@@ -39,6 +47,7 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
+from symrom.robots.mjcf import foot_frames
 from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state
 from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
                                       standing_configuration)
@@ -61,6 +70,10 @@ def _spec(desc: RobotDescription) -> mujoco.MjSpec:
     if desc.mjcf_path is not None:
         spec = mujoco.MjSpec.from_file(str(desc.mjcf_path))
         src = desc.mjcf_path
+        # symrom drives the joints by torque through actuators of its own: the model's go, and with
+        # them its keyframes (sized by them) and sensors (which may read them)
+        for el in (*spec.actuators, *spec.keys, *spec.sensors):
+            spec.delete(el)
     else:
         spec = mujoco.MjSpec.from_file(str(desc.urdf_path))
         src = desc.urdf_path
@@ -97,10 +110,23 @@ def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[
     friction = [config.lateral_friction, config.spinning_friction, config.rolling_friction]
     solref = ([-config.contact_stiffness, -config.contact_damping] if config.contact_stiffness is not None
               else list(SOLREF))
+    published = desc.mjcf_path is not None  # an MJCF keeps its own contact parameters and visual geoms
     for g in spec.geoms:
+        if published and not (g.contype or g.conaffinity):
+            continue
         g.contype, g.conaffinity = _ROBOT, (_ROBOT if config.self_collision else 0)
-        g.condim, g.friction, g.solref = 3, friction, solref
+        if not published:
+            g.condim, g.friction = 3, friction
+        if not published or config.contact_stiffness is not None:
+            g.solref = solref
         g.margin = g.gap = CONTACT_MARGIN
+    if desc.feet is not None and desc.feet.kind != "link":  # feet named as geoms, sites or points in bodies
+        try:
+            at = foot_frames(spec.compile(), desc.feet)
+        except ValueError as e:
+            raise ModelError(f"robot {desc.name!r}: {desc.mjcf_path}: {e}") from None
+        for name, f in zip(desc.foot_links, at):  # a massless frame body at each foot, named as the URDF's foot link
+            spec.body(f.body_name).add_body(name=name, pos=f.point.tolist())
     spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1],
                             contype=_GROUND, conaffinity=_ROBOT, condim=3, friction=friction, solref=solref,
                             margin=CONTACT_MARGIN, gap=CONTACT_MARGIN)
@@ -124,11 +150,15 @@ def _compiled(key: str, config: WorldConfig, effects: ActuatorEffects) -> tuple[
             raise ModelError(f"robot {desc.name!r}: the model has no body {n!r}")
     jids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n) for n in desc.joint_names]
     feet = [bid[n] for n in desc.foot_links]
-    foot_geoms = [g for g in range(model.ngeom) if model.geom_bodyid[g] == feet[0]]
-    radius = next((float(model.geom_size[g, 0]) for g in foot_geoms
-                   if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE), 0.0)
+    if desc.feet is not None and desc.feet.kind != "link":
+        frames = foot_frames(model, desc.feet)
+        foot_geoms, radius = [list(f.geoms) for f in frames], frames[0].radius
+    else:
+        foot_geoms = [[g for g in range(model.ngeom) if model.geom_bodyid[g] == b] for b in feet]
+        radius = next((float(model.geom_size[g, 0]) for g in foot_geoms[0]
+                       if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE), 0.0)
     ids = {"base": bid[desc.base_link], "feet": feet, "qadr": model.jnt_qposadr[jids].copy(),
-           "vadr": model.jnt_dofadr[jids].copy(), "foot_radius": radius,
+           "vadr": model.jnt_dofadr[jids].copy(), "foot_radius": radius, "foot_geoms": foot_geoms,
            "ground": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "ground")}
     return model, ids
 
@@ -155,9 +185,9 @@ class MujocoWorld:
         self._base, self._feet = ids["base"], ids["feet"]
         self._qadr, self._vadr = ids["qadr"], ids["vadr"]
         self._ground = ids["ground"]
-        self._leg_of_geom = np.full(self.model.ngeom, -1)  # geom -> leg of its foot body, or -1
-        for k, b in enumerate(self._feet):
-            self._leg_of_geom[self.model.geom_bodyid == b] = k
+        self._leg_of_geom = np.full(self.model.ngeom, -1)  # geom -> leg of its foot, or -1
+        for k, geoms in enumerate(ids["foot_geoms"]):
+            self._leg_of_geom[geoms] = k
         self._leg_list = self._leg_of_geom.tolist()
         # the arrays ``mujoco_state`` takes, typed once
         self._body_root = self.model.body_rootid.astype(np.int64)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import importlib
 
-from symrom.robots import ActuatorEffects
+from symrom.robots import ActuatorEffects, get_robot
 from symrom.sim.engines.world import World, WorldConfig
 
 # name -> "module:class"; imported only when asked for
@@ -19,20 +19,31 @@ ENGINES: dict[str, str] = {
     "mujoco": "symrom.sim.engines.mujoco:MujocoWorld",
 }
 DEFAULT_ENGINE = "pybullet"
+NEEDS_URDF = ("pybullet",)  # engines that simulate a URDF: not a robot given as an MJCF alone
 
 
 class UnknownEngineError(ValueError):
     """No engine of that name in ``ENGINES``."""
 
 
+class EngineRobotError(ValueError):
+    """A robot an engine cannot simulate (PyBullet: a robot given as an MJCF alone)."""
+
+
 def engine_names() -> list[str]:
     return list(ENGINES)
 
 
-def check_engine(name: str) -> str:
-    """``name`` if it is a known engine, else ``UnknownEngineError`` naming the known ones."""
+def check_engine(name: str, robot: str | None = None) -> str:
+    """``name`` if it is a known engine, else ``UnknownEngineError`` naming the known ones;
+    with ``robot``, ``EngineRobotError`` if that engine cannot simulate it."""
     if name not in ENGINES:
         raise UnknownEngineError(f"unknown engine {name!r}; known: {', '.join(ENGINES)}")
+    if robot is not None and name in NEEDS_URDF:
+        desc = get_robot(robot)
+        if desc.urdf_derived:
+            raise EngineRobotError(f"robot {desc.name!r} is given as an MJCF alone ({desc.mjcf_path}): the {name} "
+                                   f"engine simulates URDFs; use the mujoco engine")
     return name
 
 
@@ -52,8 +63,8 @@ def make_world(engine: str, robot: str, config: WorldConfig = WorldConfig(),
 
     effects: the actuator effects to simulate (default: the description's ``[actuators]``).
     """
-    return engine_class(engine)(robot, config, effects=effects)
+    return engine_class(check_engine(engine, robot))(robot, config, effects=effects)
 
 
-__all__ = ["DEFAULT_ENGINE", "ENGINES", "UnknownEngineError", "check_engine", "engine_class", "engine_module",
+__all__ = ["DEFAULT_ENGINE", "ENGINES", "NEEDS_URDF", "EngineRobotError", "UnknownEngineError", "check_engine", "engine_class", "engine_module",
            "engine_names", "make_world"]

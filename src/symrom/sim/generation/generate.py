@@ -35,7 +35,7 @@ from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
 from symrom.sim.controllers.mpc import QP_SOLVERS
-from symrom.sim.engines.registry import UnknownEngineError, check_engine, engine_module
+from symrom.sim.engines.registry import EngineRobotError, UnknownEngineError, check_engine, engine_module
 from symrom.sim.generation.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.generation.parts import jsonable, part_path, parts_dir, read_part, write_part
 from symrom.sim.generation.runner import GenerationError, jump_seed, run_checked_jump
@@ -152,8 +152,8 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         entry = get_motion(cfg.motion)
         robot = robot_key(cfg.robot)
         get_robot(robot)
-        check_engine(cfg.engine)
-    except (UnknownMotionError, RobotDescriptionError, UnknownEngineError) as e:
+        check_engine(cfg.engine, robot)
+    except (UnknownMotionError, RobotDescriptionError, UnknownEngineError, EngineRobotError) as e:
         raise GenerationError(str(e)) from None
     if cfg.proxy and cfg.randomize:
         raise GenerationError("--proxy and --randomize are two variants; choose one")
