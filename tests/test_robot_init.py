@@ -22,7 +22,7 @@ from symrom.robots.init import CHECK_TOL, RobotInitError, init_robot
 from symrom.robots.mjcf import BASE_INERTIA, FOOT_LINK, cache_dir
 from symrom.robots.show import robot_summary
 from symrom.robots.stance import standing_joints, start_pose
-from symrom.sim.engine import EngineRobotError, make_world
+from symrom.sim.engines.registry import EngineRobotError, make_world
 
 MODELS = Path(__file__).parent / "robots"
 GO1_URDF = Path(__file__).parents[1] / "src" / "symrom" / "robots" / "go1" / "go1.urdf"
@@ -116,7 +116,7 @@ def test_kinematics_match_mujoco_over_random_joint_angles(written, name):
 def test_the_controllers_body_model_is_the_mjcfs(written, name):
     """Mass, centre of mass and composite inertia (PyBullet reading the derived URDF) and the legs'
     gravity torques equal MuJoCo's of the MJCF, standing."""
-    from symrom.sim.dynamics import LegGravity, body_model
+    from symrom.sim.controllers.body import LegGravity, body_model
 
     desc = written[name].description
     model = mujoco.MjModel.from_xml_path(str(desc.mjcf_path))
@@ -362,8 +362,9 @@ IDEAL = ("go1", "go2", "a1")
 @pytest.mark.parametrize("motion", ["pronk", "froggy"])
 @pytest.mark.parametrize("name", list(EXPECTED))
 def test_pronk_and_froggy_on_each_test_robot_in_mujoco(written, name, motion, tmp_path):
-    from symrom.sim.checks import JumpChecks, longest_run
-    from symrom.sim.generate import GenerateConfig, generate
+    from symrom.sim.controllers.flight import longest_run
+    from symrom.sim.generation.checks import JumpChecks
+    from symrom.sim.generation.generate import GenerateConfig, generate
 
     r = written[name]
     path = r.path
