@@ -51,7 +51,7 @@ def test_zero_decoded_weight_is_least_squares_on_latent_accelerations(planted_bl
         assert latent_loss(model.Xi[k]) <= latent_loss(best) * (1 + 1e-6)
         # ... which the paper's loss, also fitting the decoded accelerations, misses.
         assert latent_loss(paper.Xi[k]) > latent_loss(best) * 1.01
-    assert model.info["training"]["decoded_weight"] == 0.0
+    assert model.provenance.training.settings["decoded_weight"] == 0.0
 
 
 @pytest.mark.parametrize("kwargs, needle", [

@@ -27,7 +27,7 @@ def robot_chains(model: HybridModel) -> tuple[np.ndarray, ...] | None:
     model records no robot with a description."""
     from symrom.robots import RobotDescriptionError, leg_kinematics
 
-    robot = model.info.get("robot")
+    robot = model.provenance.data.robot
     if robot is None:
         return None
     try:
@@ -138,7 +138,7 @@ int symrom_predict_path(int n, double dt, int substeps, const double q0[18], con
     n_el, xyz, rot, axis, col = chains
     E = xyz.shape[1]
     return text + f"""
-/* The leg chains of robot {model.info.get("robot")!r} (from its URDF). */
+/* The leg chains of robot {model.provenance.data.robot!r} (from its URDF). */
 static const int N_EL[4] = {_c_init(n_el)};
 static const double K_XYZ[4][{E}][3] = {_c_init(xyz)};
 static const double K_ROT[4][{E}][3][3] = {_c_init(rot)};
@@ -353,7 +353,7 @@ def predict_path(q0, dq0, u, dt, phases=None, phase0=0, substeps=2):
     n_el, xyz, rot, axis, col = chains
     return text + f'''
 
-# The leg chains of robot {model.info.get("robot")!r} (from its URDF).
+# The leg chains of robot {model.provenance.data.robot!r} (from its URDF).
 N_EL = {n_el.tolist()!r}
 K_XYZ = numpy.array({xyz.tolist()!r})
 K_ROT = numpy.array({rot.tolist()!r})
