@@ -16,7 +16,7 @@ from symrom.atomic import write_text_atomic
 from symrom.baselines import BASELINES
 from symrom.data.io import read_dataset
 from symrom.evaluate.paper import PAPER_TABLE2
-from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import run_learned, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
@@ -156,9 +156,9 @@ def summary_lines(summary: dict) -> list[str]:
     diverged test jumps; then the sweep's best latent dimension, told apart from the models'."""
     lines = []
     for name, exp in summary["experiments"].items():
-        full = exp["metrics"]["horizons"]["full"]
+        metrics = Metrics.from_dict(exp["metrics"])
         lines.append(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
-                     f"{exp['active_terms']}, diverged {full['diverged_jumps']}/{exp['metrics']['n_jumps']}")
+                     f"{exp['active_terms']}, diverged {metrics.full.diverged_jumps}/{metrics.n_jumps}")
     if "sweep" in summary:
         lines.append(sweep_line(summary["sweep"], {k: e["latent_dim"] for k, e in summary["experiments"].items()
                                                   if k in ("go1_sim",)}))
