@@ -345,7 +345,7 @@ def test_fractions_that_leave_a_split_empty_are_refused(tmp_path):
                                  "--split", "0.8,0.1,0.1"])
     assert r.exit_code != 0 and len(r.output.strip().splitlines()) >= 1 and "Traceback" not in r.output
     line = " ".join(r.output.split())
-    for needle in ("--split '0.8,0.1,0.1'", "5 jumps divide as 4 train, 1 val, 0 test", "test split is empty",
+    for needle in ("--split 0.8,0.1,0.1", "5 jumps divide as 4 train, 1 val, 0 test", "test split is empty",
                    "e.g. 3,1,1"):
         assert needle in line, (needle, line)
     assert not out.exists()
