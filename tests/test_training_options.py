@@ -58,7 +58,7 @@ def test_zero_decoded_weight_is_least_squares_on_latent_accelerations(planted_bl
     (dict(encoder_components=("x", "knee")), "unknown component(s) knee"),
     (dict(encoder_components=("x",)), "cannot span latent_dim 2"),
     (dict(encoder_components=("x", "x", "z")), "named twice"),
-    (dict(decoded_weight=-1.0), "decoded_weight must be >= 0"),
+    (dict(decoded_weight=-1.0), "decoded_weight=-1: must be >= 0"),
 ])
 def test_bad_options_are_named(kwargs, needle):
     with pytest.raises(ValueError, match=None) as e:
