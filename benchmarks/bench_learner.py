@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.testing import make_planted_dataset
@@ -37,11 +37,11 @@ def timed(fn, runs: int) -> tuple[float, list[float], object]:
 
 def worst_nmae(model, ds) -> dict[str, float]:
     """Per horizon, the largest MAE / spread over the 18 components on the test split."""
-    metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method="rk4"))
+    metrics, _ = evaluate_model(model, ds, "test", options=RolloutOptions(method="rk4"))
     spread = np.ptp(ds.q[ds.rows_of("test")], axis=0)
     out = {}
-    for h, v in metrics["horizons"].items():
-        mae = np.array([c["mae"] for c in v["components"].values()])
+    for h, v in metrics.horizons.items():
+        mae = np.array([c.mae for c in v.components.values()])
         out[h] = float(np.max(mae / spread)) if mae.size else float("inf")
     return out
 

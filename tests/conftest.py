@@ -44,11 +44,10 @@ def planted_block():
     return make_planted_dataset(n_jumps=20, n_samples=400, embedding="block", noise=1e-4, seed=2)
 
 
-def normalised_mae(metrics: dict, ds, split: str = "test") -> dict[str, np.ndarray]:
-    """Per horizon: MAE / spread of each component over the split (18,)."""
+def normalised_mae(metrics, ds, split: str = "test") -> dict[str, np.ndarray]:
+    """Per horizon of ``Metrics``: MAE / spread of each component over the split (18,)."""
     spread = np.ptp(ds.q[ds.rows_of(split)], axis=0)
-    return {h: np.array([v["components"][n]["mae"] for n in v["components"]]) / spread
-            for h, v in metrics["horizons"].items()}
+    return {h: np.array([s.mae for s in v.components.values()]) / spread for h, v in metrics.horizons.items()}
 
 
 def one_line_error(result, *needles: str) -> str:
@@ -62,3 +61,15 @@ def one_line_error(result, *needles: str) -> str:
     for needle in needles:
         assert needle in lines[0], (needle, lines[0])
     return lines[0]
+
+
+def as_format(d: dict, version: int) -> dict:
+    """A model file's dict (``model_to_dict``) as a file of an older ``version`` (1-4) held it:
+    the provenance as the untyped ``info`` object (``Provenance.to_info``)."""
+    from symrom.model.provenance import Provenance
+
+    d = dict(d)
+    if "provenance" in d:
+        d["info"] = Provenance.from_dict(d.pop("provenance")).to_info()
+    d["format_version"] = version
+    return d

@@ -4,6 +4,7 @@ prints or exits (the command line does)."""
 from __future__ import annotations
 
 import ast
+import re
 import sys
 from pathlib import Path
 
@@ -31,7 +32,7 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # compiled execution: the descriptions it reads, then its kernels and generated code
     "compiled": {"dynamics": 0, "codec": 0, "kernel": 1, "codegen": 1},
     # the fitted model: its terms, the expressions, the guards, then the model, its file
-    "model": {"autoencoder": 0, "library": 0, "expressions": 1, "guards": 1,
+    "model": {"autoencoder": 0, "library": 0, "provenance": 0, "expressions": 1, "guards": 1,
               "hybrid": 2, "path": 2, "persistence": 3},
     # learning: the shooting and guard fitting, the problem and its regressors, the encoders, the
     # estimator, then what drives it
@@ -54,6 +55,10 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # checked jump; the whole file
     "sim.generation": {"checks": 0, "parts": 0, "episode": 0, "warm": 0, "config": 1, "runner": 2, "generate": 3},
     "sim.diagnostics": {"forces": 0, "render": 0},
+    # experiments: the resumable grid, what runs on it, the reproduction made of them, the demo that is one
+    "experiments": {"grid": 0, "select": 1, "sweep": 1, "finetune": 1, "reproduce": 2, "demo": 3},
+    # the command line: what the commands share, one module per group of commands, the entry points
+    "cli": {"common": 0, "data": 1, "learn": 1, "evaluate": 1, "run": 1, "plan": 1, "robot": 1, "__main__": 2},
 }
 # Known upward imports, each with the change that removes it (none today).
 KNOWN: set[tuple[str, str]] = set()
@@ -290,3 +295,31 @@ def test_the_planner_composes_the_simulator_through_public_names():
                 found.append(f"{path.name}:{node.lineno} reads {ast.unparse(node)}")
     assert not found, "\n".join(found)
 
+
+FLAG = re.compile(r"(?<![\w-])--[a-z][a-z-]+")
+# Messages that name another program's command line, not a parameter of the library.
+COMMAND_LINES = ("symrom ", "ray start")
+
+
+def test_library_messages_name_parameters_not_flags():
+    """Library errors name the library's parameters (``split='x'``, ``force=True``); the command
+    line maps them to its flags (``symrom.cli.common.flag_text``). Docstrings may name flags."""
+    found = []
+    for path, rel, layer in _modules():
+        if layer == "cli":
+            continue
+        tree = ast.parse(path.read_text())
+        docs = {id(n.body[0].value) for n in ast.walk(tree)
+                if isinstance(n, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and n.body
+                and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        texts, parts = [], set()
+        for node in ast.walk(tree):  # an f-string as one text, its constant parts joined
+            if isinstance(node, ast.JoinedStr):
+                consts = [v for v in node.values if isinstance(v, ast.Constant)]
+                parts |= {id(v) for v in consts}
+                texts.append((node.lineno, "".join(str(v.value) for v in consts)))
+        texts += [(n.lineno, n.value) for n in ast.walk(tree) if isinstance(n, ast.Constant)
+                  and isinstance(n.value, str) and id(n) not in docs | parts]
+        found += [f"{rel}:{line}: {text[:80]!r}" for line, text in texts
+                  if FLAG.search(text) and not any(c in text for c in COMMAND_LINES)]
+    assert not found, "\n".join(found)

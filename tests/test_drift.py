@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from symrom.evaluate.metrics import DriftLimits, drift_events, evaluate
+from symrom.evaluate.metrics import DriftLimits, drift_events, evaluate_model
 from symrom.evaluate.records import Metrics
 from symrom.evaluate.tables import table2
 from symrom.learn.training import TrainConfig, train
@@ -41,19 +41,19 @@ def _falling(model, ds, accel: float):
 
 def test_a_good_rollout_is_not_flagged(go1_planted):
     ds, model = go1_planted
-    metrics, _ = evaluate(model, ds, "test", (None, 0.1), RolloutOptions("rk4"))
-    assert metrics["format_version"] == 3
-    for h in metrics["horizons"].values():
-        assert h["drifted_jumps"] == 0 and h["drifted"] == []
-    assert metrics["drift_limits"]["leg_length"] == pytest.approx(leg_length("go1"))
+    metrics, _ = evaluate_model(model, ds, "test", (None, 0.1), RolloutOptions("rk4"))
+    assert metrics.format_version == 3
+    for h in metrics.horizons.values():
+        assert h.drifted_jumps == 0 and h.drifted == ()
+    assert metrics.drift_limits["leg_length"] == pytest.approx(leg_length("go1"))
     assert "Drifted" not in table2(metrics)
 
 
 def test_a_fall_through_the_floor_is_flagged_when_it_happens(go1_planted):
     ds, model = go1_planted
     bad = _falling(model, ds, 80.0)
-    metrics, ros = evaluate(bad, ds, "test", (None,), RolloutOptions("rk4"))
-    full, ro = metrics["horizons"]["full"], ros["full"]
+    metrics, ros = evaluate_model(bad, ds, "test", (None,), RolloutOptions("rk4"))
+    full, ro = metrics.to_dict()["horizons"]["full"], ros["full"]
     leg = leg_length("go1")
     assert full["diverged_jumps"] == 0  # inside the latent bound: divergence alone misses it
     assert full["drifted_jumps"] == ro.jumps.size
@@ -64,7 +64,7 @@ def test_a_fall_through_the_floor_is_flagged_when_it_happens(go1_planted):
         flight = np.flatnonzero(ds.phase[ds.jump == j] == ds.phase_id("flight"))
         assert flight[0] < k  # it falls once the wrong gravity acts
     assert full["scored_samples"] == full["samples"]  # drifted jumps are still scored
-    rec = Metrics.from_dict(json.loads(json.dumps(metrics)))
+    rec = Metrics.from_dict(json.loads(json.dumps(metrics.to_dict())))
     assert rec.any_drifted and rec.horizons["full"].drifted[0].t == full["drifted"][0]["t"]
     assert rec.to_dict()["horizons"]["full"]["drifted"] == full["drifted"]
     text = table2(metrics)
@@ -74,7 +74,7 @@ def test_a_fall_through_the_floor_is_flagged_when_it_happens(go1_planted):
 
 def test_drift_starts_at_the_first_sample_past_a_limit(go1_planted):
     ds, model = go1_planted
-    metrics, ros = evaluate(model, ds, "test", (None,), RolloutOptions("rk4"))
+    metrics, ros = evaluate_model(model, ds, "test", (None,), RolloutOptions("rk4"))
     ro = ros["full"]
     limits = DriftLimits.of(ds)
     q0 = [p.copy() for p in ro.q_pred]
@@ -98,8 +98,8 @@ def test_drift_starts_at_the_first_sample_past_a_limit(go1_planted):
 
 def test_version_2_files_are_still_read(go1_planted):
     ds, model = go1_planted
-    metrics, _ = evaluate(model, ds, "test", (None,), RolloutOptions("rk4"))
-    old = json.loads(json.dumps(metrics))
+    metrics, _ = evaluate_model(model, ds, "test", (None,), RolloutOptions("rk4"))
+    old = json.loads(json.dumps(metrics.to_dict()))
     old["format_version"] = 2
     for h in old["horizons"].values():
         del h["drifted_jumps"], h["drifted"]

@@ -27,7 +27,7 @@ def model():
 
 def test_each_latent_is_named_by_its_largest_loadings(model):
     assert model.latent_loadings() == [([("x", 1.0)], 0), ([("z", -0.8), ("fr_kn", 0.6)], 0)]
-    text = model.equations_text()
+    text = model.equations().text()
     assert text.startswith("[contact]")
     assert text.splitlines()[-2:] == ["xi1 ~ 1.00 x", "xi2 ~ -0.80 z + 0.60 fr_kn"]
 
@@ -38,11 +38,11 @@ def test_a_latent_reading_many_components_names_the_largest_and_counts_the_rest(
     W_e[1, :6] = [0.5, -0.45, 0.4, 0.35, 0.3, 0.25]   # the six joints of the front legs
     ae = model.autoencoder
     wide = replace(model, autoencoder=LinearAutoencoder(W_e, ae.B_e, ae.W_d, ae.B_d))
-    assert wide.latent_legend()[1] == "xi2 ~ 0.50 fr_hx - 0.45 fr_hy + 0.40 fr_kn + 0.35 fl_hx + ... (2 more)"
+    assert wide.equations().legend()[1] == "xi2 ~ 0.50 fr_hx - 0.45 fr_hy + 0.40 fr_kn + 0.35 fl_hx + ... (2 more)"
 
 
 def test_latex_names_the_latents_in_latex_comments_only(model):
-    lines = model.equations_text(latex=True).splitlines()
+    lines = model.equations().latex().splitlines()
     assert r"% \xi_{2} \approx -0.80 z + 0.60 fr\_kn" in lines
     # equations, the guards' switching conditions (phase -> phase) and comments: LaTeX throughout
     assert all(l.startswith(("%", r"\ddot{\xi}", r"\mathrm{")) for l in lines)

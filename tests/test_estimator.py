@@ -21,7 +21,7 @@ runner = CliRunner()
 
 def test_top_level_api(planted_axis, tmp_path):
     ds, truth = planted_axis
-    for name in ("SymbolicROM", "TrainConfig", "read_dataset", "train", "load_model", "rollout", "evaluate",
+    for name in ("SymbolicROM", "TrainConfig", "read_dataset", "evaluate_model",
                  "STLSQ", "Refine", "PCAEncoder", "Polynomial", "Trigonometric", "Inputs", "Custom"):
         assert hasattr(symrom, name), name
     rom = symrom.SymbolicROM(2, Polynomial(1) + Trigonometric() + Inputs())
@@ -34,16 +34,16 @@ def test_top_level_api(planted_axis, tmp_path):
     np.testing.assert_allclose(rom.predict(ds, test), ddxi, atol=2e-3 * np.abs(ddxi).max())
     ro = rom.simulate(ds, ds.jumps_in("test"), reset=0.1)
     assert ro.components == symrom.names.Q_NAMES and not ro.diverged.any()
-    assert "[contact]" in rom.equations() and "\\ddot{\\xi}_{1}" in rom.equations(latex=True)
+    assert "[contact]" in str(rom.equations()) and "\\ddot{\\xi}_{1}" in rom.equations().latex()
     rom.save(tmp_path / "m.json")
     back = symrom.SymbolicROM.load(tmp_path / "m.json")
     np.testing.assert_array_equal(back.model.Xi, rom.model.Xi)
     np.testing.assert_array_equal(back.simulate(ds, [0]).q_pred[0], rom.simulate(ds, [0]).q_pred[0])
-    metrics, _ = symrom.evaluate(symrom.load_model(tmp_path / "m.json"), ds, "test")
-    assert metrics["horizons"]["full"]["diverged_jumps"] == 0
+    metrics, _ = symrom.evaluate_model(back.model, ds, "test")
+    assert metrics.full.diverged_jumps == 0
     # the fitted estimator itself is rolled out and scored like its model
-    direct, _ = symrom.evaluate(rom, ds, "test")
-    assert direct["horizons"]["full"]["components"] == metrics["horizons"]["full"]["components"]
+    direct, _ = symrom.evaluate_model(rom, ds, "test")
+    assert direct.full.components == metrics.full.components
 
 
 # A planted system linear in the state: each latent j obeys ddxi_j = k_j xi_j + c_j dxi_j + (input,
@@ -57,7 +57,7 @@ LINEAR = {"contact": [{"1": 0.5, "xi1": -6.0, "dxi1": -1.2, "nu1": 3.0},
 def test_linear_planted_system_has_its_analytic_eigenvalues():
     ds, _ = symrom.testing.make_planted_dataset(n_jumps=24, n_samples=400, embedding="axis", noise=1e-4,
                                                 seed=1, equations=LINEAR)
-    model = symrom.train(ds, symrom.TrainConfig(trig=False))
+    model = symrom.SymbolicROM.from_config(symrom.TrainConfig(trig=False)).fit(ds).model
     stability = {st.phase: st for st in model.stability()}
     assert sorted(stability) == ["contact", "flight"]
     for phase, rows in LINEAR.items():
@@ -78,7 +78,7 @@ def _unstable(model: HybridModel) -> HybridModel:
 
 def test_fast_unstable_mode_is_warned_and_shown(planted_axis, tmp_path):
     ds, _ = planted_axis
-    model = symrom.train(ds, symrom.TrainConfig())
+    model = symrom.SymbolicROM.from_config(symrom.TrainConfig()).fit(ds).model
     assert not any(s.fast_unstable for s in model.stability())
     bad = _unstable(model)
     warn = [s.warning() for s in bad.stability() if s.warning()]
@@ -93,22 +93,22 @@ def test_fast_unstable_mode_is_warned_and_shown(planted_axis, tmp_path):
 
 def test_diverged_rollouts_record_when_they_left(planted_axis):
     ds, _ = planted_axis
-    bad = _unstable(symrom.train(ds, symrom.TrainConfig()))
-    metrics, ros = symrom.evaluate(bad, ds, "test", resets=(None,),
+    bad = _unstable(symrom.SymbolicROM.from_config(symrom.TrainConfig()).fit(ds).model)
+    metrics, ros = symrom.evaluate_model(bad, ds, "test", resets=(None,),
                                    options=symrom.RolloutOptions("rk4"))
-    full = metrics["horizons"]["full"]
-    assert full["diverged_jumps"] == len(full["diverged"]) > 0
+    full = metrics.full
+    assert full.diverged_jumps == len(full.diverged) > 0
     ro = ros["full"]
-    for d in full["diverged"]:
-        i = list(ro.jumps).index(d["jump"])
-        assert d["t"] == pytest.approx(ro.diverged_at[i] * ds.dt)
+    for d in full.diverged:
+        i = list(ro.jumps).index(d.jump)
+        assert d.t == pytest.approx(ro.diverged_at[i] * ds.dt)
         assert np.isnan(ro.q_pred[i][ro.diverged_at[i]:]).all() and np.isfinite(ro.q_pred[i][:ro.diverged_at[i]]).all()
 
 
 # ------------------------------------------------------------------ guards
 def test_phases_are_matched_by_name(planted_axis):
     ds, _ = planted_axis
-    model = symrom.train(ds, symrom.TrainConfig())
+    model = symrom.SymbolicROM.from_config(symrom.TrainConfig()).fit(ds).model
     # The same data with its phase list written in the other order: same rollout.
     flipped = replace(ds, phase_names=ds.phase_names[::-1], phase=(1 - ds.phase).astype(np.int8))
     j = ds.jumps_in("test")[:1]
@@ -121,10 +121,11 @@ def test_phases_are_matched_by_name(planted_axis):
 
 def test_robot_and_layout_are_checked(planted_axis):
     ds, _ = planted_axis
-    model = symrom.train(ds, symrom.TrainConfig())
+    model = symrom.SymbolicROM.from_config(symrom.TrainConfig()).fit(ds).model
     with pytest.raises(ModelDataError, match="trained on 'planted', the data are of 'go1'"):
         rollout(model, replace(ds, robot="go1"), [0])
-    shuffled = replace(model, info={**model.info, "q_names": list(model.info["q_names"])[::-1]})
+    shuffled = replace(model, provenance=replace(model.provenance, data=replace(
+        model.provenance.data, q_names=model.provenance.data.q_names[::-1])))
     with pytest.raises(ModelDataError, match="joint layout"):
         rollout(shuffled, ds, [0])
 
@@ -132,8 +133,8 @@ def test_robot_and_layout_are_checked(planted_axis):
 def test_a_phase_without_training_rows_is_kept_untrained(planted_axis):
     ds, _ = planted_axis
     train_rows = ds.rows_of("train") & (ds.phase == ds.phase_names.index("contact"))
-    model = symrom.train(ds, symrom.TrainConfig(), rows=train_rows)
-    assert model.trained_phases() == ["contact"] and model.info["untrained_phases"] == ["flight"]
+    model = symrom.SymbolicROM.from_config(symrom.TrainConfig()).fit(ds, rows=train_rows).model
+    assert model.trained_phases() == ["contact"] and model.provenance.training.untrained_phases == ("flight",)
     assert not model.mask[model.phase_names.index("flight")].any()
     with pytest.raises(ModelDataError, match="phase 'flight'.*training data held no row of it"):
         rollout(model, ds, [0])

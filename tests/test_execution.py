@@ -49,11 +49,11 @@ def test_a_task_error_is_raised_as_it_was_raised(workers):
 
 def test_backends_by_name():
     assert make_backend("local").workers == 1 and make_backend("local", 3).workers == 3
-    with pytest.raises(BackendError, match="unknown back end 'dask'; choose from local, ray"):
+    with pytest.raises(BackendError, match="backend='dask': unknown back end; choose from local, ray"):
         make_backend("dask")
-    with pytest.raises(BackendError, match="--address names a Ray cluster: use it with --backend ray"):
+    with pytest.raises(BackendError, match="address= names a Ray cluster: use it with backend='ray'"):
         make_backend("local", address="10.0.0.1:6379")
-    with pytest.raises(BackendError, match="at least one worker"):
+    with pytest.raises(BackendError, match="workers=0: the number of workers must be at least 1"):
         make_backend("local", 0)
     assert make_backend("local").describe() == {"backend": "local", "workers": 1, "max_retries": 3}
 

@@ -20,7 +20,7 @@ def case(planted_block):
     torques, and symrom's paths from them: guards deciding, and the logged schedule."""
     ds, _ = planted_block
     model = train(ds, TrainConfig(latent_dim=2, poly_order=2))
-    model = replace(model, info={**model.info, "robot": "go1"})
+    model = replace(model, provenance=replace(model.provenance, data=replace(model.provenance.data, robot="go1")))
     j = int(ds.jumps_in("test")[0])
     a, b = ds.jump_bounds()[j]
     rng = np.random.default_rng(0)

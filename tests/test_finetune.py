@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import symrom
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.finetune import FineTuneConfig, finetune
 from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
@@ -31,8 +31,8 @@ def source_and_target(source_data):
 
 
 def _full_rmse(model, ds):
-    m, _ = evaluate(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
-    return np.mean([c["rmse"] for c in m["horizons"]["full"]["components"].values()])
+    m, _ = evaluate_model(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
+    return np.mean([c.rmse for c in m.full.components.values()])
 
 
 def test_finetuning_moves_towards_the_new_system(source_and_target):
@@ -43,7 +43,7 @@ def test_finetuning_moves_towards_the_new_system(source_and_target):
     names = tuned.library.feature_names
     k = tuned.phase_names.index("contact")
     assert tuned.Xi[k, names.index("xi1"), 0] == pytest.approx(-7.0, rel=0.05)
-    assert tuned.info["finetune"]["source"] == target.source
+    assert tuned.provenance.finetune.source == target.source
 
 
 def test_prior_weight_interpolates(source_and_target):
@@ -60,7 +60,7 @@ def test_prior_weight_interpolates(source_and_target):
 def test_rollout_finetuning_moves_towards_the_new_system(source_and_target):
     model, target, _ = source_and_target
     tuned = finetune(model, target, config=FineTuneConfig(method="rollout"))
-    assert tuned.info["finetune"]["config"]["method"] == "rollout"
+    assert tuned.provenance.finetune.config["method"] == "rollout"
     np.testing.assert_array_equal(tuned.mask, model.mask)  # the rollout fit keeps the support
     # Both fine-tunings reach the target's 3 mm noise floor (the source errs by twice that).
     assert _full_rmse(tuned, target) < 0.55 * _full_rmse(model, target)
@@ -76,7 +76,7 @@ def test_rollout_finetuning_keeps_the_phases_the_rows_lack(source_and_target):
     tuned = finetune(model, target, rows=rows, config=FineTuneConfig(method="rollout", refit_decoder=False))
     c = model.phase_names.index("contact")
     np.testing.assert_array_equal(tuned.Xi[c], model.Xi[c])
-    assert tuned.info["finetune"]["phases_kept"] == ["contact"]
+    assert tuned.provenance.finetune.phases_kept == ("contact",)
     assert not np.array_equal(tuned.Xi[model.phase_names.index("flight")], model.Xi[model.phase_names.index("flight")])
 
 
@@ -96,7 +96,7 @@ def test_a_model_fitted_by_the_estimator_is_finetuned_with_its_own_sparsity(sour
     a, b = finetune(rom.model, target, config=acc), finetune(trained, target, config=acc)
     np.testing.assert_array_equal(a.mask, b.mask)
     np.testing.assert_allclose(a.Xi, b.Xi, atol=1e-12)
-    used = a.info["finetune"]["regressor"]
+    used = a.provenance.finetune.regressor
     assert (used["kind"], used["threshold"], used["measure"]) == ("finetune", 0.05, "explained")
 
 

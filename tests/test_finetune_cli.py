@@ -14,7 +14,8 @@ from _logs import flight_segment, proxy_go1, sim_go1, write_hardware
 from conftest import one_line_error
 from symrom.cli import app
 from symrom.data.io import read_dataset, write_dataset
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
+from symrom.evaluate.records import Metrics
 from symrom.experiments.finetune import HORIZONS, FineTuneCheck, FineTuneRefused, run_finetune, val_score
 from symrom.learn.encoders import unit_floored
 from symrom.learn.finetune import DecoderRefitError, FineTuneConfig, finetune
@@ -72,10 +73,10 @@ def test_finetune_on_a_flight_only_set(files, tmp_path):
     for name, key in (("val_before", "score_before"), ("val_after", "score_after")):
         m = json.loads((out / name / "metrics.json").read_text())
         assert m["split"] == "val" and m["n_jumps"] == 1 and set(m["horizons"]) == {"full", "0.1"}
-        assert val_score(m, spread)[0] == pytest.approx(rec[key], rel=1e-12)
-    after, _ = evaluate(tuned, ds, "val", HORIZONS, RolloutOptions("rk4"))
+        assert val_score(Metrics.from_dict(m), spread)[0] == pytest.approx(rec[key], rel=1e-12)
+    after, _ = evaluate_model(tuned, ds, "val", HORIZONS, RolloutOptions("rk4"))
     assert val_score(after, spread)[0] == pytest.approx(rec["score_after"], rel=1e-9)
-    assert tuned.info["finetune"]["source_model"] == str(model_path)
+    assert tuned.provenance.finetune.source_model == str(model_path)
 
 
 def test_rollout_finetune_on_a_flight_only_set(files, tmp_path):
@@ -115,7 +116,7 @@ def test_val_is_never_worse_than_the_tolerance(files, config):
     sim, ds = sim_go1(), read_dataset(data)
     source = train(sim, config, rows=np.ones(sim.n_samples, bool))
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), 0.05)
-    before = val_score(evaluate(source, ds, "val", HORIZONS, RolloutOptions("rk4"))[0], spread)
+    before = val_score(evaluate_model(source, ds, "val", HORIZONS, RolloutOptions("rk4"))[0], spread)
     try:
         try:
             res = run_finetune(source, ds, FineTuneCheck())

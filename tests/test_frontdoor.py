@@ -280,7 +280,7 @@ def test_train_term_budget_is_an_option_of_the_refinement(data, tmp_path):
                    "encoder_base_latents", "1..1")
     one_line_error(_run("train", data[1], "--select", "--encoder-base-latents", 1, "--out", out),
                    "--encoder-base-latents")
-    one_line_error(_run("train", data[1], "--polish", "flight", "--out", out), "polish", "needs refine")
+    one_line_error(_run("train", data[1], "--polish", "flight", "--out", out), "--polish flight", "needs --refine")
     one_line_error(_run("train", data[1], "--refine", "--polish", "air", "--out", out), "polish", "air")
     assert not out.exists()
 

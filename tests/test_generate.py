@@ -81,12 +81,12 @@ def test_bad_requests_fail_clearly(tmp_path):
         generate(GenerateConfig("b2", "pronk", 2), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="unknown motion 'walk'"):
         generate(GenerateConfig("a1", "walk", 2), tmp_path / "x.h5")
-    with pytest.raises(GenerationError, match="--proxy is not a variant of 'froggy'"):
+    with pytest.raises(GenerationError, match="proxy=True is not a variant of 'froggy'"):
         generate(GenerateConfig("a1", "froggy", 2, proxy=True), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="at least one jump"):
         generate(GenerateConfig("a1", "froggy", 0), tmp_path / "x.h5")
     (tmp_path / "exists.h5").write_text("x")
-    with pytest.raises(GenerationError, match="--force"):
+    with pytest.raises(GenerationError, match="force=True"):
         generate(GenerateConfig("a1", "froggy", 1), tmp_path / "exists.h5")
     assert not (tmp_path / "x.h5.parts").exists()  # nothing started
 
@@ -122,7 +122,7 @@ def test_froggy_interrupted_then_resumed_gives_the_same_file():
     out = tmp_path("froggy_resumed.h5")
     assert generate(config("froggy"), out, stop_after=1) is None
     assert not out.exists() and len(list(parts_dir(out).glob("jump_*.npz"))) == 1
-    with pytest.raises(GenerationError, match="--resume"):
+    with pytest.raises(GenerationError, match="resume=True"):
         generate(config("froggy"), out)
     with pytest.raises(GenerationError, match="other options"):
         generate(config("froggy", seed=SEED + 1), out, resume=True)

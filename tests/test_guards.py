@@ -7,6 +7,7 @@ import pytest
 
 from symrom.learn.guards import fit_guards
 from symrom.learn.training import TrainConfig, train
+from conftest import as_format
 from symrom.model.guards import Guard, feature_names, first_switch, switch
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
 
@@ -85,20 +86,19 @@ def test_fit_learns_guards_that_round_trip_and_print(model, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     d = json.loads(path.read_text())
-    assert d["format_version"] == 4 and len(d["guards"]) == 2
+    assert d["format_version"] == 5 and len(d["guards"]) == 2
     back = load_model(path)
     for g, h in zip(model.guards, back.guards):
         assert (g.source, g.target, g.terms, g.bias, g.min_dwell_s) == (h.source, h.target, h.terms, h.bias,
                                                                          h.min_dwell_s)
         np.testing.assert_array_equal(g.weights, h.weights)
-    text = back.equations_text()
+    text = back.equations().text()
     assert "contact switches (guards):" in text and "contact -> flight: when" in text
-    assert r"\mathrm{contact} \to \mathrm{flight}:\ " in back.equations_text(latex=True)
+    assert r"\mathrm{contact} \to \mathrm{flight}:\ " in back.equations().latex()
 
 
 def test_older_files_load_without_guards_and_bad_guards_are_named(model, tmp_path):
-    d = model_to_dict(model)
-    d["format_version"] = 3
+    d = as_format(model_to_dict(model), 3)
     del d["guards"]
     path = tmp_path / "old.json"
     path.write_text(json.dumps(d))

@@ -108,7 +108,7 @@ def motion():
 def test_hardware_layout_every_array(tmp_path, motion):
     log = _write_hardware(tmp_path / "jumps.csv", motion)
     assert "0,002" in log.read_text()
-    ds = import_logs([log], robot="go1", motion="pronk", split="1,0,1")
+    ds, _ = import_logs([log], robot="go1", motion="pronk", split="1,0,1")
     m = motion
     assert ds.n_jumps == 2 and ds.n_samples == 2 * N_PER_JUMP
     np.testing.assert_array_equal(ds.jump, np.repeat([0, 1], N_PER_JUMP))
@@ -144,7 +144,7 @@ def test_hardware_layout_every_array(tmp_path, motion):
 
 def test_hardware_without_accelerations_differentiates(tmp_path, motion):
     log = _write_hardware(tmp_path / "noacc.csv", motion, accelerations=False)
-    ds = import_logs([log], robot="go1", diff_method="central")
+    ds, _ = import_logs([log], robot="go1", diff_method="central")
     expect = differentiate(motion["dq"], DT, ds.jump, "central")
     np.testing.assert_allclose(ds.ddq, expect, rtol=1e-9, atol=1e-9)
     assert "differentiated" in ds.generator["files"][0]["ddq"]
@@ -153,7 +153,7 @@ def test_hardware_without_accelerations_differentiates(tmp_path, motion):
 def test_several_files_are_consecutive_jumps(tmp_path, motion):
     a = _write_hardware(tmp_path / "a.csv", motion)
     b = _write_hardware(tmp_path / "b.csv", motion, shuffle=False)
-    ds = import_logs([a, b], robot="a1", motion="froggy", split="2,1,1")
+    ds, _ = import_logs([a, b], robot="a1", motion="froggy", split="2,1,1")
     assert ds.n_jumps == 4
     np.testing.assert_array_equal(ds.jump, np.repeat(np.arange(4), N_PER_JUMP))
     np.testing.assert_array_equal(ds.q, np.concatenate([motion["q"]] * 2))
@@ -171,13 +171,13 @@ def test_several_files_are_consecutive_jumps(tmp_path, motion):
 
 def test_plain_layout_round_trip(tmp_path):
     ds0 = plausible(make_planted_dataset(n_jumps=3, n_samples=50, seed=1)[0])
-    ds0 = import_logs([_export(ds0, tmp_path / "seed.csv")], robot="go1")  # physical wrench
+    ds0, _ = import_logs([_export(ds0, tmp_path / "seed.csv")], robot="go1")  # physical wrench
     path = tmp_path / "plain.csv"
     write_plain_csv(ds0, path)
     header = path.read_text().splitlines()[0].split(",")
     assert header[:3] == ["jump", "t", "fr_hx"] and "dd_yaw" in header and header[-4:] == [
         "c_fr", "c_fl", "c_rr", "c_rl"]
-    ds = import_logs([path], robot="go1", split="1,1,1")
+    ds, _ = import_logs([path], robot="go1", split="1,1,1")
     for key in ("jump", "t", "q", "dq", "ddq", "tau", "contact", "u", "phase"):
         np.testing.assert_array_equal(getattr(ds, key), getattr(ds0, key), err_msg=key)
     assert ds.dt == ds0.dt == pytest.approx(DT)
@@ -194,7 +194,7 @@ def test_plain_without_jump_column_uses_time_restart(tmp_path):
     path = _export(ds0, tmp_path / "p.csv")
     lines = path.read_text().splitlines()
     path.write_text("\n".join(",".join(line.split(",")[1:]) for line in lines) + "\n")
-    ds = import_logs([path], robot="go1")
+    ds, _ = import_logs([path], robot="go1")
     np.testing.assert_array_equal(ds.jump, ds0.jump)
     np.testing.assert_array_equal(ds.q, ds0.q)
 
@@ -332,7 +332,7 @@ def test_an_hdf5_dataset_given_as_a_log_is_named(tmp_path):
     ds = plausible(make_planted_dataset(n_jumps=2, n_samples=30, seed=2)[0])
     from symrom.data.io import write_dataset
 
-    write_dataset(import_logs([_export(ds, tmp_path / "p.csv")], robot="go1"), tmp_path / "d.h5")
+    write_dataset(import_logs([_export(ds, tmp_path / "p.csv")], robot="go1")[0], tmp_path / "d.h5")
     with pytest.raises(LogError, match=r"d\.h5: an HDF5 file \(a symrom dataset\?\), not a log"):
         import_logs([tmp_path / "d.h5"], robot="go1")
 
@@ -345,7 +345,7 @@ def test_fractions_that_leave_a_split_empty_are_refused(tmp_path):
                                  "--split", "0.8,0.1,0.1"])
     assert r.exit_code != 0 and len(r.output.strip().splitlines()) >= 1 and "Traceback" not in r.output
     line = " ".join(r.output.split())
-    for needle in ("--split '0.8,0.1,0.1'", "5 jumps divide as 4 train, 1 val, 0 test", "test split is empty",
+    for needle in ("--split 0.8,0.1,0.1", "5 jumps divide as 4 train, 1 val, 0 test", "test split is empty",
                    "e.g. 3,1,1"):
         assert needle in line, (needle, line)
     assert not out.exists()

@@ -29,7 +29,7 @@ def planted(tmp_path_factory):
     d = tmp_path_factory.mktemp("bags")
     m = jump(sim_go1(), 0)
     csv = write_plain(d / "jump.csv", [m], accelerations=False)
-    return d, m, import_logs([csv], robot="go1", split="1,0,0")
+    return d, m, import_logs([csv], robot="go1", split="1,0,0")[0]
 
 
 def _bag(kind: str, d, m, **kw):
@@ -46,7 +46,7 @@ def test_a_bag_imports_as_its_csv_log(planted, tmp_path, kind, layout):
     _, m, want = planted
     bag = _bag(kind, tmp_path, m)
     assert log_kind(bag) == layout.split()[0]
-    got = import_logs([bag], robot="go1", split="1,0,0")
+    got, _ = import_logs([bag], robot="go1", split="1,0,0")
     for key in ARRAYS:
         np.testing.assert_allclose(getattr(got, key), getattr(want, key), rtol=0, atol=1e-12, err_msg=key)
     assert got.dt == want.dt == 0.002
@@ -83,7 +83,7 @@ def test_other_topic_names_by_option_and_by_mapping_file(planted, tmp_path):
                    "/state_estimator/odom (nav_msgs/msg/Odometry)")
     assert not (tmp_path / "x.h5").exists()
     spec = ",".join(f"{k}={v}" for k, v in names.items())
-    got = import_logs([bag], robot="go1", split="1,0,0", topics=parse_topics(spec))
+    got, _ = import_logs([bag], robot="go1", split="1,0,0", topics=parse_topics(spec))
     np.testing.assert_allclose(got.u, want.u, rtol=0, atol=1e-12)
     mapping = tmp_path / "go1_topics.toml"
     mapping.write_text("[topics]\n" + "".join(f'{k} = "{v}"\n' for k, v in names.items()))

@@ -18,7 +18,7 @@ from symrom.data.dataset import DatasetError, validate
 from symrom.data.importers import import_logs
 from symrom.data.io import read_dataset
 from symrom.data.timebase import TimeBase, TimeBaseError
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
@@ -97,7 +97,7 @@ def test_lenient_reports_per_file_and_keeps_the_values(tmp_path):
 def test_plausible_logs_pass_and_keep_every_value(tmp_path):
     ds = sim_go1()
     m = jump(ds, 1)
-    got = import_logs([write_plain(tmp_path / "p.csv", [m])], robot="go1")
+    got, _ = import_logs([write_plain(tmp_path / "p.csv", [m])], robot="go1")
     for k in ("q", "dq", "ddq", "tau", "contact"):
         np.testing.assert_array_equal(getattr(got, k), m[k], err_msg=k)
     np.testing.assert_array_equal(got.phase, ds.phase[ds.jump == 1])
@@ -146,7 +146,7 @@ def test_jittered_segments_are_resampled_consistently():
     from pathlib import Path
 
     with tempfile.TemporaryDirectory() as d:
-        got = import_logs([write_plain(Path(d) / "jit.csv", [jit], accelerations=False)], robot="go1",
+        got, _ = import_logs([write_plain(Path(d) / "jit.csv", [jit], accelerations=False)], robot="go1",
                           time_base=TimeBase(dt=0.002))
     truth = at_times(m, np.arange(got.n_samples) * 0.002)
     spread = np.ptp(m["q"], axis=0) + 1e-9
@@ -219,12 +219,13 @@ def test_a_hardware_jump_evaluates_the_same_alone_or_with_other_rates(tmp_path):
         t = np.r_[0.0, np.cumsum(rng.uniform(0.00087, 0.00143, 3000))]
         segs.append(at_times(m, t[t <= m["t"][-1]]))
     others = [write_plain(tmp_path / "1khz.csv", [fast]), write_hardware(tmp_path / "segments.csv", segs)]
-    alone = import_logs([hw], robot="go1", split="0,0,1")
-    mixed = import_logs([*others, hw], robot="go1", split="3,0,1")
+    alone, _ = import_logs([hw], robot="go1", split="0,0,1")
+    mixed, _ = import_logs([*others, hw], robot="go1", split="3,0,1")
     assert alone.dt == mixed.dt == 0.002
     opts = RolloutOptions("lsoda")
-    a, _ = evaluate(model, alone, "test", (None, 0.1), opts)
-    b, _ = evaluate(model, mixed, "test", (None, 0.1), opts)
+    a, _ = evaluate_model(model, alone, "test", (None, 0.1), opts)
+    b, _ = evaluate_model(model, mixed, "test", (None, 0.1), opts)
+    a, b = a.to_dict(), b.to_dict()
     for key in a["horizons"]:
         ha, hb = a["horizons"][key], b["horizons"][key]
         assert ha["diverged_jumps"] == hb["diverged_jumps"] and ha["scored_samples"] == hb["scored_samples"]
@@ -265,7 +266,7 @@ def test_flight_only_segments_with_rebased_z(tmp_path):
     assert "can fit: flight" in text and "cannot fit: contact" in text
     assert "encoder (step a) is fitted on all training rows" in text
     model = json.loads((run / "model.json").read_text())
-    assert model["info"]["untrained_phases"] == ["contact"]
+    assert model["provenance"]["training"]["untrained_phases"] == ["contact"]
 
 
 def test_segments_holding_some_phases_keep_their_rebased_height_from_the_contact_rows(tmp_path):
@@ -275,7 +276,7 @@ def test_segments_holding_some_phases_keep_their_rebased_height_from_the_contact
     m = jump(ds, 0, slice(int(land) - 20, b - a))
     z = m["q"][:, 14].copy()
     m["q"][:, 12:15] -= m["q"][0, 12:15]
-    got = import_logs([write_plain(tmp_path / "landing.csv", [m])], robot="go1")
+    got, _ = import_logs([write_plain(tmp_path / "landing.csv", [m])], robot="go1")
     assert np.max(np.abs(got.q[:, 14] - z)) < 0.002
     assert "feet in contact" in got.generator["rebased"][0]["from"]
     assert set(got.phase_names[p] for p in got.phase) == {"contact", "flight"}

@@ -6,6 +6,7 @@ import pytest
 from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
 from symrom.rollout.integrate import rollout
+from conftest import as_format
 
 
 def test_round_trip_is_exact(planted_block, tmp_path):
@@ -14,16 +15,16 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     text = path.read_text()
-    assert "pickle" not in text and json.loads(text)["format_version"] == 4
+    assert "pickle" not in text and json.loads(text)["format_version"] == 5
     back = load_model(path)
     for a, b in [(model.autoencoder.W_e, back.autoencoder.W_e), (model.autoencoder.W_d, back.autoencoder.W_d),
                  (model.Xi, back.Xi), (model.mask, back.mask)]:
         np.testing.assert_array_equal(a, b)
     assert back.library == model.library and back.phase_names == model.phase_names
-    assert back.info["data_sha256"] == model.info["data_sha256"]
+    assert back.provenance == model.provenance and back.provenance.data.sha256 == model.provenance.data.sha256
     j = ds.jumps_in("test")[:1]
     np.testing.assert_array_equal(rollout(model, ds, j).q_pred[0], rollout(back, ds, j).q_pred[0])
-    assert back.equations_text() == model.equations_text()
+    assert back.equations().text() == model.equations().text()
     for name in model.phase_names:
         a, b = model.phase_info[name], back.phase_info[name]
         assert (a.trained, a.n_rows, a.duration_s, a.report) == (b.trained, b.n_rows, b.duration_s, b.report)
@@ -35,9 +36,9 @@ def test_round_trip_is_exact(planted_block, tmp_path):
 def test_format_1_files_still_load(planted_block, tmp_path):
     ds, _ = planted_block
     model = train(ds, TrainConfig())
-    d = model_to_dict(model)
+    d = as_format(model_to_dict(model), 1)
     lib = d["library"]
-    d.update(format_version=1, library={"latent_dim": lib["latent_dim"], "poly_order": 1, "trig": True,
+    d.update(library={"latent_dim": lib["latent_dim"], "poly_order": 1, "trig": True,
                                         "inputs": True, "feature_names": lib["feature_names"]})
     d["phases"] = {n: {k: v for k, v in ph.items() if k in ("Xi", "mask", "active_terms")}
                    for n, ph in d["phases"].items()}
@@ -99,8 +100,8 @@ def test_a_non_finite_model_is_refused_by_key_not_by_json(planted_block, tmp_pat
     with pytest.raises(ModelFileError, match=r"^decoder\.W_d\[4, 1\]: inf is not a finite number"):
         save_model(model, path)
     model.autoencoder.W_d[4, 1] = 1.0
-    model.info["finetune"] = {"val": [0.1, float("nan")]}
-    with pytest.raises(ModelFileError, match=r"^info\.finetune\.val\[1\]: not a finite number"):
+    model.provenance = model.provenance.with_settings({"threshold": float("nan")})
+    with pytest.raises(ModelFileError, match=r"^provenance\.training\.settings\.threshold: not a finite number"):
         save_model(model, path)
     assert not path.exists() and list(tmp_path.iterdir()) == []
 
@@ -173,16 +174,58 @@ def test_format_2_files_still_load_with_their_plug_ins(planted_block, tmp_path):
 
     ds, _ = planted_block
     rom = _exotic_rom().fit(ds)
-    d = model_to_dict(rom.model)
+    d = as_format(model_to_dict(rom.model), 2)
     est = d.pop("estimator")
     legacy = {"STLSQ": est["regressor"], "PCAEncoder": est["encoder"]}
     for name, rec in legacy.items():  # format 2 named the class instead of the kind
         rec.pop("kind")
         rec["name"] = name
-    d["format_version"] = 2
     d["info"].update(encoder=est["encoder"], regressor=est["regressor"], decoded_weight=est["decoded_weight"])
     path = tmp_path / "v2.json"
     path.write_text(json.dumps(d))
     back = symrom.SymbolicROM.load(path)
     assert back.encoder == rom.encoder and back.regressor == rom.regressor and back.decoded_weight == 0.5
     np.testing.assert_array_equal(back.model.Xi, rom.model.Xi)
+
+
+def test_format_4_info_reads_into_the_same_provenance(planted_block, tmp_path):
+    """A format 4 file's untyped ``info`` (training, selection, fine-tuning, the command line's
+    data_path) is read into the typed provenance a format 5 file holds, nothing lost."""
+    from dataclasses import replace
+
+    from symrom.model.provenance import FineTuneRecord, Provenance, SelectionRecord
+
+    ds, _ = planted_block
+    model = train(ds, TrainConfig(threshold=0.02), data_path="data/d.h5")
+    prov = model.provenance.with_selection(SelectionRecord("all", 2, "poly1+trig+inputs", 0.02, False, 0.5, 9))
+    model = replace(model, provenance=prov)
+    path = tmp_path / "v4.json"
+    d = as_format(model_to_dict(model), 4)
+    d["info"]["note"] = "written by a tool"  # a key no part names: kept
+    path.write_text(json.dumps(d))
+    back = load_model(path)
+    assert back.provenance.data == model.provenance.data and back.provenance.selection == prov.selection
+    assert back.provenance.training == model.provenance.training
+    assert back.provenance.training.settings["threshold"] == 0.02 and back.provenance.training.solver == "exact"
+    assert dict(back.provenance.extra) == {"note": "written by a tool"}
+    assert Provenance.from_info(back.provenance.to_info()) == back.provenance
+    # a model fine-tuned by the command line: its one data_path was the fine-tuning data's
+    tuned = prov.with_finetune(FineTuneRecord(config={"method": "calibrate"}, source_model="src/model.json",
+                                              path="data/new.h5"))
+    info = tuned.to_info()
+    assert info["data_path"] == "data/new.h5" and "data/d.h5" not in json.dumps(info)
+    assert Provenance.from_info(info).finetune.path == "data/new.h5" and tuned.data_path == "data/new.h5"
+
+
+def test_provenance_is_immutable_and_read_back_as_settings(planted_block):
+    import dataclasses
+
+    ds, _ = planted_block
+    config = TrainConfig(threshold=0.02, encoder_components=("x", "y", "z"), latent_dim=2)
+    model = train(ds, config)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        model.provenance.data.robot = "a1"
+    with pytest.raises(TypeError):
+        model.provenance.training.settings["threshold"] = 1.0
+    assert TrainConfig.from_provenance(model.provenance) == config
+    assert TrainConfig.from_provenance(model.provenance, refine=True).refine

@@ -33,17 +33,23 @@ def test_non_finite_numbers_are_written_as_null(tmp_path):
 
 
 def test_a_baseline_folder_holds_metrics_table_and_its_files(tmp_path):
-    written = write_baseline(tmp_path, _metrics(0.5), ("x", "y", "z"), "Newton", {"params.json": "{}"})
+    from symrom.baselines import from_params
+    from symrom.baselines.newton import Newton
+
+    written = write_baseline(tmp_path, Newton(12.0, "the given mass"), _metrics(0.5), "Newton")
     assert {p.name for p in written} == {"metrics.json", "table.md", "params.json"}
     assert "**Newton**" in (tmp_path / "table.md").read_text()
     assert _strict(tmp_path / "metrics.json")["horizons"]["full"]["components"]["z"]["rmse"] == 0.5
+    params = _strict(tmp_path / "params.json")  # the one params.json format: the baseline's own record
+    assert params["model"] == "newton" and params["m"] == 12.0 and params["source"] == "the given mass"
+    assert from_params(params) == Newton(12.0)
 
 
 def test_a_model_folder_holds_the_model_and_its_equations(planted_axis, tmp_path):
     ds, _ = planted_axis
     model = train(ds, TrainConfig())
     assert {p.name for p in write_model_files(model, tmp_path)} == {"model.json", "equations.txt"}
-    assert (tmp_path / "equations.txt").read_text() == load_model(tmp_path / "model.json").equations_text() + "\n"
+    assert (tmp_path / "equations.txt").read_text() == load_model(tmp_path / "model.json").equations().text() + "\n"
 
 
 def test_the_model_file_itself_still_refuses_non_finite_numbers(planted_axis, tmp_path):

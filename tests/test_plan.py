@@ -13,6 +13,7 @@ from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import Library
 from symrom.model.persistence import save_model
+from symrom.model.provenance import DataRecord, Provenance
 from symrom.plan.dynamics import GRAVITY, LearnedDynamics, PlanModelError, PointMass
 from symrom.plan.problem import JumpPlanner, PlanError
 from symrom.sim.controllers.pronk import distribute_wrench
@@ -33,7 +34,7 @@ def planted_model(contact: list[dict[str, float]], flight: list[dict[str, float]
         for j, eq in enumerate(rows):
             for feat, c in eq.items():
                 Xi[k, names.index(feat), j] = c
-    return HybridModel(ae, lib, list(phases), Xi, Xi != 0, np.ones(4), info={"robot": "go1"})
+    return HybridModel(ae, lib, list(phases), Xi, Xi != 0, np.ones(4), provenance=Provenance(DataRecord(robot="go1")))
 
 
 # a linear planted law: forward damping and gains other than 1/m, so no closed form plans it

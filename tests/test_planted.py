@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 
@@ -24,9 +24,9 @@ def test_exact_solver_recovers_planted_equations(planted_axis):
 def test_exact_solver_reproduces_held_out_rollouts(planted_block, method):
     ds, _ = planted_block
     model = train(ds, TrainConfig())
-    metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method=method))
+    metrics, _ = evaluate_model(model, ds, "test", options=RolloutOptions(method=method))
     for h, nmae in normalised_mae(metrics, ds).items():
-        assert metrics["horizons"][h]["diverged_jumps"] == 0
+        assert metrics.horizons[h].diverged_jumps == 0
         assert nmae.max() <= 0.03, (h, nmae.max())
 
 
@@ -37,9 +37,9 @@ def test_adam_solver_reproduces_held_out_rollouts(planted_block):
     # so a larger step reaches the same optimum in a test-sized number of epochs.
     model = train(ds, TrainConfig(solver="adam", seed=0, adam=AdamConfig(
         learning_rate=1e-2, epochs=100, refine_epochs=20, threshold_every=34)))
-    metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method="rk4"))
+    metrics, _ = evaluate_model(model, ds, "test", options=RolloutOptions(method="rk4"))
     for h, nmae in normalised_mae(metrics, ds).items():
-        assert metrics["horizons"][h]["diverged_jumps"] == 0
+        assert metrics.horizons[h].diverged_jumps == 0
         assert nmae.max() <= 0.03, (h, nmae.max())
 
 

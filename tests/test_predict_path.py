@@ -101,7 +101,7 @@ def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path
 
     from symrom.cli import app
     from symrom.data.io import write_dataset
-    from symrom.evaluate.metrics import evaluate
+    from symrom.evaluate.metrics import evaluate_model
     from symrom.evaluate.switching import predicted_rollout
     from symrom.model.persistence import model_to_dict, save_model
     from conftest import one_line_error
@@ -111,8 +111,8 @@ def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path
     # a guard that never fires keeps the first phase: every logged switch is missed
     never = type(model)(**{**model.__dict__, "guards": [type(g)(**{**g.__dict__, "bias": -1e9})
                                                          for g in model.guards]})
-    m, _ = evaluate(never, ds, "test", (None,), RolloutOptions(method="rk4"), phases="predicted")
-    sw = m["switching"]["contact->flight"]
+    m, _ = evaluate_model(never, ds, "test", (None,), RolloutOptions(method="rk4"), phases="predicted")
+    sw = m.switching["contact->flight"]
     assert sw["matched"] == 0 and sw["missed"] == sw["logged"] == len(jumps)
     # resets put the logged phase back, held until the next reset when no guard fires
     ro, ph = predicted_rollout(never, ds, jumps, RolloutOptions(method="rk4", reset=0.1))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from symrom.data.dataset import jump_bounds
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.estimator import trajectories
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
@@ -106,11 +106,11 @@ def test_refinement_recovers_a_stable_accurate_model(lagged):
     refined = train(ds, TrainConfig(refine=True))
     np.testing.assert_array_equal(refined.mask, ls.mask)  # the support is kept
     assert max(s.max_real for s in refined.stability()) < 0.2
-    m_ls, _ = evaluate(ls, ds, "test", resets=(None,), options=RolloutOptions("rk4"))
-    m_ref, _ = evaluate(refined, ds, "test", resets=(None,), options=RolloutOptions("rk4"))
-    err = lambda m: np.mean([c["rmse"] for c in m["horizons"]["full"]["components"].values()])  # noqa: E731
-    assert m_ref["horizons"]["full"]["diverged_jumps"] == 0
-    assert m_ls["horizons"]["full"]["diverged_jumps"] > 0 or err(m_ref) < 0.2 * err(m_ls)
+    m_ls, _ = evaluate_model(ls, ds, "test", resets=(None,), options=RolloutOptions("rk4"))
+    m_ref, _ = evaluate_model(refined, ds, "test", resets=(None,), options=RolloutOptions("rk4"))
+    err = lambda m: np.mean([c.rmse for c in m.full.components.values()])  # noqa: E731
+    assert m_ref.full.diverged_jumps == 0
+    assert m_ls.full.diverged_jumps > 0 or err(m_ref) < 0.2 * err(m_ls)
     # Damping back near the planted values.
     names = refined.library.feature_names
     k = refined.phase_names.index("contact")
@@ -202,7 +202,7 @@ def test_budget_prunes_a_dense_model_to_the_planted_support(planted_axis):
     assert rel.max() <= 0.05
     rounds = pruned.phase_info["contact"].report["refinement"]["prunings"]
     assert len(rounds) >= 2 and rounds[-1]["active_after"] == planted.sum()
-    assert pruned.info["training"]["max_terms"] == planted.sum()
+    assert pruned.provenance.training.settings["max_terms"] == planted.sum()
 
 
 def test_budget_settings_are_checked():

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
 from symrom.evaluate.records import (BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry, Metrics,
                                     RecordError)
@@ -37,7 +37,7 @@ SECTION_TITLES = ("Table 2", "baselines", "accuracy vs complexity", "Learned equ
                   "Data summary", "Commands, versions and seeds")
 
 
-def _aslip_metrics(ds, run: Path) -> dict:
+def _aslip_metrics(ds, run: Path):
     """aSLIP metrics and parameters via the real module."""
     from dataclasses import asdict
 
@@ -46,7 +46,7 @@ def _aslip_metrics(ds, run: Path) -> dict:
     params = fit_aslip(ds, ds.rows_of("train"), 12.0)
     (run / "go1_sim" / "aslip").mkdir(parents=True, exist_ok=True)
     (run / "go1_sim" / "aslip" / "params.json").write_text(json.dumps(asdict(params)))
-    return evaluate(ASlip(params), ds, "test", options=RolloutOptions(method="rk4"), model_name="aslip")[0]
+    return evaluate_model(ASlip(params), ds, "test", options=RolloutOptions(method="rk4"), model_name="aslip")[0]
 
 
 def _experiment(run: Path, name: str, ds) -> dict:
@@ -55,9 +55,9 @@ def _experiment(run: Path, name: str, ds) -> dict:
     model = train(ds, TrainConfig(latent_dim=2, poly_order=1))
     (run / name / "eval").mkdir(parents=True)
     save_model(model, run / name / "model.json")
-    metrics, _ = evaluate(model, ds, "test", options=RolloutOptions(method="rk4"),
+    metrics, _ = evaluate_model(model, ds, "test", options=RolloutOptions(method="rk4"),
                           model_name=f"{name}/model.json", data_name=f"data/{name}.h5")
-    (run / name / "eval" / "metrics.json").write_text(json.dumps(metrics))
+    (run / name / "eval" / "metrics.json").write_text(json.dumps(metrics.to_dict()))
     return {"model": f"{name}/model.json", "metrics": f"{name}/eval/metrics.json", "data": f"data/{name}.h5"}
 
 
@@ -90,7 +90,7 @@ def run_dir(tmp_path_factory) -> Path:
                                          robot="a1" if name == "a1_sim" else "go1")
         files[name] = _experiment(run, name, d)
     aslip = _aslip_metrics(ds, run)
-    (run / "go1_sim" / "aslip" / "metrics.json").write_text(json.dumps(aslip))
+    (run / "go1_sim" / "aslip" / "metrics.json").write_text(json.dumps(aslip.to_dict()))
     sweep = _sweep(ds)
     (run / "sweep").mkdir()
     (run / "sweep" / "sweep.json").write_text(json.dumps(sweep))

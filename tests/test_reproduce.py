@@ -61,7 +61,7 @@ def test_summary_follows_the_contract(run):
     assert {k: go1["config"][k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")} == \
         {k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")}
     model = load_model(d / go1["model"])
-    assert model.latent_dim == chosen["latent_dim"] and model.info["selection"]["encoder"] == chosen["encoder"]
+    assert model.latent_dim == chosen["latent_dim"] and model.provenance.selection.encoder == chosen["encoder"]
     if chosen["encoder"] == "base_position":
         assert abs(model.autoencoder.W_e[:, :12]).max() == 0 and abs(model.autoencoder.W_e[:, 15:]).max() == 0
     paper = load_model(d / go1["paper_defaults"]["model"])

@@ -3,7 +3,7 @@ import time
 import numpy as np
 import pytest
 
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.tables import table2
 from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
@@ -23,14 +23,14 @@ def test_exploding_model_is_flagged_not_hung(model_and_data, method):
     names = bad.library.feature_names
     bad.Xi[:, names.index("xi1"), 0] = 400.0  # strong positive feedback: exponential blow-up
     t0 = time.perf_counter()
-    metrics, ros = evaluate(bad, ds, "test", options=RolloutOptions(method=method))
+    metrics, ros = evaluate_model(bad, ds, "test", options=RolloutOptions(method=method))
     assert time.perf_counter() - t0 < 60
-    full = metrics["horizons"]["full"]
-    assert full["diverged_jumps"] == len(ds.jumps_in("test"))
+    full = metrics.full
+    assert full.diverged_jumps == len(ds.jumps_in("test"))
     assert all(d >= 0 for d in ros["full"].diverged_at)
     # Only the samples before each divergence are scored.
-    assert full["scored_samples"] == int(ros["full"].diverged_at.sum()) < full["samples"]
-    assert (full["components"] == {}) == (full["scored_samples"] == 0)
+    assert full.scored_samples == int(ros["full"].diverged_at.sum()) < full.samples
+    assert (full.components == {}) == (full.scored_samples == 0)
     assert "diverged" in table2(metrics)
 
 
@@ -49,9 +49,9 @@ def test_reset_restarts_from_the_encoded_truth(model_and_data, method):
 def test_shorter_horizon_is_more_accurate(model_and_data):
     model, ds = model_and_data
     model = train(ds, TrainConfig(latent_dim=1))  # an imperfect model drifts over the full horizon
-    metrics, _ = evaluate(model, ds, "test", resets=(None, 0.1), options=RolloutOptions(method="rk4"))
-    full = np.mean([c["rmse"] for c in metrics["horizons"]["full"]["components"].values()])
-    short = np.mean([c["rmse"] for c in metrics["horizons"]["0.1"]["components"].values()])
+    metrics, _ = evaluate_model(model, ds, "test", resets=(None, 0.1), options=RolloutOptions(method="rk4"))
+    full = np.mean([c.rmse for c in metrics.full.components.values()])
+    short = np.mean([c.rmse for c in metrics.horizons["0.1"].components.values()])
     assert short < full
 
 
@@ -105,7 +105,8 @@ def test_a_diverged_jump_is_scored_up_to_its_divergence(model_and_data, method):
 
     _, ds = model_and_data
     bad = _late_divergence(model_and_data)
-    metrics, ros = evaluate(bad, ds, "train", resets=(None,), options=RolloutOptions(method))
+    metrics, ros = evaluate_model(bad, ds, "train", resets=(None,), options=RolloutOptions(method))
+    metrics = metrics.to_dict()  # the layout of metrics.json
     full, ro = metrics["horizons"]["full"], ros["full"]
     lengths = np.diff(ds.jump_bounds(), axis=1)[ro.jumps, 0]
     assert 0 < ro.diverged.sum() < ro.jumps.size

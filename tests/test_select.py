@@ -30,7 +30,7 @@ def test_selection_table_and_choice(selected):
     assert sel.chosen is not None and sel.model is not None
     r = sel.rows[sel.chosen]
     assert r["encoder"] == "all"  # base_position cannot see the planted latents
-    assert sel.model.info["selection"]["encoder"] == "all"
+    assert sel.model.provenance.selection.encoder == "all"
     ok = [x for x in sel.rows if x["score"] is not None]
     best = min(x["score"] for x in ok)
     assert r["score"] <= (1 + GRID.tolerance) * best

@@ -51,14 +51,14 @@ def test_zero_decoded_weight_is_least_squares_on_latent_accelerations(planted_bl
         assert latent_loss(model.Xi[k]) <= latent_loss(best) * (1 + 1e-6)
         # ... which the paper's loss, also fitting the decoded accelerations, misses.
         assert latent_loss(paper.Xi[k]) > latent_loss(best) * 1.01
-    assert model.info["training"]["decoded_weight"] == 0.0
+    assert model.provenance.training.settings["decoded_weight"] == 0.0
 
 
 @pytest.mark.parametrize("kwargs, needle", [
     (dict(encoder_components=("x", "knee")), "unknown component(s) knee"),
     (dict(encoder_components=("x",)), "cannot span latent_dim 2"),
     (dict(encoder_components=("x", "x", "z")), "named twice"),
-    (dict(decoded_weight=-1.0), "decoded_weight must be >= 0"),
+    (dict(decoded_weight=-1.0), "decoded_weight=-1: must be >= 0"),
 ])
 def test_bad_options_are_named(kwargs, needle):
     with pytest.raises(ValueError, match=None) as e:

@@ -70,7 +70,7 @@ def atomic_dir(path: str | os.PathLike, force: bool = False) -> Iterator[Path]:
 
     path = Path(path)
     if path.exists() and not force:
-        raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
+        raise OutputExistsError(f"{path} exists; pass force=True to overwrite it")
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     # mkdtemp makes the folder private (0700); give it the permissions of a normal new folder.
@@ -104,13 +104,13 @@ def check_output_file(path: str | os.PathLike, force: bool,
         if not src.exists():
             continue
         if src.resolve() == target:
-            raise OutputIsInputError(f"--out {path} is the input {src}; choose another output "
-                                     "(--force would replace the input)")
+            raise OutputIsInputError(f"out={path} is the input {src}; choose another output "
+                                     "(force=True would replace the input)")
         if path.is_dir() and src.resolve().is_relative_to(target):
-            raise OutputIsInputError(f"--out {path} holds the input {src}; choose another output "
-                                     "(--force would delete the input)")
+            raise OutputIsInputError(f"out={path} holds the input {src}; choose another output "
+                                     "(force=True would delete the input)")
     if path.exists() and not force:
-        raise OutputExistsError(f"{path} exists; pass --force to overwrite it")
+        raise OutputExistsError(f"{path} exists; pass force=True to overwrite it")
     check_writable(path)
     return path
 

@@ -88,8 +88,7 @@ class Backend(ABC):
     name: str = ""
 
     def __init__(self, workers: int | None, max_retries: int = DEFAULT_MAX_RETRIES) -> None:
-        if workers is not None and workers < 1:
-            raise BackendError(f"need at least one worker, got {workers}")
+        check_workers(workers)
         if max_retries < 0:
             raise BackendError(f"max_retries must be >= 0, got {max_retries}")
         self.workers = workers
@@ -336,15 +335,22 @@ def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
 
 
 # ------------------------------------------------------------------ by name
+def check_workers(workers: int | None) -> None:
+    """``BackendError`` unless ``workers`` is None (the default) or at least 1."""
+    if workers is not None and workers < 1:
+        raise BackendError(f"workers={workers}: the number of workers must be at least 1")
+
+
 def make_backend(name: str = "local", workers: int | None = None, address: str | None = None,
                  max_retries: int = DEFAULT_MAX_RETRIES) -> Backend:
     """The back end called ``name`` (``local`` or ``ray``). ``workers``: local processes
     (default 1), or for Ray the most tasks at once (default: the cluster's CPUs);
     ``address``: the Ray cluster (Ray only)."""
     if name not in BACKENDS:
-        raise BackendError(f"unknown back end {name!r}; choose from {', '.join(BACKENDS)}")
+        raise BackendError(f"backend={name!r}: unknown back end; choose from {', '.join(BACKENDS)}")
+    check_workers(workers)
     if name == "local":
         if address:
-            raise BackendError("--address names a Ray cluster: use it with --backend ray")
+            raise BackendError("address= names a Ray cluster: use it with backend='ray'")
         return LocalBackend(1 if workers is None else workers, max_retries)
     return RayBackend(address, workers, max_retries)

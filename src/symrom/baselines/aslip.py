@@ -9,26 +9,27 @@ with b the CoM (the base position q[12:15], as everywhere in symrom),
 l = b - p the leg from the stance pivot p (mean of the feet in contact) to the
 CoM, l_hat = l / |l|, g = (0, 0, -9.81) m/s^2 and u the summed ground-reaction
 force of the dataset (u[:, 12:15], N) divided by m, i.e. an acceleration
-(``symrom.baselines.com``). ``ASlip(params)`` is a model like any other: it is
-rolled out and scored by ``symrom.rollout.rollout`` and
-``symrom.evaluate.evaluate``.
+(``symrom.baselines.com``). ``ASlip`` is a model like any other: it is rolled
+out and scored by ``symrom.rollout.integrate.rollout`` and
+``symrom.evaluate.metrics.evaluate_model``.
 
-Two fits of k_s and l_0 on the training jumps, the mass m from the robot:
-``fit_aslip`` on the acceleration residual (fast, closed form first), and
-``fit_aslip_rollout`` on the rollout error of the CoM, the quantity the
-baseline is judged on (multiple shooting over growing windows,
-``symrom.rollout.fitting``), started from the residual fit.
+``ASlip.fit(ds, objective=...)`` fits k_s and l_0 on the training jumps, the mass m
+from the robot: ``residual`` on the acceleration residual (``fit_aslip``: fast,
+closed form first), and ``rollout`` on the rollout error of the CoM, the
+quantity the baseline is judged on (``fit_aslip_rollout``: multiple shooting
+over growing windows, ``symrom.rollout.fitting``), started from the residual fit.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, field, replace
+from typing import ClassVar
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from symrom.baselines.com import (COMPONENTS, GRAVITY, com_system, flight_rows, input_acceleration,
-                                  robot_mass, stance_pivots)
+from symrom.baselines.com import (COMPONENTS, GRAVITY, PARAMS_VERSION, com_system, flight_rows,
+                                  input_acceleration, robot_mass, stance_pivots)
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS
 from symrom.rollout.fitting import RolloutFit, fit_to_rollouts
@@ -68,12 +69,52 @@ def aslip_acceleration(params: ASlipParams, b: np.ndarray, pivot: np.ndarray, u:
     return GRAVITY + np.asarray(contact, dtype=float)[:, None] * (spring + u)
 
 
+OBJECTIVES = ("residual", "rollout")
+
+
 @dataclass(frozen=True)
 class ASlip:
-    """The aSLIP as a model that can be rolled out (``Rollable``): predicts CoM x, y, z."""
+    """The aSLIP as a model that can be rolled out (``Rollable``): predicts CoM x, y, z.
+
+    ``ASlip.fit(ds)`` fits it (k_s and l_0; the mass from the robot); ``ASlip(params)`` takes
+    known parameters (``ASlip.paper()``: the paper's). source: how the parameters were set,
+    in words; stages: the rollout fit's record (``fit_aslip_rollout``), JSON-ready."""
 
     params: ASlipParams
+    source: str = field(default="given", compare=False)
+    stages: tuple = field(default=(), compare=False)
     components = COMPONENTS
+    kind: ClassVar[str] = "aslip"
+
+    @classmethod
+    def fit(cls, ds: Dataset, rows: np.ndarray | None = None, m: float | None = None,
+            objective: str = "residual") -> ASlip:
+        """k_s and l_0 fitted on ``rows`` (N,) bool (default: the train split) by ``objective``:
+        ``residual`` (the acceleration residual, ``fit_aslip``) or ``rollout`` (the CoM rollout
+        error from the residual fit, ``fit_aslip_rollout``); mass ``m`` kg (default: the robot's)."""
+        if objective not in OBJECTIVES:
+            raise ValueError(f"objective={objective!r}: choose from {', '.join(OBJECTIVES)}")
+        rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
+        params = fit_aslip(ds, rows, m)
+        mass = "" if m is not None else f"; mass from the {ds.robot} description"
+        if objective == "residual":
+            return cls(params, f"fitted on the train split (acceleration residual{mass})")
+        params, fit = fit_aslip_rollout(ds, np.unique(ds.jump[rows]), m=params.m, start=params)
+        return cls(params, f"fitted on the train split (CoM rollout error, multiple shooting{mass})",
+                   tuple(fit.stages))
+
+    @classmethod
+    def paper(cls, k_s: float | None = None, l_0: float | None = None, m: float | None = None) -> ASlip:
+        """The paper's Go1 values (``PAPER_PARAMS``), each overridable."""
+        given = {k: float(v) for k, v in (("k_s", k_s), ("l_0", l_0), ("m", m)) if v is not None}
+        return cls(replace(PAPER_PARAMS, **given), "fixed: the paper's values" + (
+            f" ({', '.join(given)} given)" if given else ""))
+
+    def to_dict(self) -> dict:
+        """What its ``params.json`` holds (``symrom.baselines.from_params`` reads it back)."""
+        return {"format_version": PARAMS_VERSION, "model": self.kind, **asdict(self.params),
+                "units": {"k_s": "N/m", "l_0": "m", "m": "kg"}, "source": self.source,
+                **({"stages": list(self.stages)} if self.stages else {})}
 
     def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
         p = self.params

@@ -21,6 +21,9 @@ from symrom.rollout.system import RolloutSystem
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
 COMPONENTS: tuple[str, ...] = ("x", "y", "z")
+# A baseline's params.json (``to_dict``): 2 adds format_version, model, units and source to
+# every baseline; files without format_version (1) hold the aSLIP's k_s, l_0, m or a model's record.
+PARAMS_VERSION = 2
 
 
 def robot_mass(robot: str) -> float:
@@ -31,7 +34,7 @@ def robot_mass(robot: str) -> float:
     try:
         return get_robot(robot).mass
     except RobotDescriptionError as e:
-        raise ValueError(f"{e}; give the mass explicitly (--mass)") from None
+        raise ValueError(f"{e}; give the mass explicitly (m= in kg)") from None
 
 
 def flight_rows(ds: Dataset) -> np.ndarray:

@@ -22,11 +22,13 @@ training rows, per phase (15 numbers).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
-from symrom.baselines.com import COMPONENTS, GRAVITY, com_system, flight_rows, input_acceleration, robot_mass
+from symrom.baselines.com import (COMPONENTS, GRAVITY, PARAMS_VERSION, com_system, flight_rows, input_acceleration,
+                                  robot_mass)
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS
 from symrom.rollout.system import RolloutSystem
@@ -34,19 +36,30 @@ from symrom.rollout.system import RolloutSystem
 
 @dataclass(frozen=True)
 class Newton:
-    """b'' = g + F/m as a model that can be rolled out (``Rollable``); m in kg."""
+    """b'' = g + F/m as a model that can be rolled out (``Rollable``); m in kg; source: where
+    the mass came from, in words."""
 
     m: float
+    source: str = field(default="the given mass; nothing fitted", compare=False)
     components = COMPONENTS
+    kind: ClassVar[str] = "newton"
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.m) and self.m > 0):
-            raise ValueError(f"Newton baseline: mass must be a positive number, got {self.m}")
+            raise ValueError(f"mass={self.m}: the Newton baseline's mass must be a positive number")
 
     @classmethod
-    def of(cls, ds: Dataset, m: float | None = None) -> Newton:
-        """The baseline for the robot of ``ds`` (its description's mass unless ``m`` is given)."""
-        return cls(robot_mass(ds.robot) if m is None else float(m))
+    def fit(cls, ds: Dataset, rows: np.ndarray | None = None, m: float | None = None) -> Newton:
+        """The baseline for the robot of ``ds``: nothing is fitted (``rows`` are not read, the
+        same call as every baseline's); its mass is the description's unless ``m`` is given."""
+        if m is not None:
+            return cls(float(m))
+        return cls(robot_mass(ds.robot), "the robot's total mass; nothing fitted")
+
+    def to_dict(self) -> dict:
+        """What its ``params.json`` holds (``symrom.baselines.from_params`` reads it back)."""
+        return {"format_version": PARAMS_VERSION, "model": self.kind, "m": self.m, "units": {"m": "kg"},
+                "source": self.source}
 
     def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
         return com_system(ds, jumps, self.m, lambda d, x, v: GRAVITY + d["u"])
@@ -61,7 +74,9 @@ class AffineForce:
     A: np.ndarray
     c: np.ndarray
     c_f: np.ndarray
+    source: str = field(default="given", compare=False)
     components = COMPONENTS
+    kind: ClassVar[str] = "affine_force"
 
     def __post_init__(self) -> None:
         Newton(self.m)  # the same check of the mass
@@ -84,11 +99,14 @@ class AffineForce:
                              f"{int(contact_rows.sum())} and {int(flight_only.sum())}")
         X = np.column_stack([np.ones(contact_rows.sum()), u[contact_rows]])
         coef, *_ = np.linalg.lstsq(X, acc[contact_rows], rcond=None)
-        return cls(m, coef[1:].T, coef[0], acc[flight_only].mean(axis=0))
+        return cls(m, coef[1:].T, coef[0], acc[flight_only].mean(axis=0),
+                   "fitted on the train split (least squares on the base accelerations)")
 
     def to_dict(self) -> dict:
-        return {"model": "affine_force", "m": self.m, "A": self.A.tolist(), "c": self.c.tolist(),
-                "c_f": self.c_f.tolist()}
+        """What its ``params.json`` holds (``symrom.baselines.from_params`` reads it back)."""
+        return {"format_version": PARAMS_VERSION, "model": self.kind, "m": self.m, "A": self.A.tolist(),
+                "c": self.c.tolist(), "c_f": self.c_f.tolist(),
+                "units": {"m": "kg", "A": "1", "c": "m/s^2", "c_f": "m/s^2"}, "source": self.source}
 
     def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
         A, c, c_f = self.A, self.c, self.c_f

@@ -61,7 +61,7 @@ def parse_topics(spec: str | None) -> dict[str, str]:
         role, sep, topic = part.partition("=")
         role, topic = role.strip(), topic.strip()
         if not sep or role not in ROLES or not topic.startswith("/"):
-            raise ValueError(f"--topics {spec!r}: {part!r} is not ROLE=/topic with ROLE in {', '.join(ROLES)}")
+            raise ValueError(f"topics={spec!r}: {part!r} is not ROLE=/topic with ROLE in {', '.join(ROLES)}")
         out[role] = topic
     return out
 
@@ -171,7 +171,7 @@ def read_bag(path: str | os.PathLike, robot: str, topics: dict[str, str] | None 
 
     for role in ("joints", "base"):
         if not bag.by_topic[topics[role]]:
-            raise LogError(f"{path}: no message on the {role} topic {topics[role]} (--topics {role}=/...); "
+            raise LogError(f"{path}: no message on the {role} topic {topics[role]} (topics={role}=/...); "
                            f"the bag holds {listing()}")
 
     # Joints: one row per message.

@@ -63,7 +63,7 @@ class PlausibilityLimits:
 
     def __post_init__(self) -> None:
         if self.torques not in TORQUES:
-            raise ValueError(f"--torques {self.torques!r}: choose from {', '.join(TORQUES)}")
+            raise ValueError(f"torques={self.torques!r}: choose from {', '.join(TORQUES)}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -161,11 +161,36 @@ def _ranges(robot: str, limits: PlausibilityLimits) -> list[tuple]:
     return out
 
 
+def motion_ratio(x: np.ndarray, v: np.ndarray, t: np.ndarray) -> float:
+    """How far a column ``x`` (n,) moves against the trapezoidal integral of its logged rate
+    ``v`` (n,) over times ``t`` (n,) s (steps where t does not increase, a new jump, left out):
+    1 when both are in the same unit, 180/pi when x is in degrees and v in rad/s; NaN when the
+    rate never moves."""
+    dt = np.diff(t)
+    ok = dt > 0
+    moved = float(np.abs(np.diff(x))[ok].sum())
+    integral = float((0.5 * np.abs(v[1:] + v[:-1]) * dt)[ok].sum())
+    return moved / integral if integral > 0 else float("nan")
+
+
+# A column is in degrees (or its rate in degrees/s) when it moves this close to 180/pi times its
+# rate's integral (or 1/(180/pi) times), whatever share of it leaves the range.
+DEGREES_RATIO = (0.8, 1.25)
+
+
+def _in_degrees(ratio: float, factor: float) -> bool:
+    return bool(np.isfinite(ratio) and DEGREES_RATIO[0] <= ratio * factor <= DEGREES_RATIO[1])
+
+
 def check_samples(robot: str, q: np.ndarray, dq: np.ndarray, tau: np.ndarray,
-                  limits: PlausibilityLimits = PlausibilityLimits()) -> list[ColumnProblem]:
+                  limits: PlausibilityLimits = PlausibilityLimits(),
+                  t: np.ndarray | None = None) -> list[ColumnProblem]:
     """Every column of a log outside its plausible range for ``robot``, in field order
     (q, dq, tau) then column order. q, dq (n, 18), tau (n, 12) in symrom's order and SI
-    units; an empty list if the log is plausible."""
+    units; an empty list if the log is plausible. With the times ``t`` (n,) s, an angle (or
+    angular rate) column that moves 180/pi times what its rate says (or 1/(180/pi)) is named
+    as in degrees even when only a few of its rows leave the range (a hip abduction logged
+    in degrees stays mostly within its range)."""
     arrays = {"q": np.asarray(q, float), "dq": np.asarray(dq, float), "tau": np.asarray(tau, float)}
     order = {"q": 0, "dq": 1, "tau": 2}
     problems = []
@@ -181,6 +206,14 @@ def check_samples(robot: str, q: np.ndarray, dq: np.ndarray, tau: np.ndarray,
         # fall), and one conversion brings all of it back.
         hint = None if bad.mean() <= 0.5 else next(
             (label for label, f in fixes if np.all((x * f >= lo) & (x * f <= hi))), None)
+        if hint is None and t is not None and field in ("q", "dq") and fixes and fixes[0][0].startswith("degrees"):
+            # the column against its own rate (or its rate against the column): the unit says itself
+            deg = np.pi / 180
+            fits = bool(np.all((x * deg >= lo) & (x * deg <= hi)))
+            ratio = (motion_ratio(x, arrays["dq"][:, i], t) if field == "q"
+                     else motion_ratio(arrays["q"][:, i], x, t))
+            if fits and _in_degrees(ratio, deg if field == "q" else 1 / deg):
+                hint = fixes[0][0]
         problems.append(ColumnProblem(field, i, name, what, unit, float(lo), float(hi), text, int(rows.size),
                                       int(rows[0]), float(x[rows[0]]), worst, hint))
     problems.sort(key=lambda p: (order[p.field], p.index))

@@ -137,7 +137,7 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
             hint = "the velocities have the opposite sign of the positions' change"
         else:
             hint = (f"the time column is likely scaled: rows {1e3 * step * r:.3g} ms apart logged as "
-                    f"{1e3 * step:.4g} ms (log the true times; --dt does not fix it), or the velocities "
+                    f"{1e3 * step:.4g} ms (log the true times; a given dt does not fix it), or the velocities "
                     f"are in other units")
         out.append({"check": "time scale", "group": name, "value": r, "low": 1 - limits.scale,
                     "high": 1 + limits.scale, "windows": len(ratios),
@@ -266,4 +266,4 @@ def foot_height(where: str, robot: str, q: np.ndarray, contact: np.ndarray,
                          f"contact sit {1e3 * h:.3g} mm {'above' if h > 0 else 'below'} the ground (median over "
                          f"{int(down.sum())} foot-rows); the limit is {1e3 * limits.foot_height:g} mm: the log "
                          f"is likely of another robot (legs of another length) or its base height is offset "
-                         f"(--positions rebased restores it from the feet)")}]
+                         f"(positions='rebased' restores it from the feet)")}]

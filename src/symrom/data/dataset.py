@@ -106,6 +106,19 @@ class Dataset:
     def generator_json(self) -> str:
         return json.dumps(self.generator, sort_keys=True)
 
+    # ----------------------------------------------------------------- in words
+    def phase_rows(self, rows: np.ndarray | None = None) -> str:
+        """'contact 1200 rows, flight 400 rows, partial none' for ``rows`` (N,) bool (all by default)."""
+        phase = self.phase if rows is None else self.phase[rows]
+        counts = np.bincount(phase, minlength=len(self.phase_names))
+        return ", ".join(f"{n} {c} rows" if c else f"{n} none" for n, c in zip(self.phase_names, counts))
+
+    def summary(self) -> str:
+        """Jumps, samples, dt, the rows per phase and the jumps per split, in one line."""
+        counts = ", ".join(f"{s} {int((self.split == s).sum())}" for s in ("train", "val", "test"))
+        return (f"{self.n_jumps} jumps, {self.n_samples} samples, dt {self.dt:g} s; phases: {self.phase_rows()}; "
+                f"{counts}")
+
 
 # Per-row keys with their trailing shape and dtype kind ('f' float, 'i' int, 'u' flag).
 ROW_KEYS: dict[str, tuple[tuple[int, ...], str]] = {

@@ -79,6 +79,7 @@ from symrom.data.consistency import (ConsistencyLimits, foot_height, retime_stal
 from symrom.data.dataset import Dataset
 from symrom.data.rawlog import LogError, RawLog, log_kind, sha256_file
 from symrom.data.repair import RepairLimits, repair_log, repairs_record
+from symrom.data.report import ImportReport
 from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
 from symrom.data.segment import SEGMENT, segment_log
 from symrom.data.timebase import METHOD as TIMEBASE_METHOD
@@ -349,7 +350,7 @@ def parse_split(spec: str | None, n_jumps: int) -> np.ndarray:
         vals = []
     if len(parts) != len(SPLITS) or len(vals) != len(SPLITS) or any(
             not math.isfinite(v) or v < 0 for v in vals):
-        raise ValueError(f"--split {spec!r}: expected three non-negative numbers train,val,test "
+        raise ValueError(f"split={spec!r}: expected three non-negative numbers train,val,test "
                          f"(counts like 12,2,1 or fractions like 0.8,0.1,0.1)")
     whole = all(v == int(v) for v in vals)
     if whole and sum(vals) == n_jumps:
@@ -364,15 +365,24 @@ def parse_split(spec: str | None, n_jumps: int) -> np.ndarray:
         empty = [s for s, v, c in zip(SPLITS, vals, counts) if v > 0 and c == 0]
         if empty:  # a split asked for but left without a jump: the evaluation would silently skip it
             got = ", ".join(f"{c} {s}" for s, c in zip(SPLITS, counts))
-            raise ValueError(f"--split {spec!r}: {n_jumps} jumps divide as {got}: the {' and '.join(empty)} "
+            raise ValueError(f"split={spec!r}: {n_jumps} jumps divide as {got}: the {' and '.join(empty)} "
                              f"split{'s are' if len(empty) > 1 else ' is'} empty though asked for; give counts "
                              f"that add up to {n_jumps} (e.g. {_example_counts(n_jumps)}) or import more jumps")
     elif whole:
-        raise ValueError(f"--split {spec!r}: the counts add up to {int(sum(vals))} jumps, "
+        raise ValueError(f"split={spec!r}: the counts add up to {int(sum(vals))} jumps, "
                          f"the logs hold {n_jumps}")
     else:
-        raise ValueError(f"--split {spec!r}: fractions must add up to 1 (they add up to {sum(vals):g})")
+        raise ValueError(f"split={spec!r}: fractions must add up to 1 (they add up to {sum(vals):g})")
     return np.array([s for s, c in zip(SPLITS, counts) for _ in range(c)], dtype=object)
+
+
+def split_counts(spec: str | None, n_jumps: int) -> tuple[int, int, int] | None:
+    """The (train, val, test) jump counts ``spec`` gives ``n_jumps`` jumps (``parse_split``: counts
+    or fractions); None for None."""
+    if spec is None:
+        return None
+    labels = parse_split(spec, n_jumps)
+    return tuple(int((labels == s).sum()) for s in SPLITS)
 
 
 def _example_counts(n: int) -> str:
@@ -413,7 +423,7 @@ def restore_height(lg: RawLog, robot: str, positions: str) -> list[dict]:
     logged: a horizontal shift does not change the dynamics.
     """
     if positions not in POSITIONS:
-        raise ValueError(f"--positions {positions!r}: choose from {', '.join(POSITIONS)}")
+        raise ValueError(f"positions={positions!r}: choose from {', '.join(POSITIONS)}")
     if positions == "absolute":
         return []
     from symrom.data.preprocess import foot_positions_world
@@ -444,7 +454,7 @@ def plausibility(lg: RawLog, robot: str, limits: PlausibilityLimits) -> list[dic
     """The plausibility problems of one log (``checks.check_samples``), each with the
     file's column name, line, jump and row of its first bad value: JSON-ready."""
     out = []
-    for prob in check_samples(robot, lg.q, lg.dq, lg.tau, limits):
+    for prob in check_samples(robot, lg.q, lg.dq, lg.tau, limits, t=lg.t):
         r = prob.first
         j = int(lg.jump[r])
         header = lg.columns[prob.field][prob.index] if lg.columns else prob.name
@@ -459,7 +469,7 @@ def plausibility(lg: RawLog, robot: str, limits: PlausibilityLimits) -> list[dic
 def _refuse(problems: list[dict], what: str = "column") -> None:
     first = problems[0]
     more = len(problems) - 1
-    tail = (f" ({more} more {what}{'s' if more > 1 else ''} fail; --lenient lists them all)" if more else "")
+    tail = (f" ({more} more {what}{'s' if more > 1 else ''} fail; lenient=True lists them all)" if more else "")
     raise LogError(first["message"] + tail)
 
 
@@ -483,7 +493,7 @@ def diff_samples(window: float, dt: float) -> int:
     the differentiation window of ``window`` s at the period ``dt`` s (18 ms: 9 at 500 Hz,
     19 at 1 kHz)."""
     if not (math.isfinite(window) and window > 0):
-        raise ValueError(f"--diff-window {window}: must be a positive number of seconds")
+        raise ValueError(f"diff_window={window}: must be a positive number of seconds")
     return max(3, 2 * math.floor((window / dt - 1) / 2 + 0.5) + 1)
 
 
@@ -506,9 +516,11 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 time_base: TimeBase = TimeBase(), positions: str = "auto",
                 physics: ConsistencyLimits | None = ConsistencyLimits(), segment: str = "auto",
                 retime: bool = False, diff_window: float = DIFF_WINDOW,
-                topics: dict[str, str] | None = None, repair: RepairLimits | None = None) -> Dataset:
+                topics: dict[str, str] | None = None,
+                repair: RepairLimits | None = None) -> tuple[Dataset, ImportReport]:
     """Read logs (CSV, ROS 1/2 bags, MCAP; concatenated as consecutive jumps) into a checked,
-    validated dataset.
+    validated dataset; the dataset and what the import found and did (``ImportReport``, the
+    typed view of the dataset's ``generator`` record).
 
     robot: a built-in name or a robot description file (the wrench uses its URDF,
     the checks its limits); motion: a registered motion, whose phase rule labels
@@ -541,11 +553,11 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     robot = get_robot(robot).key
     get_motion(motion)
     if diff_method not in DIFF_METHODS:
-        raise ValueError(f"unknown differentiation method {diff_method!r}; choose from {DIFF_METHODS}")
+        raise ValueError(f"diff_method={diff_method!r}: unknown differentiation method; choose from {DIFF_METHODS}")
     if positions not in POSITIONS:
-        raise ValueError(f"--positions {positions!r}: choose from {', '.join(POSITIONS)}")
+        raise ValueError(f"positions={positions!r}: choose from {', '.join(POSITIONS)}")
     if segment not in SEGMENT:
-        raise ValueError(f"--segment {segment!r}: choose from {', '.join(SEGMENT)}")
+        raise ValueError(f"segment={segment!r}: choose from {', '.join(SEGMENT)}")
     diff_samples(diff_window, DEFAULT_DT)  # refuse a bad window before any work
     if not paths:
         raise ValueError("no log files given")
@@ -607,7 +619,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 raise TimeBaseError(f"{timing.file}, jump {timing.jump}: logged every "
                                     f"{1e3 * timing.median_dt:.4g} ms (steps deviate up to "
                                     f"{100 * timing.max_deviation:.3g} %), not on the dataset's grid of "
-                                    f"{1e3 * dt:.4g} ms; let the import resample it (without --no-resample) "
+                                    f"{1e3 * dt:.4g} ms; let the import resample it (not resample=False) "
                                     "or import it separately")
             else:
                 timing.stored = "resampled"
@@ -648,16 +660,31 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                     **({"repair": repair.to_dict()} if repair is not None else {})},
         "torques": limits.torques,
         "dt": dt,
-        "time_base": {"dt": dt, "rule": "given (--dt)" if time_base.dt is not None
+        "time_base": {"dt": dt, "rule": "given (dt)" if time_base.dt is not None
                       else "the coarsest jump's period", "method": TIMEBASE_METHOD,
                       "jumps": [x.to_dict() for x in flat]},
         "rebased": restored,
         "segments": segments,
         **({"repairs": repairs_record(repairs, repair)} if repair is not None else {}),
     }
-    return assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
-                    tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,
-                    generator=generator, diff_method=diff_method)
+    ds = assemble(robot=robot, motion=motion, source=source, jump=jump, t=t, q=q, dq=dq,
+                  tau=tau, contact=contact, ddq=ddq, split=splits, dt=dt,
+                  generator=generator, diff_method=diff_method)
+    return ds, ImportReport.from_generator(generator)
+
+
+def import_into(out: str | os.PathLike, paths: list[str | os.PathLike], force: bool = False,
+                **options) -> tuple[Dataset, ImportReport]:
+    """``import_logs`` of ``paths`` written to the dataset file ``out`` (atomically; an existing
+    file only with ``force``, never one of the logs); the dataset and the report."""
+    from symrom.atomic import check_output_file
+    from symrom.data.io import check_dataset_path, write_dataset
+
+    check_dataset_path(out)
+    check_output_file(out, force, inputs=tuple(paths))
+    ds, report = import_logs([str(p) for p in paths], **options)
+    write_dataset(ds, out)
+    return ds, report
 
 
 # ----------------------------------------------------------------- export

@@ -48,13 +48,31 @@ def _attr_str(f, name: str) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
+DATASET_SUFFIXES = (".h5", ".hdf5")
+
+
+def check_dataset_path(path: str | os.PathLike, parameter: str = "out") -> Path:
+    """``path`` as a dataset file's path: ``DatasetError`` naming ``parameter`` unless it ends in
+    ``.h5`` or ``.hdf5`` (a dataset is HDF5, whatever else its name would say)."""
+    path = Path(path)
+    if path.suffix.lower() not in DATASET_SUFFIXES:
+        raise DatasetError(f"{parameter}={path}: a dataset file is HDF5: name it {path.stem}.h5")
+    return path
+
+
 def read_dataset(path: str | os.PathLike) -> Dataset:
     """Read and validate a dataset file; raise ``DatasetError`` with one clear message."""
     import h5py
 
     path = Path(path)
+    if path.is_dir():
+        raise DatasetError(f"{path}: a folder, not a dataset file (HDF5, e.g. data/go1.h5)")
     if not path.is_file():
         raise DatasetError(f"{path}: no such file")
+    head = path.open("rb").read(8)
+    if head.lstrip()[:1] in (b"{", b"["):
+        raise DatasetError(f"{path}: a JSON file, not a dataset file (HDF5); a model file goes where "
+                           "MODEL.json is asked")
     try:
         f = h5py.File(path, "r")
     except OSError as e:

@@ -79,9 +79,9 @@ class TimeBase:
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (np.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"--dt {self.dt}: the sample period must be a positive number of seconds")
+            raise ValueError(f"dt={self.dt}: the sample period must be a positive number of seconds")
         if not self.max_gap > 0:
-            raise ValueError(f"--max-gap {self.max_gap}: must be a positive number of seconds")
+            raise ValueError(f"max_gap={self.max_gap}: must be a positive number of seconds")
         if not self.grid_tol > 0:
             raise ValueError(f"grid tolerance must be a positive number of seconds, got {self.grid_tol}")
         if not self.jitter > 0:
@@ -154,7 +154,7 @@ def check_gaps(timing: JumpTiming, cfg: TimeBase) -> None:
         raise TimeBaseError(
             f"{timing.file}, jump {timing.jump}, line {g['line']}: a gap of {1e3 * g['length']:.3g} ms after "
             f"t = {g['t']:.4f} s (the jump is logged every {1e3 * timing.median_dt:.3g} ms); gaps longer than "
-            f"{1e3 * cfg.max_gap:.3g} ms are not bridged: cut the jump there or raise --max-gap")
+            f"{1e3 * cfg.max_gap:.3g} ms are not bridged: cut the jump there or raise max_gap={cfg.max_gap:g}")
 
 
 def resample_jump(t: np.ndarray, arrays: dict[str, np.ndarray | None], contact: np.ndarray,

@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.evaluate.records import Metrics
 from symrom.names import BASE_POS, Q_NAMES
 from symrom.robots import RobotDescriptionError
 from symrom.robots.stance import leg_length
@@ -164,11 +165,23 @@ def horizon_metrics(ds: Dataset, ro: Rollout, limits: DriftLimits | None = None)
             "components": component_stats(err, ro.components or Q_NAMES)}
 
 
-def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
+def horizons(resets=None) -> tuple[float | None, ...]:
+    """The horizons of an evaluation: the full jump (None), then each reset period of
+    ``resets`` (s; default 0.1) in increasing order, each checked to be a positive number."""
+    import math
+
+    for r in resets or ():
+        if not (math.isfinite(r) and r > 0):
+            raise ValueError(f"resets={r:g}: a reset period must be a positive number of seconds")
+    return (None, *sorted(set(resets or (0.1,))))
+
+
+def evaluate_model(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[float | None, ...] = (None, 0.1),
              options: RolloutOptions = RolloutOptions(), model_name: str = "", data_name: str = "",
              progress: Callable[[int, int], None] | None = None,
-             phases: str = "logged") -> tuple[dict, dict[str, Rollout]]:
-    """Roll out every jump of ``split`` at each horizon; the metrics dict and the rollouts.
+             phases: str = "logged") -> tuple[Metrics, dict[str, Rollout]]:
+    """Roll out every jump of ``split`` at each horizon; the metrics (``Metrics``, what
+    ``metrics.json`` holds: ``to_dict``) and the rollouts by horizon key.
 
     ``progress(done, total)`` counts rolled-out jumps over all horizons (total: jumps x
     horizons), whichever integrator reports them. ``phases``: ``logged`` (the logged phase
@@ -186,7 +199,7 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
                              "trained with this symrom); this model has none")
         if options.method != "rk4":
             raise ValueError(f"predicted phases are rolled out with rk4, not {options.method!r} "
-                             "(--integrator rk4)")
+                             "(integrator='rk4')")
     jumps = ds.jumps_in(split)
     if jumps.size == 0:
         raise ValueError(f"the dataset has no {split!r} jumps")
@@ -211,4 +224,4 @@ def evaluate(model: Rollable, ds: Dataset, split: str = "test", resets: tuple[fl
     if phases == "predicted":  # switching times from the full horizon, rolled out for them if not asked
         ro, predicted = full or predicted_rollout(model, ds, jumps, replace(options, reset=None))
         metrics["switching"] = switching_errors(model, ds, jumps, predicted, np.where(ro.diverged, ro.diverged_at, -1))
-    return metrics, rollouts
+    return Metrics.from_dict(metrics), rollouts

@@ -149,13 +149,13 @@ class Horizon:
     def to_dict(self) -> dict:
         d: dict[str, Any] = {"diverged_jumps": self.diverged_jumps,
                              "diverged": [{"jump": x.jump, "t": x.t} for x in self.diverged]}
+        if self.drifted_jumps is not None:
+            d["drifted_jumps"] = self.drifted_jumps
+            d["drifted"] = [x.to_dict() for x in self.drifted]
         if self.samples is not None:
             d["samples"] = self.samples
         if self.scored_samples is not None:
             d["scored_samples"] = self.scored_samples
-        if self.drifted_jumps is not None:
-            d["drifted_jumps"] = self.drifted_jumps
-            d["drifted"] = [x.to_dict() for x in self.drifted]
         d["components"] = {c: s.to_dict() for c, s in self.components.items()}
         return d | self.extra
 
@@ -182,9 +182,14 @@ class Horizon:
 
 @dataclass(frozen=True)
 class Metrics:
-    """The contents of a ``metrics.json`` (docs/design.md, "Metrics file").
+    """The contents of a ``metrics.json`` (docs/design.md, "Metrics file"): what
+    ``symrom.evaluate.metrics.evaluate_model`` returns.
 
-    horizons: ``full`` and reset periods in s as text (``0.1``), in file order.
+    horizons: ``full`` and reset periods in s as text (``0.1``), in file order; drift_limits:
+    what a rollout may not do unflagged (``DriftLimits.to_dict``; version 3 on); phases: the
+    phase sequence rolled out (``logged`` or ``predicted``); switching: with predicted
+    phases, the switching-time errors per transition (``symrom.evaluate.switching``).
+    ``to_dict`` gives the file's object, in the file's key order.
     """
 
     n_jumps: int
@@ -194,9 +199,13 @@ class Metrics:
     data: str = ""
     integrator: str | None = None
     format_version: int = 1
+    drift_limits: dict | None = None
+    phases: str | None = None
+    switching: dict | None = None
     extra: dict = field(default_factory=dict)
 
-    _KEYS = ("n_jumps", "horizons", "split", "model", "data", "integrator", "format_version")
+    _KEYS = ("n_jumps", "horizons", "split", "model", "data", "integrator", "format_version", "drift_limits",
+             "phases", "switching")
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "metrics") -> Metrics:
@@ -209,7 +218,10 @@ class Metrics:
                    horizons={k: Horizon.from_dict(h, _key(where, f"horizons.{k}")) for k, h in hs.items()},
                    split=_get(d, "split", where, str, "test"), model=_get(d, "model", where, str, ""),
                    data=_get(d, "data", where, str, ""),
-                   integrator=_get(d, "integrator", where, (str, type(None)), None), extra=_rest(d, cls._KEYS))
+                   integrator=_get(d, "integrator", where, (str, type(None)), None),
+                   drift_limits=_get(d, "drift_limits", where, (dict, type(None)), None),
+                   phases=_get(d, "phases", where, (str, type(None)), None),
+                   switching=_get(d, "switching", where, (dict, type(None)), None), extra=_rest(d, cls._KEYS))
 
     @classmethod
     def read(cls, path: str | os.PathLike) -> Metrics:
@@ -228,8 +240,39 @@ class Metrics:
         d |= {"model": self.model, "data": self.data, "split": self.split, "n_jumps": self.n_jumps}
         if self.integrator is not None:
             d["integrator"] = self.integrator
+        if self.drift_limits is not None:
+            d["drift_limits"] = self.drift_limits
+        if self.phases is not None:
+            d["phases"] = self.phases
         d["horizons"] = {k: h.to_dict() for k, h in self.horizons.items()}
+        if self.switching is not None:
+            d["switching"] = self.switching
         return d | self.extra
+
+    @property
+    def full(self) -> Horizon:
+        """The full-horizon results."""
+        return self.horizons["full"]
+
+    def rmse(self, component: str, horizon: str = "full") -> float | None:
+        """The RMSE of ``component`` at ``horizon`` (None if nothing was scored)."""
+        return self.horizons[horizon].stat(component, "rmse")
+
+    def warnings(self) -> list[str]:
+        """One line per horizon with drifted jumps (which, when, the limit passed) and one per
+        horizon with diverged jumps (which, when, what was scored)."""
+        out = []
+        for key, h in self.horizons.items():
+            if h.drifted_jumps:
+                out.append(f"{h.drifted_jumps} of {self.n_jumps} jumps drifted at horizon {key} ({h.drift_text()}): "
+                           "the predicted base left the physically possible (below the ground by more than a leg "
+                           "length, or beyond the jump's range); they are scored")
+            if h.diverged_jumps:
+                share = (f" ({100 * h.scored_samples / h.samples:.1f} % of the split's samples)"
+                         if h.samples and h.scored_samples is not None else "")
+                out.append(f"{h.diverged_jumps} of {self.n_jumps} jumps diverged at horizon {key} "
+                           f"({h.divergence_text()}); each is scored up to its divergence{share}")
+        return out
 
     @property
     def any_diverged(self) -> bool:

@@ -44,12 +44,14 @@ from typing import Any
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.evaluate.metrics import evaluate
+from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.outputs import write_json, write_metrics
+from symrom.evaluate.records import Metrics
 from symrom.learn.encoders import unit_floored
 from symrom.learn.finetune import FineTuneConfig, check_decoder, finetune
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import write_model_files
+from symrom.model.provenance import FineTuneRecord, thaw
 from symrom.names import Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 
@@ -75,9 +77,11 @@ class FineTuneCheck:
 
     def __post_init__(self) -> None:
         if not self.tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {self.tolerance}")
+            raise ValueError(f"tolerance={self.tolerance}: must be >= 0")
         if self.max_raises < 0:
             raise ValueError(f"max_raises must be >= 0, got {self.max_raises}")
+        if self.integrator not in ("lsoda", "rk4"):
+            raise ValueError(f"integrator={self.integrator!r}: choose lsoda or rk4")
 
 
 @dataclass
@@ -87,25 +91,52 @@ class FineTuneResult:
     (``to_dict``) written beside it."""
 
     model: HybridModel
-    before: dict
-    after: dict
+    before: Metrics
+    after: Metrics
     attempts: list[dict]
     check: FineTuneCheck
+    data: str = ""
+    train_rows: str = ""
 
     @property
-    def record(self) -> dict:
-        return self.model.info["finetune"]
+    def record(self) -> FineTuneRecord:
+        return self.model.provenance.finetune
+
+    def messages(self) -> list[tuple[bool, str]]:
+        """The fine-tuning in words, in order: ``(is_warning, line)``: the rows it fitted, the
+        phases kept, the decoder, the val scores, the calibration, and the val divergences."""
+        record = self.to_dict()
+        out: list[tuple[bool, str]] = []
+        if self.train_rows:
+            out.append((False, f"fine-tuning rows (train): {self.train_rows}"))
+        out += [(True, f"phase {name!r}: no rows in the train split of {self.data or 'the data'}: its source "
+                       "coefficients are kept") for name in record["phases_kept"]]
+        dec = record["decoder"]
+        out.append((False, ("decoder: refit towards the source" if dec["refit"] else "decoder: the source's (kept)")
+                    + f"; the rows vary by at least {100 * dec['excitation']:.3g} % of the source's latent spread "
+                    f"in every direction; max |W_d| {dec['max_abs_W_d_source']:.3g} -> {dec['max_abs_W_d']:.3g}"))
+        raised = "" if len(self.attempts) == 1 else (
+            f" (prior weight raised to {record['prior_weight']:g}: at " + ", ".join(
+                f"{a['prior_weight']:g} the score was {a['score']:.4g}" for a in self.attempts[:-1]) + ")")
+        out.append((False, f"refit phases: {', '.join(record['phases_refit'])}; val "
+                           f"({self.before.n_jumps} jumps): score {record['score_before']:.4g} -> "
+                           f"{record['score_after']:.4g} (mean RMSE / spread, both horizons; at most "
+                           f"+{100 * self.check.tolerance:g} % allowed), diverged {record['diverged_before']} -> "
+                           f"{record['diverged_after']}{raised}"))
+        out += calibration_lines(record)
+        out += [(True, w) for w in self.after.warnings()]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         a = self.attempts[-1]
         return {"version": 1, "check": asdict(self.check), "attempts": self.attempts,
                 "prior_weight": a["prior_weight"], "score_before": self.attempts[0]["score_before"],
                 "score_after": a["score"], "diverged_before": self.attempts[0]["diverged_before"],
-                "diverged_after": a["diverged"], "phases_refit": self.record["phases_refit"],
-                "phases_kept": self.record["phases_kept"],
-                "phases_rolled_out": self.record.get("phases_rolled_out", []), "decoder": self.record["decoder"],
-                "flight_gravity": self.record.get("flight_gravity"),
-                **({"calibration": self.record["calibration"]} if "calibration" in self.record else {}),
+                "diverged_after": a["diverged"], "phases_refit": list(self.record.phases_refit),
+                "phases_kept": list(self.record.phases_kept),
+                "phases_rolled_out": list(self.record.phases_rolled_out), "decoder": thaw(self.record.decoder),
+                "flight_gravity": thaw(self.record.flight_gravity),
+                **({"calibration": thaw(self.record.calibration)} if self.record.calibration is not None else {}),
                 "rule": RULE}
 
 
@@ -114,14 +145,14 @@ RULE = ("score: mean over the 18 components of val RMSE / spread, averaged over 
         "above the source's; else the prior weight is raised tenfold")
 
 
-def val_score(metrics: dict, spread: np.ndarray) -> tuple[float, int]:
+def val_score(metrics: Metrics, spread: np.ndarray) -> tuple[float, int]:
     """(score, diverged jumps) of val metrics: mean over horizons of mean(RMSE / spread) over
     the 18 components (inf when nothing could be scored), and the diverged jumps summed."""
     scores, diverged = [], 0
-    for h in metrics["horizons"].values():
-        diverged += h["diverged_jumps"]
-        comps = h["components"]
-        scores.append(float(np.mean([comps[c]["rmse"] / s for c, s in zip(Q_NAMES, spread)]))
+    for h in metrics.horizons.values():
+        diverged += h.diverged_jumps
+        comps = h.components
+        scores.append(float(np.mean([comps[c].rmse / s for c, s in zip(Q_NAMES, spread)]))
                       if comps else float("inf"))
     return float(np.mean(scores)), diverged
 
@@ -134,7 +165,7 @@ def check_data(model: HybridModel, ds: Dataset, config: FineTuneConfig = FineTun
     for split in ("train", "val"):
         if ds.jumps_in(split).size == 0:
             raise FineTuneRefused(f"the data have no {split!r} jumps: fine-tuning fits the train jumps and is "
-                                  "checked on the val jumps (--split at import)")
+                                  "checked on the val jumps (split= at import)")
     model.phase_index(ds, ds.rows_of("train"))
     model.phase_index(ds, ds.rows_of("val"))
     check_decoder(model, ds, ds.rows_of("train"), config)
@@ -150,21 +181,22 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), check.floor)
     options = RolloutOptions(method=check.integrator)
     say("the source model on the val jumps")
-    before, _ = evaluate(model, ds, "val", HORIZONS, options)
+    before, _ = evaluate_model(model, ds, "val", HORIZONS, options)
     score0, div0 = val_score(before, spread)
     attempts = []
     weight = check.config.prior_weight
     for k in range(check.max_raises + 1):
         say(f"fine-tuning (prior weight {weight:g})")
         tuned = finetune(model, ds, config=replace(check.config, prior_weight=weight))
-        after, _ = evaluate(tuned, ds, "val", HORIZONS, options)
+        after, _ = evaluate_model(tuned, ds, "val", HORIZONS, options)
         score, div = val_score(after, spread)
         ok = div <= div0 and score <= score0 * (1.0 + check.tolerance)
         attempts.append({"prior_weight": weight, "score": score, "diverged": div, "score_before": score0,
                          "diverged_before": div0, "accepted": bool(ok)})
         if ok:
-            tuned.info["finetune"]["check"] = {"val_score_before": score0, "val_score_after": score,
-                                               "tolerance": check.tolerance, "prior_weight": weight}
+            tuned = replace(tuned, provenance=tuned.provenance.with_finetune(check={
+                "val_score_before": score0, "val_score_after": score, "tolerance": check.tolerance,
+                "prior_weight": weight}))
             return FineTuneResult(tuned, before, after, attempts, check)
         if check.config.method == "rollout":  # the prior weight does not enter the coefficients' rollout fit
             break
@@ -189,8 +221,72 @@ def write_finetune(folder: str | Path, result: FineTuneResult) -> list[Path]:
     return written
 
 
+def calibration_lines(record: dict) -> list[tuple[bool, str]]:
+    """The calibrated gains per phase, the flight test and the fine-tuned flight gravity of a
+    fine-tuning's record (``FineTuneResult.to_dict``): ``(is_warning, line)``."""
+    out: list[tuple[bool, str]] = []
+    cal = record.get("calibration")
+    for name, p in (cal or {}).get("phases", {}).items():
+        if p["calibrated"]:
+            def values(kind: str, added: list[bool]) -> str:  # "*": a calibration term the source lacked
+                return ", ".join("-" if x is None else f"{x:+.3g}" + ("*" if new else "")
+                                 for x, new in zip(p[kind], added))
+
+            n = len(p["gain"])
+            g = ", ".join("-" if x is None else f"{x:.3g}" for x in p["gain"])
+            o = values("offset", p.get("offset_added", [False] * n))
+            d = values("damping", p.get("damping_added", [False] * n))
+            added = any(p.get("offset_added", [])) or any(p.get("damping_added", []))
+            out.append((False, f"calibrated {name}: input gains [{g}], offsets [{o}] latent units/s², "
+                               f"damping [{d}] 1/s"
+                        + (" (*: a calibration term the source's equation lacked)" if added else "")))
+    rolled = record.get("phases_rolled_out") or []
+    if cal and rolled:
+        out.append((False, f"then refined on rollouts of the train jumps: {', '.join(rolled)} (from the calibrated "
+                           "coefficients; the other phases as calibrated)"))
+    test = (cal or {}).get("flight_test")
+    if test:
+        se = "-" if test["se"] is None else f"{test['se']:.2g}"  # None: a single jump
+        where, verdict = (("beyond", "the data contradict the source, gravity calibrated") if test["contradicted"]
+                          else ("within", "the data do not contradict the source, gravity kept"))
+        out.append((False, f"flight test: decoded z acceleration residual {test['mean']:+.3g} ± {se} m/s² over "
+                           f"{test['jumps']} jumps, {where} the limits of {test['limit']:.2g} m/s² and "
+                           f"{test['t_limit']:g} standard errors: {verdict}"))
+    fg = record.get("flight_gravity")
+    if fg:
+        out.append((False, f"flight gravity: {fg['model']:.3g} m/s² ({100 * fg['ratio']:.1f} % of g; the data "
+                           f"{fg['data']:.3g})"))
+        if abs(fg["ratio"] - 1.0) > 0.05:
+            out.append((True, f"the fine-tuned flight equations fall at {-fg['model']:.3g} m/s², more than 5 % "
+                              f"from g (the data's flight rows: {-fg['data']:.3g} m/s²)"))
+    return out
+
+
+def finetune_into(out: str | Path, model_path: str | Path, data: str | Path, check: FineTuneCheck = FineTuneCheck(),
+                  force: bool = False, progress=None) -> FineTuneResult:
+    """``run_finetune`` of the model file ``model_path`` on the dataset file ``data``, written as
+    the folder ``out`` (``write_finetune``; atomically, an existing folder only with ``force``,
+    never one holding an input); the result, whose model records both files. Refused before
+    any work: an output in the way, data that cannot fine-tune the model (``check_data``)."""
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
+    from symrom.model.persistence import load_model
+
+    check_output_file(out, force, inputs=(model_path, data))
+    model = load_model(model_path)
+    ds = read_dataset(data)
+    check_data(model, ds, check.config)
+    result = run_finetune(model, ds, check, progress=progress)
+    tuned = result.model
+    tuned = replace(tuned, provenance=tuned.provenance.with_finetune(path=str(data), source_model=str(model_path)))
+    result = replace(result, model=tuned, data=str(data), train_rows=ds.phase_rows(ds.rows_of("train")))
+    with atomic_dir(out, force) as tmp:
+        write_finetune(tmp, result)
+    return result
+
+
 def _others(method: str) -> str:
     """What else could be tried after ``method`` was refused."""
     from symrom.learn.finetune import FINETUNE_METHODS
 
-    return "; " + " or ".join(f"--method {m}" for m in FINETUNE_METHODS if m != method) + " fit otherwise"
+    return "; " + " or ".join(f"method={m!r}" for m in FINETUNE_METHODS if m != method) + " fit otherwise"

@@ -72,15 +72,17 @@ from typing import Any
 
 import numpy as np
 
-from symrom.atomic import atomic_dir, write_text_atomic
+from symrom.atomic import atomic_dir, check_output_file, write_text_atomic
 from symrom.data.dataset import Dataset
-from symrom.evaluate.metrics import evaluate
+from symrom.data.io import read_dataset
+from symrom.evaluate.metrics import evaluate_model
 from symrom.execution import Backend, LocalBackend
 from symrom.experiments.grid import Store, run_grid
 from symrom.learn.encoders import unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import write_model_files
+from symrom.model.provenance import SelectionRecord
 from symrom.names import BASE_NAMES, FLIGHT_PHASE, Q_NAMES, STANCE_PHASE
 from symrom.rollout.integrate import RolloutOptions
 
@@ -186,11 +188,11 @@ class SelectionConfig:
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must be >= 0, got {self.tolerance}")
         if self.workers < 1:
-            raise ValueError(f"workers must be at least 1, got {self.workers}")
+            raise ValueError(f"workers={self.workers}: the number of workers must be at least 1")
         if self.refine_top < 0:
             raise ValueError(f"refine_top must be >= 0, got {self.refine_top}")
         if self.max_terms is not None and self.max_terms < 1:
-            raise ValueError(f"max_terms must be at least 1, got {self.max_terms}")
+            raise ValueError(f"max_terms={self.max_terms}: must be a positive number of terms")
         if self.reference is not None:
             keys = {"full", "0.1"}
             if set(self.reference) != keys:
@@ -240,17 +242,16 @@ def score_model(model: HybridModel, ds: Dataset, yardstick: dict[str, dict[str, 
     over the yardstick's components), ``worst`` (their largest ratio), the diverged jumps
     and the RMSE of every component (ratios None if any jump diverged); ``score``, the
     mean over horizons (None if any diverged)."""
-    metrics, _ = evaluate(model, ds, "val", HORIZONS, RolloutOptions("rk4", substeps=substeps))
+    metrics, _ = evaluate_model(model, ds, "val", HORIZONS, RolloutOptions("rk4", substeps=substeps))
     out: dict[str, Any] = {"horizons": {}}
     scores = []
-    for key, h in metrics["horizons"].items():
-        comps = h["components"]
-        rmse = {n: comps[n]["rmse"] for n in Q_NAMES} if comps else None
+    for key, h in metrics.horizons.items():
+        rmse = {n: h.components[n].rmse for n in Q_NAMES} if h.components else None
         ratio = (np.array([rmse[c] / v for c, v in yardstick[key].items()])
-                 if rmse is not None and not h["diverged_jumps"] else None)
+                 if rmse is not None and not h.diverged_jumps else None)
         out["horizons"][key] = {"score": None if ratio is None else float(ratio.mean()),
                                 "worst": None if ratio is None else float(ratio.max()),
-                                "diverged_jumps": h["diverged_jumps"], "rmse": rmse}
+                                "diverged_jumps": h.diverged_jumps, "rmse": rmse}
         scores.append(out["horizons"][key]["score"])
     out["score"] = None if any(s is None for s in scores) else float(np.mean(scores))
     return out
@@ -277,12 +278,11 @@ def run_cell(ds: Dataset, cfg: SelectionConfig, encoder: str, l: int, library: s
     yardstick = cfg.yardstick(ds)
     t0 = time.perf_counter()
     configs = [cfg.train_config(encoder, l, library, t) for t in cfg.thresholds]
-    models = configs[0].estimator().fit_variants(ds, [c.regressor() for c in configs], info={
-        "training": asdict(configs[0]), "solver": "exact", "seed": configs[0].seed})
+    models = configs[0].estimator().fit_variants(ds, [c.regressor() for c in configs])
     share = (time.perf_counter() - t0) / len(models)  # the shared fit, split between the thresholds
     rows = []
     for c, model in zip(configs, models):
-        model.info["training"] = asdict(c)
+        model = replace(model, provenance=model.provenance.with_settings(asdict(c)))
         t1 = time.perf_counter()
         scored = score_model(model, ds, yardstick, cfg.substeps)
         rows.append(_row(cfg, encoder, l, library, c.threshold, False, model, scored,
@@ -387,6 +387,15 @@ class Selection:
         """The score and the choice, in words."""
         return selection_rule(self.config)
 
+    def summary(self) -> str:
+        """The chosen candidate in one line: its settings, terms and val score."""
+        if self.chosen is None:
+            return f"none of {len(self.rows)} candidate models chosen: every one diverged on a validation jump"
+        r = self.rows[self.chosen]
+        return (f"chosen of {len(self.rows)} candidate models: encoder {r['encoder']}, l={r['latent_dim']}, "
+                f"{r['library']}, threshold {r['threshold']:g}, refined {'yes' if r['refine'] else 'no'}; "
+                f"{r['active_terms']} active terms, val score {r['score']:.3g} ({self.seconds:.0f} s)")
+
     def to_dict(self) -> dict[str, Any]:
         return {"version": SELECTION_VERSION, "config": asdict(self.config), "data_sha256": self.data_sha256,
                 "rule": self.rule(),
@@ -455,8 +464,8 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
         r = rows[chosen]
         model = refined_models.get(chosen) or train(
             ds, cfg.train_config(r["encoder"], r["latent_dim"], r["library"], r["threshold"], r["refine"]))
-        model.info["selection"] = {k: r[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine",
-                                                     "score", "active_terms")}
+        model = replace(model, provenance=model.provenance.with_selection(SelectionRecord(
+            **{k: r[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine", "score", "active_terms")})))
     execution = {**backend.describe(), "cells_run": len(todo), "cells_reused": len(cells) - len(todo),
                  "retries": retries}
     return Selection(rows, chosen, model, cfg, sha, time.perf_counter() - t0, notes, execution)
@@ -479,34 +488,48 @@ def parts_dir(out: str | Path) -> Path:
     return Path(str(out) + ".parts")
 
 
-def check_parts(out: str | Path, resume: bool, force: bool) -> Path:
-    """The cells folder of ``out``; ValueError if it holds an interrupted selection that
-    neither ``resume`` continues nor ``force`` discards (checked before any work)."""
+def check_parts(out: str | Path, resume: bool, force: bool, inputs: tuple = ()) -> Path:
+    """The cells folder of ``out``; ValueError if ``out`` exists (without ``force``) or is one of
+    ``inputs``, or if its cells folder holds an interrupted selection that neither ``resume``
+    continues nor ``force`` discards (checked before any work)."""
+    check_output_file(out, force, inputs=inputs)
     parts = parts_dir(out)
     if parts.exists() and not resume and not force:
-        raise ValueError(f"{parts} holds an interrupted selection; use --resume to continue it or --force "
-                         "to start over")
+        raise ValueError(f"{parts} holds an interrupted selection; resume=True continues it, force=True "
+                         "starts over")
     return parts
 
 
-def select_into(out: str | Path, ds: Dataset, cfg: SelectionConfig = SelectionConfig(), resume: bool = False,
-                force: bool = False, progress: Callable[[int, int, str], None] | None = None,
-                backend: Backend | None = None, info: dict | None = None) -> Selection:
+class NoCandidateError(ValueError):
+    """Every candidate of a selection diverged on a validation jump: no model was chosen."""
+
+
+def select_into(out: str | Path, data: Dataset | str | Path, cfg: SelectionConfig = SelectionConfig(),
+                resume: bool = False, force: bool = False, progress: Callable[[int, int, str], None] | None = None,
+                backend: Backend | None = None) -> Selection:
     """The selection's folder ``out``, written atomically: ``selection.json``
-    (``write_selection``) and the chosen model (``model.json``,
-    ``equations.txt``; ``info`` merged into its record), if any candidate stood.
+    (``write_selection``) and the chosen model (``model.json``, ``equations.txt``).
+    ``data``: the dataset or its file (then recorded in the model as where it was trained).
+    Raises ``NoCandidateError`` (after writing the table) when every candidate diverged.
 
     Each finished cell is kept in ``out.parts`` (``parts_dir``) until the folder is
     written, so that ``resume`` continues an interrupted selection; ``force`` starts over
     (and replaces ``out``). The parts are removed once the folder is in place."""
-    parts = check_parts(out, resume, force)
+    path = None if isinstance(data, Dataset) else Path(data)
+    parts = check_parts(out, resume, force, inputs=() if path is None else (path,))
+    ds = data if path is None else read_dataset(path)
+    check_splits(ds)
     if parts.exists() and not resume:
         shutil.rmtree(parts)  # force: start over
     sel = select(ds, cfg, progress=progress, backend=backend, cells_dir=parts)
     with atomic_dir(Path(out), force) as tmp:
         write_selection(sel, tmp)
         if sel.model is not None:
-            sel.model.info.update(info or {})
+            if path is not None:
+                sel = replace(sel, model=replace(sel.model, provenance=sel.model.provenance.with_data_path(str(path))))
             write_model_files(sel.model, tmp)
     shutil.rmtree(parts, ignore_errors=True)
+    if sel.model is None:
+        raise NoCandidateError(f"every one of the {len(sel.rows)} candidate models diverged on a validation jump; "
+                               f"the table is in {Path(out) / 'selection.json'}")
     return sel

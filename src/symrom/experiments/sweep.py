@@ -157,7 +157,7 @@ def cell_key(config: SweepConfig, data_sha256: str, latent_dim: int, seed: int) 
 
 def run_cell(ds: Dataset, config: SweepConfig, latent_dim: int, seed: int) -> dict[str, Any]:
     """Train one (latent_dim, seed) model and measure it; a JSON-ready dict."""
-    from symrom.evaluate.metrics import evaluate
+    from symrom.evaluate.metrics import evaluate_model
     from symrom.rollout.integrate import RolloutOptions
 
     t0 = time.perf_counter()
@@ -176,12 +176,11 @@ def run_cell(ds: Dataset, config: SweepConfig, latent_dim: int, seed: int) -> di
                             "active_terms_per_phase": per_phase,
                             "rmse_test": None, "test_diverged_jumps": None}
     if config.rmse_test and ds.jumps_in("test").size:
-        metrics, _ = evaluate(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
-        full = metrics["horizons"]["full"]
-        comps = full["components"]
-        cell["test_diverged_jumps"] = full["diverged_jumps"]
-        if comps:
-            cell["rmse_test"] = float(np.mean([comps[c]["rmse"] for c in TABLE2_COMPONENTS]))
+        metrics, _ = evaluate_model(model, ds, "test", resets=(None,), options=RolloutOptions(method="rk4"))
+        full = metrics.full
+        cell["test_diverged_jumps"] = full.diverged_jumps
+        if full.components:
+            cell["rmse_test"] = float(np.mean([full.components[c].rmse for c in TABLE2_COMPONENTS]))
     cell["seconds"] = round(time.perf_counter() - t0, 3)
     return cell
 
@@ -243,3 +242,11 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
     result = summarise(grid.results, config, sha)
     write_text_atomic(out / "sweep.json", json.dumps(result, indent=1) + "\n")
     return result
+
+
+def sweep_lines(result: dict, lam: float) -> list[str]:
+    """A sweep's result (``sweep.json``'s dict) in words: one line per latent dimension (E_dec,
+    |Xi|, L_mod), then the best dimension by L_mod."""
+    lines = [f"l={d:2d}  E_dec {e:.3e}  |Xi| {a:7.1f}  L_mod {lm:.4e}" for d, e, a, lm in
+             zip(result["latent_dims"], result["E_dec_mean"], result["active_terms_mean"], result["L_mod"])]
+    return lines + [f"best latent dimension: {result['best_latent_dim']} (lambda {lam:g})"]

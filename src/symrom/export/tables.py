@@ -95,7 +95,7 @@ def robot_chains(model: HybridModel) -> LegChains | None:
     description."""
     from symrom.robots import RobotDescriptionError, leg_kinematics
 
-    robot = model.info.get("robot")
+    robot = model.provenance.data.robot
     if robot is None:
         return None
     try:

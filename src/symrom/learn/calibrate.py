@@ -205,6 +205,6 @@ def nothing_to_adapt() -> CalibrationError:
     return CalibrationError(
         "calibration has nothing to adapt: the fine-tuning rows hold no phase whose equations have an input "
         "term, a constant or their own velocity term (a flight phase keeps its gravity), and the decoder is "
-        "kept; refit the decoder (without --keep-decoder), or use --method calibrate_rollout (the non-flight "
-        "phases refined on rollouts, the flight kept), --method acceleration (every coefficient, pulled towards "
-        "the source) or --method rollout")
+        "kept; refit the decoder (not refit_decoder=False), or use method='calibrate_rollout' (the non-flight "
+        "phases refined on rollouts, the flight kept), method='acceleration' (every coefficient, pulled towards "
+        "the source) or method='rollout'")

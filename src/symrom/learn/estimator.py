@@ -10,11 +10,16 @@ settings until ``fit``; its parts are plug-ins:
 - ``regressor``: step (c) (``symrom.learn.regressors``): ``STLSQ``, ``Adam``,
   ``FineTune`` (towards a prior model) or ``Refine`` (rollout-aware).
 
-``fit(ds)`` trains on the ``train`` split and leaves the fitted model in
-``model_`` (a ``HybridModel``, what a model file holds). Then ``predict``
-gives latent accelerations, ``simulate`` rolls the model out along logged
-jumps, ``equations`` prints it, ``stability`` linearises it, and ``save`` /
-``load`` go through the versioned JSON model file.
+``SymbolicROM`` is the one entry point for a model: ``fit(ds)`` trains on the
+``train`` split and leaves the fitted model in ``model`` (a ``HybridModel``,
+what a model file holds; its ``provenance`` says where it comes from);
+``from_config`` builds the estimator a flat ``TrainConfig`` (the command
+line's settings) describes; ``load`` reads any model file and ``save`` writes
+one. Then ``predict`` gives latent accelerations, ``simulate`` rolls the model
+out along logged jumps, ``equations`` gives its equations (an ``Equations``
+record: per phase the sympy right-hand sides; it prints as text),
+``stability`` linearises it. ``symrom.evaluate.metrics.evaluate_model`` scores
+it (or any model that can be rolled out) on a split.
 
 Example::
 
@@ -47,6 +52,7 @@ from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.guards import Guard
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
+from symrom.model.provenance import DataRecord, Provenance, TrainingRecord, freeze, thaw
 from symrom.names import Q_NAMES, STANCE_PHASE
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
@@ -128,16 +134,26 @@ class SymbolicROM:
     decoded-acceleration term ||ddq - W_d Theta Xi||^2 of the SINDy loss (1 = the
     paper); contact_phase: the phase that trains the encoder in step (a);
     path_thresholds: if set (and the regressor is ``STLSQ``), record each phase's
-    sparsity path over these thresholds with its validation error."""
+    sparsity path over these thresholds with its validation error; settings: the flat
+    settings it was built from (``TrainConfig.estimator`` sets them: a ``TrainConfig``'s
+    fields), recorded in the fitted model's provenance."""
 
     latent_dim: int = 2
     library: LibrarySpec | TermBlock = field(default_factory=LibrarySpec.standard)
-    encoder: PCAEncoder | AdamAutoencoder = field(default_factory=PCAEncoder)
-    regressor: Regressor = field(default_factory=STLSQ)
+    encoder: PCAEncoder | AdamAutoencoder | None = field(default_factory=PCAEncoder)
+    regressor: Regressor | None = field(default_factory=STLSQ)
     decoded_weight: float = 1.0
     contact_phase: str = STANCE_PHASE
     path_thresholds: tuple[float, ...] | None = None
+    settings: dict | None = field(default=None, repr=False)
     model_: HybridModel | None = field(default=None, init=False, repr=False)
+
+    @classmethod
+    def from_config(cls, config, progress: Progress | None = None) -> SymbolicROM:
+        """The estimator a flat ``TrainConfig`` (``symrom.learn.training``, the command line's
+        settings) describes, its settings recorded in the models it fits; ``progress`` is the
+        gradient solver's."""
+        return config.estimator(progress)
 
     def __post_init__(self) -> None:
         if isinstance(self.library, TermBlock):
@@ -148,26 +164,28 @@ class SymbolicROM:
             raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
 
     # ------------------------------------------------------------------ fit
-    def fit(self, ds: Dataset, rows: np.ndarray | None = None, progress: Progress | None = None,
-            info: dict | None = None) -> SymbolicROM:
+    def fit(self, ds: Dataset, rows: np.ndarray | None = None, progress: Progress | None = None) -> SymbolicROM:
         """Train on the ``train`` split of ``ds`` (or on boolean ``rows`` (N,)); sets ``model_``.
 
         A phase of ``ds`` without training rows is kept untrained (its equations are
         zero and rollouts through it are refused); ``model_.trained_phases()`` lists
-        the others. ``info`` is merged into the model's record.
+        the others. The model's ``provenance`` records the data and the training.
         """
+        if self.encoder is None or self.regressor is None:
+            raise ValueError("this SymbolicROM was loaded from a model file that records no plug-ins (format 2 or "
+                             "older): set its encoder and regressor to fit it again")
         say = progress or (lambda stage, frac: None)
         prepared = self._prepare(ds, rows, say, getattr(self.regressor, "needs_trajectories", False))
-        self.model_ = self._finish(prepared, self.regressor, info, say)
+        self.model_ = self._finish(prepared, self.regressor, say)
         return self
 
-    def fit_variants(self, ds: Dataset, regressors: list[Regressor], rows: np.ndarray | None = None,
-                     info: dict | None = None) -> list[HybridModel]:
+    def fit_variants(self, ds: Dataset, regressors: list[Regressor],
+                     rows: np.ndarray | None = None) -> list[HybridModel]:
         """One model per regressor, all on this estimator's encoder and library fitted once to
         the same rows (what a sparsity path or a selection grid needs); ``model_`` unchanged."""
         say = lambda stage, frac: None  # noqa: E731
         prepared = self._prepare(ds, rows, say, any(getattr(r, "needs_trajectories", False) for r in regressors))
-        return [self._finish(prepared, r, info, say) for r in regressors]
+        return [self._finish(prepared, r, say) for r in regressors]
 
     def _prepare(self, ds: Dataset, rows: np.ndarray | None, say: Progress, with_trajectories: bool) -> dict:
         """Steps (a) and (b), and the regression problem of step (c)."""
@@ -196,19 +214,22 @@ class SymbolicROM:
             r = ds.phase[rows] == k
             phases.append((int(r.sum()), np.concatenate([xi[r].mean(0), dxi[r].mean(0), nu[r].mean(0)])
                            if r.any() else None, _median_stay(ds, rows, k)))
-        record = {"robot": ds.robot, "motion": ds.motion, "source": ds.source, "dt": ds.dt,
-                  "q_names": list(Q_NAMES), "data_sha256": data_hash(ds), "n_train_rows": int(rows.sum()),
-                  "n_train_jumps": int(np.unique(ds.jump[rows]).size),
-                  "encoder_rows": (f"the {self.contact_phase!r} phase" if has_contact
-                                   else f"all training rows (they hold no {self.contact_phase!r} row)"),
-                  "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist()}
+        data = DataRecord(robot=ds.robot, motion=ds.motion, source=ds.source, dt=ds.dt, q_names=tuple(Q_NAMES),
+                          sha256=data_hash(ds), train_rows=int(rows.sum()),
+                          train_jumps=int(np.unique(ds.jump[rows]).size))
+        training = TrainingRecord(settings=freeze(self.settings),
+                                  encoder_rows=(f"the {self.contact_phase!r} phase" if has_contact
+                                                else f"all training rows (they hold no {self.contact_phase!r} row)"),
+                                  latent_mean=tuple(xi.mean(axis=0).tolist()),
+                                  latent_spread=tuple(xi.std(axis=0).tolist()))
         say("contact guards", 0.8)
         guards = learn_guards(ds, rows, val_rows, ae)
-        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record, "guards": guards,
+        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "data": data, "training": training,
+                "guards": guards,
                 "phase_names": list(ds.phase_names),
                 "scale": np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)}
 
-    def _finish(self, prep: dict, regressor: Regressor, info: dict | None, say: Progress) -> HybridModel:
+    def _finish(self, prep: dict, regressor: Regressor, say: Progress) -> HybridModel:
         """Step (c) with ``regressor`` on a prepared problem: the fitted model."""
         if isinstance(regressor, Adam) and isinstance(self.encoder, AdamAutoencoder):
             # One torch stream for the whole run, as in the paper's training.
@@ -224,11 +245,11 @@ class SymbolicROM:
                 report["path"] = paths[name]
             phase_info[name] = PhaseInfo(trained=n_rows > 0, n_rows=n_rows, operating_point=op,
                                          duration_s=stay, report=report)
-        record = {**prep["record"],
-                  "untrained_phases": [n for n, p in phase_info.items() if not p.trained], **(info or {})}
+        training = replace(prep["training"], untrained_phases=tuple(n for n, p in phase_info.items() if not p.trained))
         say("done", 1.0)
         return HybridModel(prep["ae"], prep["lib"], list(prep["phase_names"]), coefs.Xi, coefs.mask,
-                           prep["scale"].copy(), record, phase_info, self.to_dict(regressor),
+                           prep["scale"].copy(), Provenance(prep["data"], training), phase_info,
+                           self.to_dict(regressor),
                            [replace(g) for g in prep["guards"]])
 
     # ------------------------------------------------------------------ configuration
@@ -256,14 +277,19 @@ class SymbolicROM:
         return m.latent_acceleration(ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]),
                                      ae.encode_input(ds.u[rows]), m.phase_index(ds, rows))
 
-    def simulate(self, ds: Dataset, jumps=None, reset: float | None = None, method: str = "rk4"):
-        """Roll the model out along logged ``jumps`` (default: all); a ``Rollout``."""
+    def simulate(self, ds: Dataset, jumps=None, reset: float | None = None, method: str = "rk4", options=None):
+        """Roll the model out along logged ``jumps`` of ``ds`` (default: all), resetting to the
+        logged state every ``reset`` s (None: the full jump), with ``method`` (``rk4`` or
+        ``lsoda``) or every setting of ``options`` (a ``RolloutOptions``); a ``Rollout``
+        (predicted q (n, 18) per jump, divergences)."""
         from symrom.rollout.integrate import RolloutOptions, rollout
 
-        return rollout(self.model, ds, jumps, RolloutOptions(method=method, reset=reset))
+        return rollout(self.model, ds, jumps, options or RolloutOptions(method=method, reset=reset))
 
-    def equations(self, latex: bool = False, digits: int = 3) -> str:
-        return self.model.equations_text(latex=latex, digits=digits)
+    def equations(self, digits: int = 3):
+        """The fitted model's equations (``symrom.model.expressions.Equations``): per phase its
+        sympy right-hand sides; ``str()`` is their text, ``latex()`` their LaTeX."""
+        return self.model.equations(digits)
 
     def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None, **kwargs):
         """Free prediction from (q0, dq0) with one's own inputs: ``HybridModel.predict_path``."""
@@ -287,26 +313,31 @@ class SymbolicROM:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> SymbolicROM:
-        """A fitted estimator from a model file, with the exact plug-ins recorded there;
-        ``ModelFileError`` naming the key when the file does not record one (no default
-        is put in its place)."""
+        """A fitted estimator from any model file (``symrom.model.persistence``: every format),
+        with the exact plug-ins recorded there. ``ModelFileError`` naming the key when the file
+        records plug-ins it cannot restore, or records one of them and not the other; a file
+        older than the plug-in records (format 1 and 2 without them) gives an estimator whose
+        plug-ins are None: its model is used as it is, and ``fit`` asks for them."""
         from symrom.model.persistence import ModelFileError, load_model
 
         model = load_model(path)
         est = model.estimator
-        for key in ("encoder", "regressor"):
-            if key not in est:
-                raise ModelFileError(f"{path}: estimator.{key}: not recorded (a model not fitted by "
-                                     "SymbolicROM); use symrom.load_model for the model alone")
-        try:
-            encoder = encoder_from_dict(est["encoder"], "estimator.encoder")
-            regressor = regressor_from_dict(est["regressor"], "estimator.regressor")
-        except PluginConfigError as e:
-            raise ModelFileError(f"{path}: {e}") from None
+        encoder = regressor = None
+        if "encoder" in est or "regressor" in est:
+            for key in ("encoder", "regressor"):
+                if key not in est:
+                    raise ModelFileError(f"{path}: estimator.{key}: not recorded (the file records the other "
+                                         "plug-in only)")
+            try:
+                encoder = encoder_from_dict(est["encoder"], "estimator.encoder")
+                regressor = regressor_from_dict(est["regressor"], "estimator.regressor")
+            except PluginConfigError as e:
+                raise ModelFileError(f"{path}: {e}") from None
         paths = est.get("path_thresholds")
         rom = cls(latent_dim=model.latent_dim, library=model.library.spec, encoder=encoder, regressor=regressor,
                   decoded_weight=float(est.get("decoded_weight", 1.0)),
                   contact_phase=str(est.get("contact_phase", "contact")),
-                  path_thresholds=None if paths is None else tuple(float(t) for t in paths))
+                  path_thresholds=None if paths is None else tuple(float(t) for t in paths),
+                  settings=thaw(model.provenance.training.settings))
         rom.model_ = model
         return rom

@@ -8,7 +8,7 @@ learned term, stay those of the source model. On the new jumps' rows:
   source's training latents, had been decoded by the source decoder:
   min ||q - W_d (xi - m) - c||^2 + r N (sum_i s_i^2 ||W_d[:, i] - W_d0[:, i]||^2
   + ||c - c0||^2), with m the new rows' latent mean, s the source's latent
-  spread (its ``info.latent_spread``; older model files: the largest |xi|),
+  spread (its ``provenance.training.latent_spread``; older model files: the largest |xi|),
   c0 = W_d0 m + B_d0 and B_d = c - W_d m. Along a latent direction the new
   rows barely move in, the source decoder is kept. If the new rows vary, along
   some latent direction, by less than ``decoder_min_spread`` of the source's
@@ -20,7 +20,7 @@ learned term, stay those of the source model. On the new jumps' rows:
   ``decoded_weight``), pulled towards the source coefficients,
   + r ||Xi - Xi_0||^2, starting from the source support (terms may drop
   out, none are added). A phase the new rows do not hold keeps the source
-  coefficients (``info.finetune.phases_kept``).
+  coefficients (``provenance.finetune.phases_kept``).
 
 Both are closed form. ``prior_weight`` sets r relative to the data: 0 refits
 from the new rows alone, large values keep the source model. Phases are
@@ -68,6 +68,7 @@ from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
+from symrom.model.provenance import FineTuneRecord, freeze
 from symrom.names import FLIGHT_PHASE
 
 
@@ -120,7 +121,7 @@ def source_spread(model: HybridModel) -> np.ndarray:
     """(l,) the spread of the source's training latents: its recorded standard deviation,
     or for model files without it the largest |xi| seen in training."""
     l = model.latent_dim
-    s = model.info.get("latent_spread")
+    s = model.provenance.training.latent_spread
     s = np.asarray(s, dtype=float) if s is not None and len(s) == l else np.asarray(model.latent_scale[:l])
     return np.maximum(s, 1e-12)
 
@@ -179,7 +180,7 @@ def check_decoder(model: HybridModel, ds: Dataset, rows: np.ndarray, config: Fin
             f"the fine-tuning rows cannot determine the decoder: along the latent direction "
             f"({terms.lstrip('+')}) they vary by {100 * excitation:.2g} % of the source's training spread "
             f"(at least {100 * config.decoder_min_spread:g} % is needed); keep the source decoder "
-            "(--keep-decoder) or add rows that move along it")
+            "(refit_decoder=False) or add rows that move along it")
     return excitation
 
 
@@ -246,7 +247,7 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
 def _finetuned(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTuneConfig,
                ae: LinearAutoencoder, Xi: np.ndarray, mask: np.ndarray, phases: list, decoder: dict,
                calibration: dict | None = None, regressor: dict | None = None) -> HybridModel:
-    """The fine-tuned model and its ``info.finetune`` record (with the regressor's record, the
+    """The fine-tuned model and its ``provenance.finetune`` record (with the regressor's record, the
     calibration's, the phases fitted to rollouts, ``phases_rolled_out``, and the decoded flight
     acceleration on the rows' flight rows, ``flight_gravity``)."""
     held = [n for n, p in zip(model.phase_names, phases) if p is not None]
@@ -254,16 +255,10 @@ def _finetuned(model: HybridModel, ds: Dataset, rows: np.ndarray, config: FineTu
               [n for n in held if n not in regressor.get("hold", [])])
     refit = held if calibration is None else [n for n in held if calibration["phases"][n]["calibrated"]]
     n_rows = {n: int(p.theta.shape[0]) for n, p in zip(model.phase_names, phases) if p is not None}
-    info = dict(model.info)
-    info["finetune"] = {"config": asdict(config), "regressor": regressor, "data_sha256": data_hash(ds),
-                        "source": ds.source, "n_rows": int(rows.sum()),
-                        "base_data_sha256": model.info.get("data_sha256"),
-                        "phases_refit": refit, "rows_per_phase": n_rows,
-                        "phases_kept": [n for n in model.phase_names if n not in held],
-                        "phases_rolled_out": rolled,
-                        "decoder": decoder}
-    if calibration is not None:
-        info["finetune"]["calibration"] = calibration
-    tuned = replace(model, autoencoder=ae, Xi=Xi, mask=mask, info=info)
-    info["finetune"]["flight_gravity"] = flight_gravity(tuned, ds, rows)
-    return tuned
+    record = FineTuneRecord(config=freeze(asdict(config)), regressor=freeze(regressor), data_sha256=data_hash(ds),
+                            source=ds.source, n_rows=int(rows.sum()), base_data_sha256=model.provenance.data.sha256,
+                            phases_refit=tuple(refit), rows_per_phase=freeze(n_rows),
+                            phases_kept=tuple(n for n in model.phase_names if n not in held),
+                            phases_rolled_out=tuple(rolled), decoder=freeze(decoder), calibration=freeze(calibration))
+    tuned = replace(model, autoencoder=ae, Xi=Xi, mask=mask, provenance=model.provenance.with_finetune(record))
+    return replace(tuned, provenance=tuned.provenance.with_finetune(flight_gravity=flight_gravity(tuned, ds, rows)))

@@ -26,7 +26,8 @@ blocks (``poly_order``, ``trig``, ``inputs``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+import os
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -39,10 +40,11 @@ from symrom.learn.regressors.base import Regressor
 from symrom.learn.regressors.stlsq import STLSQ, check_measure
 from symrom.model.hybrid import HybridModel
 from symrom.model.library import LibrarySpec
+from symrom.model.provenance import Provenance, thaw
 from symrom.names import STANCE_PHASE
 
 __all__ = ["AdamConfig", "SOLVERS", "TrainConfig", "contact_rows", "data_hash", "fit_decoder",
-           "principal_encoder", "reconstruction_error", "train", "varimax"]
+           "principal_encoder", "reconstruction_error", "train", "train_into", "varimax"]
 
 SOLVERS = ("exact", "adam")
 
@@ -94,7 +96,9 @@ class TrainConfig:
         if self.solver not in SOLVERS:
             raise ValueError(f"unknown solver {self.solver!r}; choose from {SOLVERS}")
         if not 1 <= self.latent_dim <= 18:
-            raise ValueError(f"latent_dim must be within 1..18, got {self.latent_dim}")
+            raise ValueError(f"latent_dim={self.latent_dim}: must be within 1..18")
+        if not self.threshold >= 0:  # checked here, before any data is read
+            raise ValueError(f"threshold={self.threshold:g}: a sparsity threshold must be >= 0")
         if isinstance(self.adam, dict):
             self.adam = AdamConfig(**self.adam)
         self.encoder_components = check_components(self.encoder_components, self.latent_dim)
@@ -106,21 +110,23 @@ class TrainConfig:
             raise ValueError(f"encoder_scaling must be one of {SCALINGS}, got {self.encoder_scaling!r}")
         check_measure(self.measure)
         if not self.alpha >= 0:
-            raise ValueError(f"alpha must be >= 0, got {self.alpha}")
+            raise ValueError(f"alpha={self.alpha:g}: must be >= 0")
         if not self.decoded_weight >= 0:
-            raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
+            raise ValueError(f"decoded_weight={self.decoded_weight:g}: must be >= 0")
         if self.collinearity is not None and not 0 < self.collinearity <= 1:
-            raise ValueError(f"collinearity must lie in (0, 1], got {self.collinearity}")
+            raise ValueError(f"collinearity={self.collinearity:g}: must lie in (0, 1]")
         if self.path is not None:
             self.path = tuple(float(t) for t in self.path)
         if self.refine and self.solver != "exact":
             raise ValueError("refine applies to the exact solver")
-        if self.max_terms is not None and (not self.refine or self.max_terms < 1):
-            raise ValueError(f"max_terms ({self.max_terms}) is a budget of the refinement: needs refine and "
-                             "at least 1")
+        if self.max_terms is not None and self.max_terms < 1:
+            raise ValueError(f"max_terms={self.max_terms}: must be a positive number of terms")
+        if self.max_terms is not None and not self.refine:
+            raise ValueError(f"max_terms={self.max_terms}: a budget of the refinement; needs refine=True (or "
+                             "select=True, where it is the budget of the selection's refinements)")
         self.polish = tuple(self.polish)
         if self.polish and not self.refine:
-            raise ValueError(f"polish ({list(self.polish)}) is a stage of the refinement: needs refine")
+            raise ValueError(f"polish={','.join(self.polish)}: a stage of the refinement; needs refine=True")
 
     def regressor(self) -> Regressor:
         """The step (c) plug-in these settings describe."""
@@ -147,18 +153,52 @@ class TrainConfig:
         return SymbolicROM(latent_dim=self.latent_dim,
                            library=LibrarySpec.standard(self.poly_order, self.trig, self.inputs),
                            encoder=encoder, regressor=regressor, decoded_weight=self.decoded_weight,
-                           contact_phase=self.contact_phase, path_thresholds=self.path)
+                           contact_phase=self.contact_phase, path_thresholds=self.path, settings=asdict(self))
+
+    @classmethod
+    def from_provenance(cls, provenance: Provenance, **changes) -> TrainConfig:
+        """The settings a model was trained with (``provenance.training.settings``), ``changes``
+        applied; ``ValueError`` if the model records none (fitted by a hand-built estimator)."""
+        settings = provenance.training.settings
+        if settings is None:
+            raise ValueError("the model records no training settings (provenance.training.settings): it was "
+                             "fitted by a SymbolicROM built by hand, whose plug-ins its file's estimator holds")
+        return replace(cls(**thaw(settings)), **changes)
 
 
 def train(ds: Dataset, config: TrainConfig = TrainConfig(), rows: np.ndarray | None = None,
-          progress: Progress | None = None) -> HybridModel:
-    """Train a HybridModel on the ``train`` split of ``ds`` (or on boolean ``rows`` (N,)).
+          progress: Progress | None = None, data_path: str | None = None) -> HybridModel:
+    """Train a HybridModel on the ``train`` split of ``ds`` (or on boolean ``rows`` (N,));
+    ``data_path``: the file ``ds`` was read from, recorded in the model.
 
     Returns a model whose arrays are all in physical units (rad, m, s).
     """
-    rom = config.estimator(progress).fit(ds, rows, progress, info={
-        "training": asdict(config), "solver": config.solver, "seed": config.seed})
-    return rom.model
+    model = config.estimator(progress).fit(ds, rows, progress).model
+    if data_path is not None:
+        model = replace(model, provenance=model.provenance.with_data_path(data_path))
+    return model
+
+
+def train_into(out: str | os.PathLike, data: str | os.PathLike, config: TrainConfig = TrainConfig(),
+               force: bool = False, progress: Progress | None = None) -> HybridModel:
+    """``train`` on the dataset file ``data``, written as the model folder ``out`` (``model.json``,
+    ``equations.txt``; atomically, an existing folder only with ``force``, never one holding
+    ``data``); the model, which records ``data`` as where it was trained. Refused before any
+    work: an output in the way, polished phases the data do not have."""
+    from symrom.atomic import atomic_dir, check_output_file
+    from symrom.data.io import read_dataset
+    from symrom.model.persistence import write_model_files
+
+    check_output_file(out, force, inputs=(data,))
+    ds = read_dataset(data)
+    unknown = [p for p in config.polish if p not in ds.phase_names]
+    if unknown:
+        raise ValueError(f"polish={','.join(unknown)}: no such phase in {data} (its phases are "
+                         f"{', '.join(ds.phase_names)})")
+    model = train(ds, config, progress=progress, data_path=str(data))
+    with atomic_dir(out, force) as tmp:
+        write_model_files(model, tmp)
+    return model
 
 
 def reconstruction_error(model: HybridModel, ds: Dataset, rows: np.ndarray) -> float:

@@ -1,10 +1,10 @@
 """The latent dynamics as sympy expressions: the one builder behind the printed
-equations (``HybridModel.equations``), the generated code (``symrom.compiled``,
-through ``latent_dynamics``) and the exports (``symrom.export``)."""
+equations (``Equations``, what ``HybridModel.equations`` gives), the generated code
+(``symrom.compiled``, through ``latent_dynamics``) and the exports (``symrom.export``)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy
@@ -45,3 +45,75 @@ def latent_dynamics(library: Library, Xi: np.ndarray, phase_names: Sequence[str]
     compilation asks for them."""
     Xi = np.array(Xi, dtype=float)  # a copy: the description stays what it was made of
     return LatentDynamics(library.terms, Xi, tuple(phase_names), lambda: latent_expressions(library, Xi))
+
+
+class Equations(Mapping):
+    """A model's equations, the one shape ``HybridModel.equations`` and ``SymbolicROM.equations``
+    give: a mapping from each phase's name to its l right-hand sides ddxi_j (sympy, coefficients
+    rounded to ``digits`` significant digits), with the contact switches (``guards``: objects
+    with ``text(latex, digits)``) and what each latent reads (``loadings``: per latent, its
+    largest encoder weights ``[(component, weight per rad or m), ...]`` and how many more pass).
+
+    ``str()`` (``text()``) is the plain text of a model folder's ``equations.txt``; ``latex()``
+    the same in LaTeX."""
+
+    def __init__(self, phases: dict[str, list[sympy.Expr]], guards=(), loadings=(), digits: int = 3) -> None:
+        self._phases = {k: tuple(v) for k, v in phases.items()}
+        self.guards = tuple(guards)
+        self.loadings = tuple(loadings)
+        self.digits = digits
+
+    def __getitem__(self, phase: str) -> tuple[sympy.Expr, ...]:
+        return self._phases[phase]
+
+    def __iter__(self):
+        return iter(self._phases)
+
+    def __len__(self) -> int:
+        return len(self._phases)
+
+    def __repr__(self) -> str:
+        return f"Equations({', '.join(self._phases)}; {self.digits} digits)"
+
+    def __str__(self) -> str:
+        return self.text()
+
+    def legend(self, latex: bool = False) -> list[str]:
+        """One line per latent naming it by its largest encoder loadings: ``xi1 ~ 1.00 x``
+        (LaTeX: ``% \\xi_{1} \\approx 1.00 x``, a comment)."""
+        lines = []
+        for i, (terms, more) in enumerate(self.loadings, start=1):
+            text = " ".join(f"{w:.2f} {name}" if k == 0 else f"{'-' if w < 0 else '+'} {abs(w):.2f} {name}"
+                            for k, (name, w) in enumerate(terms))
+            tail = f" + ... ({more} more)" if more else ""
+            if latex:
+                tex = text.replace("_", "\\_")
+                lines.append(rf"% \xi_{{{i}}} \approx {tex}{tail}")
+            else:
+                lines.append(f"xi{i} ~ {text}{tail}")
+        return lines
+
+    def text(self, latex: bool = False) -> str:
+        """All phases' equations as plain text (or LaTeX), then the contact switches and what
+        each latent reads."""
+        lines = []
+        l = len(self.loadings) or max((len(v) for v in self._phases.values()), default=0)
+        names = {sympy.Symbol(f"{v}{i}"): tex for i in range(1, l + 1) for v, tex in
+                 (("xi", rf"\xi_{{{i}}}"), ("dxi", rf"\dot{{\xi}}_{{{i}}}"), ("nu", rf"\nu_{{{i}}}"))}
+        for phase, rhs in self._phases.items():
+            lines.append(f"% phase: {phase}" if latex else f"[{phase}]")
+            for j, e in enumerate(rhs, start=1):
+                if latex:
+                    lines.append(rf"\ddot{{\xi}}_{{{j}}} = {sympy.latex(e, symbol_names=names)}")
+                else:
+                    lines.append(f"ddxi{j} = {sympy.sstr(e)}")
+        if self.guards:
+            lines.append("% contact switches (guards):" if latex else "contact switches (guards):")
+            lines += [g.text(latex, self.digits) for g in self.guards]
+        lines.append("% latents, by their largest encoder loadings (per rad or m):" if latex
+                     else "latents, by their largest encoder loadings (per rad or m):")
+        lines += self.legend(latex)
+        return "\n".join(lines)
+
+    def latex(self) -> str:
+        return self.text(latex=True)

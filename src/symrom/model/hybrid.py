@@ -19,15 +19,15 @@ from dataclasses import asdict, dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-import sympy
 
 from symrom import compiled
 from symrom.compiled import JumpViews, LatentDynamics, decode_jumps, encode_inputs, encode_states
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.model.expressions import latent_dynamics, latent_expressions
+from symrom.model.expressions import Equations, latent_dynamics, latent_expressions
 from symrom.model.guards import Guard
 from symrom.model.library import Library
+from symrom.model.provenance import Provenance
 from symrom.names import Q_NAMES
 from symrom.rollout.system import GeneratedCode, Padded, RolloutSystem
 
@@ -105,8 +105,9 @@ class PhaseStability:
 class HybridModel:
     """autoencoder; library; phase_names (P,); Xi (P, p, l); mask (P, p, l) bool;
     latent_scale (2l,): largest |xi|, |dxi| seen in training, the yardstick for
-    divergence; info: robot, motion, dt, training configuration, solver, seeds,
-    data hash; phase_info: per phase name, what training saw of it; estimator: the
+    divergence; provenance: where it comes from (``symrom.model.provenance.Provenance``:
+    the data, the training settings, the selection, the fine-tuning; an immutable value,
+    replaced, never edited); phase_info: per phase name, what training saw of it; estimator: the
     configuration of the learner that fitted it (its plug-ins, ``{"encoder": {"kind":
     ...}, "regressor": {"kind": ...}, "decoded_weight", "contact_phase",
     "path_thresholds"}``), JSON-ready: kept here, read by ``symrom.learn``; guards: the
@@ -119,7 +120,7 @@ class HybridModel:
     Xi: np.ndarray
     mask: np.ndarray
     latent_scale: np.ndarray
-    info: dict[str, Any] = field(default_factory=dict)
+    provenance: Provenance = field(default_factory=Provenance)
     phase_info: dict[str, PhaseInfo] = field(default_factory=dict)
     estimator: dict[str, Any] = field(default_factory=dict)
     guards: list[Guard] | None = None
@@ -222,10 +223,10 @@ class HybridModel:
 
     def check_data(self, ds: Dataset) -> None:
         """Raise ``ModelDataError`` if ``ds`` is of another robot or joint layout than the model."""
-        robot = self.info.get("robot")
+        robot = self.provenance.data.robot
         if robot is not None and ds.robot != robot:
             raise ModelDataError(f"robot: the model was trained on {robot!r}, the data are of {ds.robot!r}")
-        layout = self.info.get("q_names")
+        layout = self.provenance.data.q_names
         if layout is not None and list(layout) != list(Q_NAMES):
             raise ModelDataError("joint layout: the model's configuration components "
                                  f"{list(layout)} differ from this symrom's {list(Q_NAMES)}")
@@ -279,9 +280,9 @@ class HybridModel:
         (N, 4, 3) m world, for the model's robot: ``symrom.data.preprocess.input_from_torques``."""
         from symrom.data.preprocess import input_from_torques
 
-        robot = self.info.get("robot")
+        robot = self.provenance.data.robot
         if robot is None:
-            raise ModelDataError("the model records no robot (info.robot), whose legs map torques to u")
+            raise ModelDataError("the model records no robot (provenance.data.robot), whose legs map torques to u")
         return input_from_torques(robot, q, tau, contact, foot_pos)
 
     def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None,
@@ -294,10 +295,13 @@ class HybridModel:
                             dwell0=dwell0)
 
     # ------------------------------------------------------------ equations
-    def equations(self, digits: int = 3) -> dict[str, list[sympy.Expr]]:
-        """Per phase, the l right-hand sides of ddxi_j, coefficients rounded to ``digits``
-        significant digits."""
-        return dict(zip(self.phase_names, latent_expressions(self.library, self.Xi, digits)))
+    def equations(self, digits: int = 3) -> Equations:
+        """The model's equations (``symrom.model.expressions.Equations``): per phase the l
+        right-hand sides of ddxi_j as sympy expressions, coefficients rounded to ``digits``
+        significant digits; with the contact switches and what each latent reads. ``str()``
+        gives the text of ``equations.txt``, ``latex()`` the LaTeX."""
+        return Equations(dict(zip(self.phase_names, latent_expressions(self.library, self.Xi, digits))),
+                         self.guards or (), self.latent_loadings(), digits)
 
     def latent_loadings(self, share: float = 0.1, most: int = 4) -> list[tuple[list[tuple[str, float]], int]]:
         """What each latent reads: per xi_i, the configuration components (``Q_NAMES``) of its
@@ -311,39 +315,51 @@ class HybridModel:
             out.append(([(Q_NAMES[k], float(row[k])) for k in keep[:most]], max(len(keep) - most, 0)))
         return out
 
-    def latent_legend(self, latex: bool = False) -> list[str]:
-        """One line per latent naming it by its largest encoder loadings (``latent_loadings``):
-        ``xi1 ~ 1.00 x`` (LaTeX: ``% \\xi_{1} \\approx 1.00 x``, a comment)."""
-        lines = []
-        for i, (terms, more) in enumerate(self.latent_loadings(), start=1):
-            text = " ".join(f"{w:.2f} {name}" if k == 0 else f"{'-' if w < 0 else '+'} {abs(w):.2f} {name}"
-                            for k, (name, w) in enumerate(terms))
-            tail = f" + ... ({more} more)" if more else ""
+    def stability_text(self, latex: bool = False) -> str:
+        """Each phase's eigenvalues linearised at its training mean, one line per phase after a
+        heading ('' for a model without operating points); LaTeX: ``\\lambda_{...} \\in \\{...\\}``."""
+        stab = self.stability()
+        if not stab:
+            return ""
+        lines = ["% linearised at each phase's training mean: eigenvalues (1/s)" if latex
+                 else "linearised at each phase's training mean: eigenvalues (1/s)"]
+        for st in stab:
+            zs = sorted(st.eigenvalues, key=lambda z: (-z.real, z.imag))
             if latex:
-                tex = text.replace("_", "\\_")
-                lines.append(rf"% \xi_{{{i}}} \approx {tex}{tail}")
-            else:
-                lines.append(f"xi{i} ~ {text}{tail}")
-        return lines
-
-    def equations_text(self, latex: bool = False, digits: int = 3) -> str:
-        """All phases' equations as plain text (or LaTeX), then what each latent reads: its
-        largest encoder loadings (``latent_legend``)."""
-        lines = []
-        l = self.latent_dim
-        names = {sympy.Symbol(f"{v}{i}"): tex for i in range(1, l + 1) for v, tex in
-                 (("xi", rf"\xi_{{{i}}}"), ("dxi", rf"\dot{{\xi}}_{{{i}}}"), ("nu", rf"\nu_{{{i}}}"))}
-        for phase, rhs in self.equations(digits).items():
-            lines.append(f"% phase: {phase}" if latex else f"[{phase}]")
-            for j, e in enumerate(rhs, start=1):
-                if latex:
-                    lines.append(rf"\ddot{{\xi}}_{{{j}}} = {sympy.latex(e, symbol_names=names)}")
-                else:
-                    lines.append(f"ddxi{j} = {sympy.sstr(e)}")
-        if self.guards:
-            lines.append("% contact switches (guards):" if latex else "contact switches (guards):")
-            lines += [g.text(latex, digits) for g in self.guards]
-        lines.append("% latents, by their largest encoder loadings (per rad or m):" if latex
-                     else "latents, by their largest encoder loadings (per rad or m):")
-        lines += self.latent_legend(latex)
+                eig = ",\\ ".join(f"{z.real:.3g} {'+' if z.imag >= 0 else '-'} {abs(z.imag):.3g}i"
+                                   if abs(z.imag) > 1e-12 else f"{z.real:.3g}" for z in zs)
+                growth = "" if st.growth is None else (rf" \quad \text{{(fastest mode $\times${st.growth:.3g} "
+                                                       rf"over {st.duration_s:.3g} s)}}")
+                name = st.phase.replace("_", r"\_")
+                lines.append(rf"\lambda_{{\mathrm{{{name}}}}} \in \{{{eig}\}}{growth}")
+                continue
+            eig = ", ".join(f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-12 else f"{z.real:.3g}" for z in zs)
+            growth = "" if st.growth is None else f"  (fastest mode x{st.growth:.3g} over {st.duration_s:.3g} s)"
+            lines.append(f"[{st.phase}] {eig}{growth}")
         return "\n".join(lines)
+
+    # ------------------------------------------------------------ in words
+    def summary(self) -> str:
+        """'l=2, p=1, 20 library terms; active terms: contact 5, flight 3'."""
+        terms = ", ".join(f"{k} {v}" for k, v in self.active_terms().items())
+        return (f"l={self.latent_dim}, p={self.library.poly_order}, {self.library.n_features} library terms; "
+                f"active terms: {terms}")
+
+    def training_rows(self) -> str:
+        """'contact 1200 rows, flight 400 rows': the training rows per phase ('' if not recorded)."""
+        return ", ".join(f"{n} {p.n_rows} rows" if p.n_rows else f"{n} none" for n, p in self.phase_info.items())
+
+    def warnings(self) -> list[str]:
+        """What a reader should know before using the model, one line each: the phases it could
+        not fit, an encoder fitted on all rows (the data held no contact row), and each phase
+        with a fast unstable mode."""
+        out = []
+        untrained = self.provenance.training.untrained_phases
+        if untrained:
+            out.append(f"can fit: {', '.join(self.trained_phases())}; cannot fit: {', '.join(untrained)} (no "
+                       "training rows: its equations stay zero and rollouts through it are refused)")
+        rows = self.provenance.training.encoder_rows or ""
+        if rows.startswith("all"):
+            out.append(f"the encoder (step a) is fitted on {rows}")
+        out += [st.warning() for st in self.stability() if st.warning()]
+        return out

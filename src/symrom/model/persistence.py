@@ -1,5 +1,10 @@
 """The model file: versioned JSON, human-readable, no pickle (``docs/design.md``).
 
+format_version 5 replaces the untyped ``info`` object by ``provenance``
+(``symrom.model.provenance.Provenance``: data, training, selection, fine-tuning,
+extra). Files of format 4 and older are still read, their ``info`` read into the
+same record (``Provenance.from_info``).
+
 format_version 4 adds ``guards``: the learned contact switches
 (``symrom.model.guards``), one record per transition; a model fitted without
 them writes null. Files of format 3, 2 and 1 are still read, without guards.
@@ -29,11 +34,15 @@ from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.guards import Guard
 from symrom.model.hybrid import HybridModel, PhaseInfo
 from symrom.model.library import Library
+from symrom.model.provenance import Provenance
 
-FORMAT_VERSION = 4
-READABLE_VERSIONS = (1, 2, 3, 4)
+FORMAT_VERSION = 5
+READABLE_VERSIONS = (1, 2, 3, 4, 5)
 # what format 2 kept in ``info`` and format 3 keeps in ``estimator``
 LEGACY_ESTIMATOR_KEYS = ("encoder", "regressor", "decoded_weight")
+
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"  # the first bytes of every HDF5 file (a dataset)
 
 
 class ModelFileError(ValueError):
@@ -58,7 +67,7 @@ def model_to_dict(model: HybridModel) -> dict:
         "phase_names": list(model.phase_names),
         "estimator": model.estimator,
         "guards": None if model.guards is None else [g.to_dict() for g in model.guards],
-        "info": model.info,
+        "provenance": model.provenance.to_dict(),
     }
 
 
@@ -111,7 +120,7 @@ def write_model_files(model: HybridModel, folder: str | os.PathLike) -> list[Pat
     ``equations.txt`` (the plain-text equations); the one writer of both. Returns the paths."""
     folder = Path(folder)
     save_model(model, folder / "model.json")
-    write_text_atomic(folder / "equations.txt", model.equations_text() + "\n")
+    write_text_atomic(folder / "equations.txt", model.equations().text() + "\n")
     return [folder / "model.json", folder / "equations.txt"]
 
 
@@ -150,7 +159,14 @@ def model_from_dict(d: dict) -> HybridModel:
                            _array(d.get("decoder", {}), "W_d", "decoder", (18, l)),
                            _array(d.get("decoder", {}), "B_d", "decoder", (18,)))
     Xi, mask, info = [], [], {}
-    record = dict(d.get("info", {}))
+    record = dict(d.get("info", {})) if d["format_version"] < 5 else {}
+    if d["format_version"] >= 5 and "provenance" not in d:
+        raise ModelFileError("provenance: missing (format 5 records where the model comes from)")
+    try:
+        provenance = (Provenance.from_dict(d.get("provenance", {})) if d["format_version"] >= 5
+                      else Provenance.from_info(record))
+    except ValueError as e:
+        raise ModelFileError(str(e)) from None
     if d["format_version"] >= 3:
         estimator = d.get("estimator")
         if estimator is None:
@@ -183,7 +199,7 @@ def model_from_dict(d: dict) -> HybridModel:
             info[n] = _phase_info(phases[n], f"phases.{n}", l)
     try:
         return HybridModel(ae, lib, names, np.array(Xi), np.array(mask),
-                           _array(d, "latent_scale", "model", (2 * l,)), record, info, dict(estimator), guards)
+                           _array(d, "latent_scale", "model", (2 * l,)), provenance, info, dict(estimator), guards)
     except ValueError as e:
         raise ModelFileError(f"model: {e}") from None
 
@@ -202,10 +218,15 @@ def _phase_info(d: dict, where: str, l: int) -> PhaseInfo:
 def load_model(path: str | os.PathLike) -> HybridModel:
     """Read and check a model file; raise ``ModelFileError`` with one clear message."""
     path = Path(path)
+    if path.is_dir():
+        inside = " (it holds model.json: give that file)" if (path / "model.json").is_file() else ""
+        raise ModelFileError(f"{path}: a folder, not a model file (model.json){inside}")
     if not path.is_file():
         raise ModelFileError(f"{path}: no such file")
+    if path.open("rb").read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
+        raise ModelFileError(f"{path}: a dataset file (HDF5), not a model file (model.json)")
     try:
         d = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise ModelFileError(f"{path}: not valid JSON ({e})") from None
+        raise ModelFileError(f"{path}: not a model file: not valid JSON ({e})") from None
     return model_from_dict(d)

@@ -93,7 +93,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     if kind == "learned":
         if model is None:
             raise ValueError("the learned planner needs a model (model.json)")
-        trained_on = model.info.get("robot")
+        trained_on = model.provenance.data.robot
         if trained_on is not None and robot_key(trained_on) != robot_key(robot):
             raise ValueError(f"the model was trained on {trained_on!r}, the jump is for {robot!r}")
         dyn: PlanDynamics = LearnedDynamics(model, force_input_map(model, robot, q_crouch))
@@ -171,9 +171,9 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     """Plan (from the measured crouch) and execute one jump ``target_x`` m forward, with apex
     ``target_z`` m if given; raise ``PlanError`` if the plan fails."""
     if not (np.isfinite(target_x) and target_x >= 0):
-        raise ValueError(f"--target-x must be a non-negative distance in m, got {target_x}")
+        raise ValueError(f"target_x={target_x}: must be a non-negative distance in m")
     if target_z is not None and not (np.isfinite(target_z) and target_z > planner.liftoff_height):
-        raise ValueError(f"--target-z must be above the lift-off height {planner.liftoff_height:.3f} m, got {target_z}")
+        raise ValueError(f"target_z={target_z}: must be above the lift-off height {planner.liftoff_height:.3f} m")
 
     def plan_fn(state: RobotState) -> Plan:
         plan = planner.plan(state.q, state.dq, target_x, target_z, warm=warm)

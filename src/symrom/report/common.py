@@ -67,7 +67,7 @@ def run_blocks(run: Run) -> list:
     if run.kind == "model folder":
         files = "; ".join(f"{k}: {v}" for e in run.entries for k, v in e.files.items())
         return [Para(f"A model folder (symrom train, evaluate), not a reproduction run: its files are {files}. "
-                     "The training options are in model.json (info), the evaluation's in its metrics.json.")]
+                     "The training options are in model.json (provenance), the evaluation's in its metrics.json.")]
     if not isinstance(r, dict) or not r:
         return [Para("summary.json has no 'run' entry: commands, versions and seeds unknown.", note=True)]
     blocks: list = [Pre(str(r.get("command") or "(command not recorded)"), caption="Command that produced this run")]

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from symrom import __version__
-from symrom.atomic import OutputExistsError, atomic_dir, write_text_atomic
+from symrom.atomic import OutputExistsError, atomic_dir, check_writable, write_text_atomic
 from symrom.report.common import data_blocks, experiments_blocks, run_blocks
 from symrom.report.context import Context
 from symrom.report.document import Para, Section, render_html, render_markdown
@@ -28,21 +28,29 @@ def report_paths(out_html: str | os.PathLike) -> tuple[Path, Path, Path]:
     return html, html.with_suffix(".md"), html.with_name(f"{html.stem}_files")
 
 
-def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike, force: bool = True,
+def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None = None, force: bool = True,
                  progress: Callable[[str], None] | None = None) -> tuple[Path, Path]:
-    """Build the report of ``run_dir`` into ``out_html`` (+ Markdown twin); their paths.
+    """Build the report of ``run_dir`` into ``out_html`` (an ``.html`` file; default
+    ``run_dir/report.html``) and its Markdown twin; their paths.
 
     The report shows what the run's manifest lists, each experiment by its role
     (``symrom.report.roles``). Existing outputs are replaced atomically; with
-    ``force=False`` (the CLI without --force) ``OutputExistsError`` is raised
-    instead if any exists. Raises ``FileNotFoundError`` if ``run_dir`` is not a
-    directory. Missing or unreadable files of the run are noted in the report.
+    ``force=False`` ``OutputExistsError`` is raised instead if any exists. Refused before
+    any work: ``run_dir`` not a directory (``FileNotFoundError``), ``out_html`` not an
+    ``.html`` file or in a place that cannot be written. Missing or unreadable files of
+    the run are noted in the report.
     """
+    if not Path(run_dir).is_dir():
+        raise FileNotFoundError(f"{run_dir}: no such run directory")
+    out_html = Path(run_dir) / "report.html" if out_html is None else Path(out_html)
+    if out_html.suffix.lower() not in (".html", ".htm"):
+        raise ValueError(f"out={out_html}: expected an .html file")
+    check_writable(out_html)
     html_path, md_path, files_dir = report_paths(out_html)
     if not force:
         for p in (html_path, md_path, files_dir):
             if p.exists():
-                raise OutputExistsError(f"{p} exists; pass --force to overwrite it")
+                raise OutputExistsError(f"{p} exists; pass force=True to overwrite it")
     say = progress or (lambda msg: None)
     run = load_run(run_dir)
     title = "symrom report: symbolic reduced-order models of quadruped jumping"

@@ -200,11 +200,12 @@ def equations_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
             blocks.append(Para(f"{e.name}: no model file; no equations.", note=True))
             continue
         terms = ", ".join(f"{k} {v}" for k, v in model.active_terms().items())
+        equations = model.equations(3)
         text = "\n".join(f"[{phase}]\n" + "\n".join(textwrap.indent(wrap_equation(f"ddxi{j}", str(rhs)), "  ")
                                                      for j, rhs in enumerate(eqs, 1))
-                         for phase, eqs in model.equations(3).items())
+                         for phase, eqs in equations.items())
         text += "\nlatents, by their largest encoder loadings (per rad or m):\n" + "\n".join(
-            "  " + line for line in model.latent_legend())
+            "  " + line for line in equations.legend())
         blocks.append(Pre(text, caption=f"{e.name}: l = {model.latent_dim}, p = {model.library.poly_order}, "
                                         f"library terms: {model.library.n_features}; active terms: {terms}"))
         blocks += stability_blocks(e.name, model)

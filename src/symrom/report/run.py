@@ -16,6 +16,7 @@ from typing import Any
 from symrom.data.dataset import Dataset
 from symrom.evaluate.records import LEARNED, ManifestEntry, Metrics, RecordError, read_manifest
 from symrom.model.hybrid import HybridModel
+from symrom.model.provenance import Provenance
 
 # What reading a run's file can raise: missing or unreadable (OSError), or not of its
 # layout (ValueError: DatasetError, ModelFileError, RecordError, JSONDecodeError).
@@ -197,9 +198,11 @@ def model_folder_run(folder: str | Path) -> Run:
     data = None
     if "model" in files:
         try:
-            info = json.loads((folder / files["model"]).read_text()).get("info") or {}
-            data = _recorded_path(info.get("data_path"), folder)
-        except (OSError, ValueError, AttributeError):
+            record = json.loads((folder / files["model"]).read_text())
+            path = (Provenance.from_dict(record["provenance"]).data_path if "provenance" in record  # format 5
+                    else (record.get("info") or {}).get("data_path"))
+            data = _recorded_path(path, folder)
+        except (OSError, ValueError, AttributeError, KeyError):
             data = None
     data = data or _recorded_path(recorded.get("data"), folder)
     if data is not None:

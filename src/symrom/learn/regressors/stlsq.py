@@ -262,9 +262,9 @@ class STLSQ(Regressor):
         check_measure(self.measure)
         for name in ("threshold", "alpha", "ridge"):
             if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+                raise ValueError(f"{name}={getattr(self, name):g}: must be >= 0")
         if self.collinearity is not None and not 0 < self.collinearity <= 1:
-            raise ValueError(f"collinearity must lie in (0, 1], got {self.collinearity}")
+            raise ValueError(f"collinearity={self.collinearity:g}: must lie in (0, 1]")
 
     def config(self, target_spread: np.ndarray) -> STLSQConfig:
         return STLSQConfig(threshold=self.threshold, ridge=self.ridge, alpha=self.alpha, max_iter=self.max_iter,

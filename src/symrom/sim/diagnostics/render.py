@@ -75,7 +75,7 @@ class _MujocoPainter:
             self.renderer = mujoco.Renderer(world.model, camera.height, camera.width)
         except Exception as e:  # no OpenGL context on this machine
             raise RuntimeError(f"MuJoCo cannot render here (MUJOCO_GL={os.environ['MUJOCO_GL']}: {e}); "
-                               f"use --engine pybullet") from None
+                               f"use engine='pybullet'") from None
 
     def __call__(self, q: np.ndarray, target: np.ndarray) -> np.ndarray:
         self.world.reset(np.asarray(q, dtype=float))

@@ -101,7 +101,7 @@ class BulletWorld:
         self.effects = self.spec.actuators if effects is None else effects
         if any(self.effects.armature):
             raise ValueError(f"robot {self.spec.name!r}: the pybullet engine has no armature "
-                             f"(actuator effect armature {self.effects.armature[:3]}); use --engine mujoco")
+                             f"(actuator effect armature {self.effects.armature[:3]}); use engine='mujoco'")
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
         self._neg_limit = -self.torque_limit
         self._dt = config.dt  # s, physics tick
@@ -292,7 +292,7 @@ class BulletWorld:
         held). Bullet has no armature: a non-zero one is refused (ValueError)."""
         if any(effects.armature):
             raise ValueError(f"robot {self.spec.name!r}: the pybullet engine has no armature "
-                             f"(actuator effect armature {effects.armature[:3]}); use --engine mujoco")
+                             f"(actuator effect armature {effects.armature[:3]}); use engine='mujoco'")
         c = self.client
         for jid, d in zip(self.joint_ids, effects.damping):
             p.changeDynamics(self.robot, jid, jointDamping=d, physicsClientId=c)

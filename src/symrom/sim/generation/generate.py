@@ -156,8 +156,8 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
     except (UnknownMotionError, RobotDescriptionError, UnknownEngineError, EngineRobotError) as e:
         raise GenerationError(str(e)) from None
     if cfg.proxy and cfg.randomize:
-        raise GenerationError("--proxy and --randomize are two variants; choose one")
-    for flag, variant in (("--proxy", "proxy"), ("--randomize", "randomized")):
+        raise GenerationError("proxy=True and randomize=True are two variants; choose one")
+    for flag, variant in (("proxy=True", "proxy"), ("randomize=True", "randomized")):
         if cfg.variant == variant and variant not in entry.variants:
             offered = [m for m, e in MOTIONS.items() if variant in e.variants]
             raise GenerationError(f"{flag} is not a variant of {cfg.motion!r}; motions with it: {offered}")
@@ -178,11 +178,11 @@ def check_output(out: str | os.PathLike, resume: bool, force: bool) -> Path:
     interrupted run left parts beside it (without ``resume`` or ``force``)."""
     out = Path(out)
     if out.exists() and not force:
-        raise GenerationError(f"{out} exists; use --force to overwrite it")
+        raise GenerationError(f"{out} exists; use force=True to overwrite it")
     parts = parts_dir(out)
     if parts.exists() and not resume and not force:
-        raise GenerationError(f"{parts} holds an interrupted run; use --resume to continue "
-                              f"it or --force to start over")
+        raise GenerationError(f"{parts} holds an interrupted run; use resume=True to continue "
+                              f"it or force=True to start over")
     return out
 
 
@@ -200,7 +200,7 @@ def _resumable_parts(cfg: GenerateConfig, parts: Path) -> list[int]:
                 continue
             if fp != fingerprint:
                 raise GenerationError(f"{pp} was made with other options; resume with the "
-                                      f"same options or use --force to start over")
+                                      f"same options or use force=True to start over")
             have.append(j)
     return have
 

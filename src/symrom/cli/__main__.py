@@ -1,0 +1,5 @@
+"""``python -m symrom.cli``: the ``symrom`` command."""
+
+from symrom.cli import main
+
+main()

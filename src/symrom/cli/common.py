@@ -1,0 +1,251 @@
+"""What every command shares: the typer application, the consoles, the error boundary (library
+errors as one line, their parameters named as flags), progress bars and the common options.
+
+Nothing heavy is imported here: ``symrom --help`` and ``symrom --version`` load no numerical
+library (each command imports what it needs when it runs).
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import sys
+from collections.abc import Callable
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.markup import escape
+from typer.core import TyperCommand, TyperGroup
+
+
+def _flags_without_type(params: list) -> list:
+    """Boolean flags take no value: show no type (typer's help would say ``<bool>``)."""
+    for p in params:
+        if getattr(p, "is_flag", False) and p.metavar is None:
+            p.metavar = ""
+    return params
+
+
+class Group(TyperGroup):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+class Command(TyperCommand):
+    def get_params(self, ctx):
+        return _flags_without_type(super().get_params(ctx))
+
+
+app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True,
+                  help="Symbolic reduced-order models of legged-robot jumping, learned from data.")
+console = Console(stderr=True, log_path=False)  # log lines: time and message, no cli.py:NNN
+out_console = Console()
+
+STATE = {"debug": False}
+
+Force = Annotated[bool, typer.Option("--force", help="Overwrite an existing output.")]
+BackendName = Annotated[str, typer.Option(
+    "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
+                      "pip install 'symrom\\[ray]').")]
+Address = Annotated[Optional[str], typer.Option(
+    "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
+                      "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
+                      "instance on this machine.")]
+ENGINE_HELP = "Physics engine: pybullet or mujoco (docs/engines.md)."
+WORKERS_HELP = ("Worker processes (local back end; default {local}), or the most tasks at once on Ray "
+                "(default: the cluster's CPUs).")
+
+
+# ------------------------------------------------------------------ library parameters as flags
+# Library errors name their parameters as Python keywords (``split='x'``, ``force=True``); the
+# command line names the flag that sets each. A value-specific spelling first, then the name.
+FLAG_VALUES: dict[str, str] = {
+    "force=True": "--force", "resume=True": "--resume", "lenient=True": "--lenient",
+    "resample=False": "--no-resample", "refit_decoder=False": "--keep-decoder", "physics=None": "--no-physics",
+    "retime=True": "--retime-stale", "fixed=True": "--fixed", "refine=True": "--refine", "select=True": "--select",
+    "proxy=True": "--proxy", "randomize=True": "--randomize", "trig=False": "--no-trig",
+}
+FLAGS: dict[str, str] = {
+    "out": "--out", "split": "--split", "threshold": "--threshold", "max_terms": "--max-terms",
+    "workers": "--workers", "resets": "--reset", "integrator": "--integrator", "phases": "--phases",
+    "plot_jumps": "--plot-jump", "diff_window": "--diff-window", "diff_method": "--diff", "torques": "--torques",
+    "positions": "--positions", "segment": "--segment", "dt": "--dt", "max_gap": "--max-gap", "topics": "--topics",
+    "method": "--method", "engine": "--engine", "address": "--address", "backend": "--backend",
+    "target_x": "--target-x", "target_z": "--target-z", "mass": "--mass", "m": "--mass", "polish": "--polish",
+    "latent_dims": "--latent-dims", "select_dims": "--select-dims", "to": "--to", "planner": "--planner",
+    "guards": "--guards", "only": "--only", "n_jumps": "--jumps", "fit": "--fit", "k_s": "--k-s", "l_0": "--l0",
+    "latent_dim": "--latent-dim", "poly_order": "--poly-order", "solver": "--solver", "measure": "--measure",
+    "collinearity": "--collinearity", "alpha": "--alpha", "decoded_weight": "--decoded-weight",
+    "encoder_components": "--encoder-components", "encoder_scaling": "--encoder-scaling",
+    "encoder_base_latents": "--encoder-base-latents", "epochs": "--epochs", "seed": "--seed",
+    "prior_weight": "--prior-weight", "tolerance": "--tolerance", "calibration_terms": "--calibration-terms",
+    "mpc_solver": "--mpc-solver", "motion": "--motion", "robot": "--robot", "jump": "--jump", "frames": "--frames",
+    "seeds": "--seeds", "lam": "--lambda",
+}
+_PARAMETER = re.compile(r"(?<![\w./-])([a-z][a-z0-9_]*)=(?:(True|False|None)|'([\w.,/+-]+)')?")
+
+
+def flag_text(message: str, flags: dict[str, str] | None = None) -> str:
+    """``message`` with each library parameter it names (``name=value``) as the flag that sets
+    it: ``split='1,2'`` -> ``--split 1,2``, ``force=True`` -> ``--force``; ``flags``: a
+    command's own names beyond ``FLAGS``. Names no flag sets stay as they are."""
+    table = {**FLAGS, **(flags or {})}
+
+    def repl(m: re.Match) -> str:
+        name, const, word = m.group(1), m.group(2), m.group(3)
+        if const is not None and f"{name}={const}" in FLAG_VALUES:
+            return FLAG_VALUES[f"{name}={const}"]
+        if name in table:
+            if const is not None or word is not None:  # a simple value needs no quotes on a command line
+                return f"{table[name]} {const if const is not None else word}"
+            rest = m.string[m.end():m.end() + 1]
+            return table[name] if not rest or rest.isspace() or rest in ",;:)" else f"{table[name]} "
+        return m.group(0)
+
+    return _PARAMETER.sub(repl, message)
+
+
+# ------------------------------------------------------------------ the error boundary
+def show_version(value: bool) -> None:
+    if value:
+        from symrom import __version__
+
+        typer.echo(f"symrom {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks on errors.")] = False,
+          version: Annotated[bool, typer.Option("--version", callback=show_version, is_eager=True,
+                                                help="Print the version and exit.")] = False) -> None:
+    STATE["debug"] = debug
+
+
+def guarded(fn: Callable) -> Callable:
+    """Turn library errors into one red line and exit code 1 (tracebacks with --debug); the
+    parameters the message names become the command's flags (``flag_text``)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except typer.Exit:
+            raise
+        except KeyboardInterrupt:
+            console.print("[red]interrupted[/red]")
+            raise typer.Exit(130) from None
+        except BrokenPipeError:
+            quiet_stdout()
+            raise typer.Exit(141) from None  # as a shell reports a process ended by SIGPIPE
+        except Exception as e:  # noqa: BLE001 - the CLI boundary
+            if STATE["debug"]:
+                raise
+            msg = str(e).strip().splitlines()[0] if str(e).strip() else e.__class__.__name__
+            console.print(f"[red]error:[/red] {escape(flag_text(msg))}", highlight=False, soft_wrap=True)
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
+def quiet_stdout() -> None:
+    """The reader of stdout has gone (``symrom equations m.json | head``): send what is
+    left to /dev/null so that neither the command nor Python's exit reports it."""
+    import os
+
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):  # stdout is not a real file (a test runner's capture)
+        pass
+    finally:
+        os.close(devnull)
+
+
+# ------------------------------------------------------------------ printing
+def say(text: str) -> None:
+    """A result line on stdout (no markup, no highlighting)."""
+    out_console.print(text, highlight=False, soft_wrap=True, markup=False)
+
+
+def note(text: str) -> None:
+    """A note on stderr (no markup)."""
+    console.print(text, highlight=False, soft_wrap=True, markup=False)
+
+
+def warn(text: str) -> None:
+    """A warning line on stderr."""
+    console.print(f"[yellow]warning:[/yellow] {escape(text)}", highlight=False, soft_wrap=True)
+
+
+def warn_all(lines) -> None:
+    for line in lines:
+        warn(line)
+
+
+class progress_bar:
+    """A progress bar drawn on its first update, so that a command refused before any work
+    shows only its error line. ``update(completed=, total=, description=)``; ``count`` is a
+    ``(done, total)`` callback; used as a context manager."""
+
+    def __init__(self, description: str = "", total: float | None = None) -> None:
+        self.description, self.total = description, total
+        self._bar = self._task = None
+
+    def __enter__(self) -> progress_bar:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+    def update(self, completed: float | None = None, total: float | None = None,
+               description: str | None = None) -> None:
+        if self._bar is None:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self._bar = Progress(TextColumn("{task.description}"), BarColumn(),
+                                 TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(), console=console,
+                                 transient=False)
+            self._task = self._bar.add_task(self.description, total=self.total)
+            self._bar.start()
+        changes = {k: v for k, v in (("completed", completed), ("total", total), ("description", description))
+                   if v is not None}
+        self._bar.update(self._task, **changes)
+
+    def count(self, done: int, total: int) -> None:
+        """A ``(done, total)`` progress callback."""
+        self.update(completed=done, total=total)
+
+
+def status_say(status, label: str) -> Callable[..., None]:
+    """A ``say(message, transient=False)`` callback: the status line shows every message, the
+    log keeps those that are not transient (counts)."""
+    def say_(msg: str, transient: bool = False) -> None:
+        status.update(f"{label}: {msg}")
+        if not transient:
+            console.log(msg)
+
+    return say_
+
+
+def command_line() -> str:
+    """The command as typed (for a run's record)."""
+    import shlex
+
+    return "symrom " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def start_backend(name: str, workers: int | None, address: str | None, local_default: int = 1):
+    """The execution back end of the options, started (a Ray back end connects here, so a bad
+    address fails before any work)."""
+    from symrom.execution import make_backend
+
+    backend = make_backend(name, local_default if workers is None and name == "local" else workers, address)
+    if name == "ray":
+        with console.status("connecting to Ray"):
+            backend.start()
+        info = backend.describe()
+        console.print(f"ray: {info['nodes']} node(s), {info['cpus']} CPUs, {backend.workers} tasks at once",
+                      highlight=False)
+    return backend

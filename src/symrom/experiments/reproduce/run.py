@@ -1,0 +1,165 @@
+"""The run: every experiment in order into one directory, its manifest and ``summary.json``,
+and the summary in words."""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from symrom import __version__
+from symrom.atomic import write_text_atomic
+from symrom.baselines import BASELINES
+from symrom.data.io import read_dataset
+from symrom.evaluate.paper import PAPER_TABLE2
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
+from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
+from symrom.experiments.reproduce.sim import run_learned, selected
+from symrom.experiments.reproduce.sim2real import SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
+from symrom.experiments.reproduce.solvers import run_solvers
+from symrom.experiments.reproduce.steps import config_facts, ensure_dataset, selected_config
+from symrom.experiments.reproduce.sweep import run_sweep_step
+from symrom.model.persistence import load_model
+
+
+def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEntry]:
+    """The run's experiments with their roles and files (paths relative to ``run``), for the report."""
+    def rel(*parts: str) -> str:
+        return str(Path(*parts))
+
+    exps, out = summary["experiments"], []
+    for exp in cfg.experiments:
+        if exp.name not in exps:  # a run of one part only
+            continue
+        data = rel("data", f"{exp.data}.h5")
+        entry = exps[exp.name]
+        out.append(ManifestEntry(exp.name, LEARNED, paper=exp.name if exp.name in PAPER_TABLE2 else None,
+                                 files={"model": rel(exp.name, "model.json"), "metrics": rel(exp.name, "eval", "metrics.json"),
+                                        "data": data}, facts={"config": entry["config"]}))
+        out.append(ManifestEntry(f"{exp.name}/selection", SELECTION, f"{exp.name}: selection on the validation split",
+                                 of=exp.name, files={"table": rel(exp.name, "selection", "selection.json")}))
+        d = rel(exp.name, "paper_defaults")
+        out.append(ManifestEntry(f"{exp.name}/paper_defaults", LEARNED, f"{exp.name} with the paper's defaults",
+                                 files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json"),
+                                        "data": data}, of=exp.name,
+                                 facts={"config": config_facts(exp.paper_config(cfg.seed))}))
+        for name in entry.get("baselines", {}):
+            d = rel(exp.name, name)
+            out.append(ManifestEntry(f"{exp.name}/{name}", BASELINE, BASELINES[name], of=exp.name,
+                                     paper="aslip" if name.startswith("aslip") and exp.name == "go1_sim" else None,
+                                     files={"metrics": rel(d, "metrics.json"), "params": rel(d, "params.json"),
+                                            "data": data}))
+    go1 = exps.get("go1_sim", {})
+    for solver, s in go1.get("solvers", {}).items():
+        d = rel("go1_sim", "solvers", solver)
+        out.append(ManifestEntry(f"go1_sim/solvers/{solver}", SOLVER, solver, of="go1_sim",
+                                 files={"model": rel(d, "model.json"), "metrics": rel(d, "eval", "metrics.json")},
+                                 facts={"wall_time_s": s["wall_time_s"]}))
+    if "go1_proxy" in exps:
+        src = exps["go1_proxy"]["finetune"]["source"]
+        out.append(ManifestEntry("go1_proxy", FINE_TUNED, f"proxy Go1, adapted from the {src} model",
+                                 paper="go1_proxy", files={
+                                     "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
+                                     "data": exps["go1_proxy"]["data"],
+                                     "source_model": rel("sources", src, "model.json"),
+                                     "before": rel("go1_proxy", "sources_eval", src, "metrics.json"),
+                                     "choice": rel("go1_proxy", "finetune_choice.json")},
+                                 facts={"finetune": exps["go1_proxy"]["finetune"]}))
+    if "sweep" in summary:
+        out.append(ManifestEntry("sweep", SWEEP, "latent-dimension sweep", of="go1_sim",
+                                 files={"result": rel("sweep", "sweep.json"), "encoders": rel("sweep", "encoders")}))
+    return out
+
+
+
+def _versions() -> dict:
+    import numpy
+    import scipy
+
+    v = {"symrom": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
+         "scipy": scipy.__version__}
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v["pybullet"] = version("pybullet")
+    except PackageNotFoundError:  # optional in a run that reuses datasets
+        pass
+    return v
+
+
+
+def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None,
+              only: str | None = None) -> dict:
+    """Run every experiment into ``run``; write and return ``summary.json``'s content.
+
+    only: ``sim2real`` runs just the sim-to-real part (with the SIM Go1 selection its settings
+    come from; the datasets it needs), resumable as the rest; the summary then holds that part.
+    """
+    if only is not None and only not in PARTS:
+        raise ValueError(f"only={only!r}: not a part of the run; one of: {', '.join(PARTS)}")
+    say = say or (lambda msg, transient=False: None)
+    t0 = time.perf_counter()
+    run.mkdir(parents=True, exist_ok=True)
+    needed = {"go1_sim", *SIM2REAL_SOURCES.values(), *SIM2REAL_TARGETS}
+    specs = [s for s in cfg.datasets if only is None or s.name in needed]
+    data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
+    summary: dict = {"experiments": {}}
+    if only is None:
+        for exp in cfg.experiments:
+            summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
+        have_sim = "go1_sim" in summary["experiments"]
+    else:
+        sim = next((e for e in cfg.experiments if e.name == "go1_sim"), None)
+        have_sim = sim is not None
+        if have_sim:
+            say("go1_sim: selecting the settings on the validation split (the sim-to-real settings)")
+            selected(run, sim, read_dataset(data["go1_sim"]), cfg, say)
+    settings = selected_config(load_model(run / "go1_sim" / "model.json")) if have_sim else None
+    go1 = summary["experiments"].get("go1_sim")
+    if go1 is not None and cfg.compare_solvers:
+        go1["solvers"] = run_solvers(run, data["go1_sim"], settings, cfg, say)
+    if settings is not None:
+        entries, tables = run_sim2real(run, data, settings, cfg, say)
+        if "go1_proxy" in entries:  # the paper's Table 2 row
+            summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
+        summary["sim2real"] = {"sources": {k: v for k, v in SIM2REAL_SOURCES.items() if v in data},
+                               "targets": tables}
+    if only is None:
+        summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
+    summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
+    summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
+                      "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
+                      "wall_time_s": time.perf_counter() - t0}
+    write_text_atomic(run / "summary.json", json.dumps(summary, indent=1, allow_nan=False,
+                                                       default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
+    return summary
+
+
+def sweep_line(sweep: dict, chosen: dict[str, int] | None = None) -> str:
+    """The sweep's best latent dimension in one line, told apart from the selected models' ``chosen``
+    (experiment -> its l, chosen on the validation jumps)."""
+    dims = ", ".join(str(d) for d in sweep["latent_dims"])
+    line = (f"sweep: best latent dimension by L_mod (reconstruction error against the number of terms, "
+            f"over l = {dims}): {sweep['best_latent_dim']}")
+    if chosen:
+        line += ("; not the selected model's: " + ", ".join(f"{k} has l = {v}" for k, v in chosen.items())
+                 + ", chosen on the validation jumps")
+    return line
+
+
+def summary_lines(summary: dict) -> list[str]:
+    """A run's summary in words: per experiment its latent dimension, library terms, active terms and
+    diverged test jumps; then the sweep's best latent dimension, told apart from the models'."""
+    lines = []
+    for name, exp in summary["experiments"].items():
+        metrics = Metrics.from_dict(exp["metrics"])
+        lines.append(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
+                     f"{exp['active_terms']}, diverged {metrics.full.diverged_jumps}/{metrics.n_jumps}")
+    if "sweep" in summary:
+        lines.append(sweep_line(summary["sweep"], {k: e["latent_dim"] for k, e in summary["experiments"].items()
+                                                  if k in ("go1_sim",)}))
+    return lines

@@ -1,0 +1,53 @@
+"""The command line starts light: ``symrom --version``, ``--help`` and a command's ``--help``
+load no numerical library (each command imports what it needs when it runs)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+HEAVY = ("numpy", "scipy", "sympy", "numba", "pybullet", "mujoco", "h5py", "matplotlib", "casadi", "torch")
+
+# Runs the command as the console script does (symrom.cli:app), then lists the heavy modules loaded.
+CODE = """
+import json, sys
+sys.argv = ["symrom", *json.loads(sys.argv[1])]
+from symrom.cli import app
+try:
+    app()
+except SystemExit:
+    pass
+sys.stdout.flush()
+print("\\nLOADED " + json.dumps(sorted(m for m in {heavy} if m in sys.modules)))
+"""
+
+
+def _loaded(*args: str) -> tuple[str, list[str]]:
+    r = subprocess.run([sys.executable, "-c", CODE.format(heavy=HEAVY), json.dumps(args)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    out, _, tail = r.stdout.rpartition("\nLOADED ")
+    return out, json.loads(tail)
+
+
+@pytest.mark.parametrize("args", [("--version",), ("--help",), ("train", "--help"), ("import", "--help")])
+def test_version_and_help_import_no_numerical_library(args):
+    out, loaded = _loaded(*args)
+    assert out.strip(), "the command printed nothing"
+    assert loaded == [], f"symrom {' '.join(args)} imported {loaded}"
+
+
+def test_a_command_that_works_does_load_them():
+    """The probe sees a heavy import when there is one (so the test above can fail)."""
+    _, loaded = _loaded("equations", "/nonexistent/model.json")
+    assert "numpy" in loaded
+
+
+def test_import_symrom_is_light_and_names_load_on_use():
+    code = ("import sys, symrom; light = 'numpy' not in sys.modules; symrom.SymbolicROM; "
+            "print(light, 'numpy' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.stdout.split() == ["True", "True"], r.stderr
