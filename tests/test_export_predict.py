@@ -86,13 +86,16 @@ def test_casadi_export_given_torques_reproduces_predict_path(case, tmp_path):
     n = b - a
     uc = np.array([np.array(f["input_kinematics"](q[k], tau[k], contact[k])).ravel() for k in range(n)])
     np.testing.assert_allclose(uc, u, atol=1e-9, rtol=0)
+    seq = model.phase_sequence()
+    assert seq == (0, 1, 0)  # the planted jumps are pronks: contact, flight, contact
     for mode, p in paths.items():
         s, phase, k_enter, out, ph = np.array(f["encode"](ds.q[a], ds.dq[a])).ravel(), 0, 0, [], []
+        stage = 0
         for k in range(n):
             out.append(np.array(f["decode"](s)).ravel())
             nu = np.array(f["encode_input"](uc[k])).ravel()
             if mode == "guards":
-                nxt = int(f["guard_switch"](s, nu, phase, k - k_enter, ds.dt))
+                nxt, stage = (int(v) for v in f["guard_switch_staged"](s, nu, phase, k - k_enter, ds.dt, stage))
                 if nxt != phase:
                     phase, k_enter = nxt, k
             else:

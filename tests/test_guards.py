@@ -113,3 +113,62 @@ def test_older_files_load_without_guards_and_bad_guards_are_named(model, tmp_pat
     path.write_text(json.dumps(d))
     with pytest.raises(ModelFileError, match=r"guards\[0\]: 'bias'"):
         load_model(path)
+
+
+def _reference_losses(p, windows, levels, dt):
+    """The timing loss as first written: a running maximum and a search per window."""
+    total = np.zeros(levels.size)
+    for a, end, e, kind in windows:
+        r = np.maximum.accumulate(p[a:end])
+        kf = np.searchsorted(r, levels, side="left")
+        L = end - a
+        if kind == 0:
+            err = np.where(kf < L, np.abs(kf - e), max(L - e, 1))
+        elif kind == 1:
+            err = np.maximum(e - kf, 0)
+        else:
+            err = np.where(kf < L, L - kf, 0)
+        total += err
+    return total * dt / max(len(windows), 1)
+
+
+def test_the_compiled_losses_equal_a_search_per_window_bit_for_bit():
+    from symrom.learn.guards import _arrays, _grid, _losses, _windows, stays
+
+    Z, phase, bounds = _planted_hops(10, seed=3)
+    rng = np.random.default_rng(0)
+    P = np.stack([Z[:, 0], -Z[:, 1], Z[:, :2] @ [0.3, -0.7], rng.standard_normal(len(Z))])
+    P[2, 17] = np.nan  # a NaN reaches every level, as numpy's search treats it
+    all_stays = stays(phase, bounds)
+    for src, tgt in ((0, 1), (1, 0)):
+        windows = _windows(all_stays, phase, src, tgt, 5)
+        assert {kind for *_, kind in windows} >= {0, 2}
+        levels, n = _grid(P, windows)
+        loss = _losses(P, _arrays(windows), levels, n, DT)
+        for f in range(len(P)):
+            np.testing.assert_array_equal(loss[f, :n[f]], _reference_losses(P[f], windows, levels[f, :n[f]], DT))
+            assert np.isinf(loss[f, n[f]:]).all()
+
+
+def test_guards_refit_on_a_drifting_path_follow_its_drift():
+    from symrom.learn.guards import guard_fit, refit_guards
+
+    Z, phase, bounds = _planted_hops(12, seed=0)
+    names = ["contact", "flight"]
+    fit = guard_fit(Z, phase, bounds[:8], bounds[8:], names, DT)
+    assert {g.target for g in fit.guards} == {"flight", "contact"}
+    assert all(len(f) > 1 for f in fit.finalists.values())
+    # a model's own path of the same jumps, its height 2 cm low throughout
+    own = Z.copy()
+    own[:, 0] -= 0.02
+    refit = {(g.source, g.target): g for g in refit_guards(fit, own, phase, bounds[:8], bounds[8:], names, DT,
+                                                           "a drifting path")}
+    lift, touch = refit[("contact", "flight")], refit[("flight", "contact")]
+    assert lift.terms == ["xi1"] and abs(-lift.bias / lift.weights[0] - 0.28) < 0.01
+    assert touch.terms == ["xi1"] and abs(-touch.bias / touch.weights[0] - 0.23) < 0.01
+    assert lift.report["refit_on"] == "a drifting path" and lift.report["refit_val_loss_s"] <= 2 * DT
+    # the first fit's guards on that path miss by far more
+    assert lift.report["first_fit_loss_s"] > 5 * lift.report["refit_val_loss_s"]
+    # on the logged path itself the first fit stays
+    same = refit_guards(fit, Z, phase, bounds[:8], bounds[8:], names, DT, "the logged path")
+    assert [(g.terms, g.bias) for g in same] == [(g.terms, g.bias) for g in fit.guards]

@@ -137,3 +137,70 @@ def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path
     one_line_error(CliRunner().invoke(app, ["evaluate", str(tmp_path / "old.json"), str(tmp_path / "d.h5"),
                                             "--out", str(tmp_path / "e3"), "--integrator", "rk4",
                                             "--phases", "predicted"]), "no contact guards")
+
+
+def _bouncer(motion: str | None = "pronk"):
+    """A planted hybrid system: the base height z on a spring in contact (rest 0.3 m, 20 rad/s,
+    lightly damped), ballistic in flight; it lifts off at z >= 0.32 m and lands at z <= 0.30 m.
+    Left alone, it bounces again and again."""
+    from symrom.model.autoencoder import LinearAutoencoder
+    from symrom.model.guards import Guard
+    from symrom.model.hybrid import HybridModel
+    from symrom.model.library import Library
+    from symrom.model.provenance import DataRecord, Provenance
+    from symrom.names import BASE_POS
+
+    z = BASE_POS.start + 2
+    W_e = np.zeros((1, 18))
+    W_e[0, z] = 1.0
+    ae = LinearAutoencoder(W_e, np.zeros(1), W_e.T.copy(), np.zeros(18))
+    lib = Library.standard(1, poly_order=1, trig=False, inputs=False)
+    assert lib.feature_names == ["1", "xi1", "dxi1"]
+    k, c = 400.0, 0.5
+    Xi = np.array([[[k * 0.3], [-k], [-c]], [[-9.81], [0.0], [0.0]]])
+    guards = [Guard("contact", "flight", ["xi1"], [1.0], -0.32, 0.02),
+              Guard("flight", "contact", ["xi1"], [-1.0], 0.30, 0.02)]
+    return HybridModel(ae, lib, ["contact", "flight"], Xi, Xi != 0, np.array([1.0, 10.0]),
+                       Provenance(DataRecord(motion=motion)), guards=guards), z
+
+
+def test_a_free_prediction_takes_each_transition_of_the_motion_once():
+    model, z = _bouncer()
+    assert model.phase_sequence() == (0, 1, 0)  # a pronk: contact, flight, contact
+    q0 = np.zeros(18)
+    q0[z] = 0.25
+    u = np.zeros((1500, 18))  # 3 s
+    free = model.predict_path(q0, np.zeros(18), u, 0.002)
+    assert [(s["source"], s["target"]) for s in free.switches] == [("contact", "flight"), ("flight", "contact")]
+    assert free.phase[-1] == 0 and not free.diverged
+    # the same system without its motion's sequence lifts off again after landing
+    loose = model.predict_path(q0, np.zeros(18), u, 0.002, stage0=-1)
+    assert len(loose.switches) > 3
+    assert loose.switches[:2] == free.switches
+    # a callable steps sample by sample and decides alike
+    stepped = model.predict_path(q0, np.zeros(18), lambda t, s: np.zeros(18), 0.002, n=1500)
+    assert stepped.switches == free.switches
+    # a model of a motion the registry does not hold switches as its guards say
+    other, _ = _bouncer(motion=None)
+    assert other.phase_sequence() == () and len(other.predict_path(q0, np.zeros(18), u, 0.002).switches) > 3
+    # started in flight (the second place of the sequence), it lands once and stays
+    q1 = q0.copy()
+    q1[z] = 0.45
+    fall = model.predict_path(q1, np.zeros(18), u, 0.002, phase0="flight")
+    assert [(s["source"], s["target"]) for s in fall.switches] == [("flight", "contact")]
+    with pytest.raises(ValueError, match="stage0=2"):
+        model.predict_path(q1, np.zeros(18), u, 0.002, phase0="flight", stage0=2)
+
+
+def test_stages_along_a_sequence():
+    from symrom.model.guards import advance, sequence_targets, stage_along
+
+    froggy = (0, 1, 2, 0)  # contact, partial, flight, contact
+    assert sequence_targets(froggy, 0) == {1, 2, 0}  # the phases later in it: partial, flight, contact
+    assert sequence_targets(froggy, 2) == {0} and sequence_targets(froggy, 3) == frozenset()
+    assert sequence_targets(froggy, -1) is None
+    assert advance(froggy, 0, 2) == 2 and advance(froggy, 2, 0) == 3 and advance(froggy, -1, 1) == -1
+    assert stage_along(froggy, np.array([0, 0, 1, 1, 2, 2, 0])) == 3
+    assert stage_along(froggy, np.array([0, 2, 0])) == 3  # a jump without its partial phase
+    assert stage_along(froggy, np.array([0, 1, 0])) == 3  # partial straight to contact: still forward
+    assert stage_along(froggy, np.array([0, 2, 1])) == -1  # back into a phase the jump has left

@@ -114,7 +114,13 @@ def test_budget_refines_the_best_cell_at_short_horizons_nearest_above_the_budget
     # budget (its own 0.1 s scores do not matter: diverged ones too), then the densest below it.
     assert to_refine(rows, 2, reference=True, max_terms=60) == [0, 1, 3, 4]
     assert to_refine(rows, 5, reference=True, max_terms=60) == [0, 1, 5, 6, 2, 3, 4, 7]
-    assert to_refine(rows, 1, reference=True, max_terms=300) == [0, 6]
+    # a budget the usual picks fit in refines nothing more
+    assert to_refine(rows, 1, reference=True, max_terms=300) == [0]
+    assert to_refine(rows[:1] + rows[3:], 1, reference=True, max_terms=150) == [0, 2]  # 157 > 150: 154 of b
+    # a candidate a check refuses for good (physics, integrator) is not refined
+    rows[0]["refused"] = [{"check": "physics", "reason": "its flight falls upward"}]
+    rows[1]["refused"] = [{"check": "free", "reason": "its free prediction diverged"}]
+    assert to_refine(rows, 2, reference=True) == [1, 5]
 
 
 def test_bad_grids_are_named():
@@ -193,6 +199,6 @@ def test_cli_train_select_resume(planted_block, tmp_path):
     assert r.exit_code == 0, r.output
     assert not parts.exists() and (out / "selection.json").exists()
     table = json.loads((out / "selection.json").read_text())
-    assert table["version"] == 2 and table["execution"]["backend"] == "local"
+    assert table["version"] == 3 and table["execution"]["backend"] == "local"
     assert table["execution"]["cells_run"] == len(SelectionConfig(latent_dims=(2,)).cells())
     assert table["execution"]["cells_reused"] == 0

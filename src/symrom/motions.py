@@ -56,7 +56,8 @@ class MotionEntry:
     """One motion of the registry.
 
     phase_names: index -> name of the phases ``phase_rule(contact (N, 4), jump (N,))
-    -> (N,) int8`` assigns; splits: the paper's (train, val, test) jump counts per
+    -> (N,) int8`` assigns; sequence: the phases one jump passes through, in order (each
+    transition taken once; a free prediction never goes back); splits: the paper's (train, val, test) jump counts per
     variant (``""`` for the plain one), scaled for other jump counts; variants:
     the options beyond ``noise`` the plug-in offers (e.g. ``proxy``,
     ``randomized``); plugin:
@@ -69,6 +70,7 @@ class MotionEntry:
     splits: dict[str, tuple[int, int, int]]
     plugin: str
     variants: tuple[str, ...] = field(default=())
+    sequence: tuple[str, ...] = field(default=())
 
     def label(self, contact: np.ndarray, jump: np.ndarray) -> tuple[np.ndarray, list[str]]:
         """Phase index per row (N,) int8 and the phase names."""
@@ -78,15 +80,23 @@ class MotionEntry:
 MOTIONS: dict[str, MotionEntry] = {
     "froggy": MotionEntry("froggy", (STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE), partial_before_flight,
                           splits={"": (100, 40, 10)}, plugin="symrom.sim.controllers.froggy:MOTION",
-                          variants=("randomized",)),
+                          variants=("randomized",),
+                          sequence=(STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE, STANCE_PHASE)),
     "pronk": MotionEntry("pronk", (STANCE_PHASE, FLIGHT_PHASE), contact_flight,
                          splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.controllers.pronk:MOTION",
-                         variants=("proxy", "randomized")),
+                         variants=("proxy", "randomized"), sequence=(STANCE_PHASE, FLIGHT_PHASE, STANCE_PHASE)),
 }
 
 
 class UnknownMotionError(ValueError):
     """A motion name is not in the registry."""
+
+
+def phase_sequence(name: str | None) -> tuple[str, ...]:
+    """The phase sequence of one jump of motion ``name`` (``MotionEntry.sequence``); () for a
+    motion the registry does not hold (its jumps may pass through their phases in any order)."""
+    entry = MOTIONS.get(name) if name is not None else None
+    return entry.sequence if entry is not None else ()
 
 
 def get_motion(name: str) -> MotionEntry:

@@ -80,7 +80,8 @@ def train_cmd(
                             "term budget; refinements pruned to at most N active terms, and only "
                             "candidates within it compete (default: none).")] = None,
     resume: Annotated[bool, typer.Option(
-        "--resume", help="--select: continue an interrupted selection (its finished cells are in OUT.parts).")] = False,
+        "--resume", help="--select: continue an interrupted selection (its finished cells and refinements are in "
+                     "OUT.parts).")] = False,
     backend: BackendName = "local",
     address: Address = None,
     force: Force = False,
@@ -112,17 +113,23 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     """``train --select``: the validation selection, its table and the chosen model. Each
     finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
     that ``--resume`` continues an interrupted selection."""
-    from symrom.experiments.select import SelectionConfig, check_parts, select_into
+    from symrom.experiments.select import SelectionConfig, check_parts, parts_done, select_into
     from symrom.experiments.sweep import parse_latent_dims
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers,
                           max_terms=max_terms)
-    check_parts(out, resume, force, inputs=(data,))  # before connecting to a cluster
+    parts = check_parts(out, resume, force, inputs=(data,))  # before connecting to a cluster
     runner = start_backend(backend, workers, address)
-    with progress_bar("selection", total=len(cfg.cells()) + cfg.refine_top) as bar:
-        sel = select_into(out, data, cfg, resume=resume, force=force, backend=runner,
-                          progress=lambda done, total, what: bar.update(completed=done, total=total,
-                                                                        description=f"selection: {what}"))
+    try:
+        with progress_bar("selection", total=len(cfg.cells()) + cfg.refine_top) as bar:
+            sel = select_into(out, data, cfg, resume=resume, force=force, backend=runner,
+                              progress=lambda done, total, what: bar.update(completed=done, total=total,
+                                                                            description=f"selection: {what}"))
+    except KeyboardInterrupt:
+        cells, refined = parts_done(parts)
+        say(f"interrupted: {cells} finished cell(s) and {refined} finished refinement(s) are kept in {parts}; "
+            "run the same command with --resume to continue without redoing them")
+        raise
     say(f"training rows: {sel.model.training_rows()}")
     say(sel.summary() + f"\nmodel: {out / 'model.json'}  table: {out / 'selection.json'}")
     warn_all(sel.model.warnings())

@@ -2,9 +2,10 @@
 
 With ``phases="logged"`` a rollout follows the logged phase sequence; with
 ``predicted`` the model's guards decide it (``HybridModel.predict_path``) from
-the logged start state and inputs. With periodic resets the state and the
-phase are set to the truth at each reset, the time already spent in that phase
-counted from the logged stay's start. A jump that leaves its bound stays
+the logged start state and inputs, along the motion's phase sequence. With
+periodic resets the state and the phase are set to the truth at each reset, the
+time already spent in that phase counted from the logged stay's start, and the
+place in the phase sequence from the logged switches before it. A jump that leaves its bound stays
 diverged, as in ``rollout``.
 
 Switching-time errors compare, per transition (``contact->flight``, ...),
@@ -18,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.model.guards import stage_along
 from symrom.rollout.integrate import Rollout, RolloutOptions, reset_mask
 
 PHASE_SOURCES = ("logged", "predicted")
@@ -30,6 +32,7 @@ def predicted_rollout(model, ds: Dataset, jumps: np.ndarray, options: RolloutOpt
     model.check_data(ds)
     logged = model.phase_index(ds)
     bounds, l = ds.jump_bounds(), model.latent_dim
+    seq = model.phase_sequence()
     q_pred, xs, vs, phases, div_at = [], [], [], [], []
     for i, j in enumerate(jumps):
         a, b = bounds[j]
@@ -41,7 +44,8 @@ def predicted_rollout(model, ds: Dataset, jumps: np.ndarray, options: RolloutOpt
             p0 = int(logged[a + s])
             stay = s - next((k for k in range(s, -1, -1) if logged[a + k] != p0), -1) - 1  # samples already in p0
             p = model.predict_path(ds.q[a + s], ds.dq[a + s], ds.u[a + s:a + e], ds.dt,
-                                   phase0=model.phase_names[p0], options=options, dwell0=stay * ds.dt)
+                                   phase0=model.phase_names[p0], options=options, dwell0=stay * ds.dt,
+                                   stage0=stage_along(seq, logged[a:a + s + 1]))
             X[s:e], V[s:e], ph[s:e] = p.xi, p.dxi, p.phase
             if p.diverged:
                 d = s + p.diverged_at

@@ -17,22 +17,32 @@ and 0.1 s resets). The grid spans
   exact grid (it costs a thousand times more than an exact fit): the best by
   score, those diverging at the full horizon ranked by their 0.1 s score; with
   a reference, first the sparsest that meet it with 0.1 s resets (the
-  refinement is what may make them meet it over the full jump too);
-- a term budget, ``max_terms`` (None: none): every refinement prunes its
-  candidate to at most that many active terms (``Refine.max_terms``: the
-  coefficients least needed by the training rollouts go, a share at a time,
-  and the rest are refined again), and only candidates within the budget
-  compete in the rule below, unless none of them stands (then all do, and the
-  selection says so in its notes). The exact candidates keep their thresholds'
-  supports; a dense candidate that meets the reference at 0.1 s is thus turned
-  into one within the budget, rather than a sparse one refined as it is.
-  With a budget, two more things: the refinement ends with the phases of
-  ``polish`` the data has refined again, each alone (``Refine.polish``); and besides the
-  picks above, the cell (encoder, latent dimension, library) of the exact
-  candidate with the best 0.1 s score is refined from ``refine_top`` of its
-  thresholds, the sparsest with at least ``max_terms`` terms first (an exact
-  fit's own val score says little of what it becomes once pruned, and the
-  fewer terms pruning removes, the less it costs).
+  refinement is what may make them meet it over the full jump too). A
+  candidate the checks below already refuse (physics, integrator) is not
+  refined;
+- a term budget: ``max_terms`` (None: none), or else ``compact_terms`` (60 by
+  default). A refinement whose candidate has more terms than the budget prunes
+  it to the budget (``Refine.max_terms``: the coefficients least needed by the
+  training rollouts go, a share at a time, and the rest are refined again) and
+  then refines the phases of ``polish`` the data has again, each alone
+  (``Refine.polish``); the model before the pruning (the refinement without a
+  budget, bit for bit) is a candidate too. When a usual pick has more terms than
+  the budget, the cell (encoder, latent dimension, library) of the exact
+  candidate with the best 0.1 s score is refined from ``refine_top`` more of its
+  thresholds, the sparsest with at least the budget's terms first (an exact
+  fit's own val score says little of what it becomes once pruned, and the fewer
+  terms pruning removes, the less it costs). ``max_terms`` is a hard budget:
+  only candidates within it compete in the rule below, unless none of them
+  stands (then all do, and the selection says so in its notes), and every
+  refinement is polished. ``compact_terms`` is a soft one: the pruned models
+  compete with the rest, so the rule's preference for the sparsest takes the
+  compact model whenever it is as accurate on val.
+
+Each cell (encoder, latent dimension) is one task: its encoder and its contact
+guards on the logged states are fitted once and shared by its libraries and
+thresholds; each candidate's guards are then levelled on its own rollouts
+(``symrom.learn.estimator``). The refinements are tasks too, run after the
+cells on the same back end.
 
 Score of a candidate: at each horizon, the mean over the components of the
 validation RMSE divided by a yardstick; the score is the mean of the two
@@ -52,10 +62,31 @@ horizons is chosen; if none is, the tolerance rule above applies to the mean
 ratio. Components whose reference is below ``REFERENCE_FLOOR`` (a joint the
 reference's robot held still) are left out of it.
 
+A model is chosen to be acted on, so every candidate is also checked for use
+(``symrom.evaluate.usability``), and the rule above runs over those that pass;
+each refusal is in the candidate's row (``refused``: the check and why):
+
+- ``physics``: its decoded base acceleration keeps the data's momentum balance
+  (in flight within 5 % of the data's fall, in every phase within the noise),
+  on the train and the val rows (``physics_check``). Never set aside.
+- ``integrator``: the planner's RK4 step (``plan.problem.PlanConfig``: its
+  longest stance over its force intervals and substeps; the data's median
+  flight over the planner's rise and fall intervals and substeps; a partial
+  phase as a stance) and the rollouts' (the data's sample period over
+  ``substeps``) carry every mode of every phase (``integrator_check``).
+- ``free``: rolled out free from each val jump's first state with its own
+  guards and the logged inputs (``evaluate.switching.predicted_rollout``), it
+  does not diverge, it takes every logged transition once (none missed, none
+  extra) and its median switching error is within ``switch_tolerance`` for
+  every transition.
+
+If no candidate passes them all, the ``free`` check and then the
+``integrator`` check are set aside, in that order (the notes say so); a
+candidate refused on physics is never chosen.
+
 Every candidate and its numbers are kept in the selection table
-(``selection.json``). The fitting of a cell (encoder, latent dimension,
-library: one encoder and problem shared by its thresholds) reads only the
-training rows and the validation jumps: replacing every value of the test
+(``selection.json``, ``SELECTION_VERSION``). The fitting of a cell reads only
+the training rows and the validation jumps: replacing every value of the test
 split by NaN changes nothing.
 """
 
@@ -76,22 +107,33 @@ from symrom.atomic import atomic_dir, check_output_file, write_text_atomic
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate_model
+from symrom.evaluate.switching import predicted_rollout, switching_errors
+from symrom.evaluate.usability import integrator_check, physics_check
 from symrom.execution import Backend, LocalBackend
 from symrom.experiments.grid import Store, run_grid
 from symrom.learn.encoders import unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
-from symrom.model.persistence import write_model_files
+from symrom.model.persistence import model_from_dict, model_to_dict, write_model_files
 from symrom.model.provenance import SelectionRecord
-from symrom.names import BASE_NAMES, FLIGHT_PHASE, Q_NAMES, STANCE_PHASE
+from symrom.names import BASE_NAMES, FLIGHT_PHASE, PARTIAL_PHASE, Q_NAMES, STANCE_PHASE
 from symrom.rollout.integrate import RolloutOptions
 
-SELECTION_VERSION = 2
-CELL_VERSION = 1
-# The settings the rows of a cell depend on (besides the data and the cell itself).
-CELL_SETTINGS = ("thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight", "contact_phase",
-                 "substeps", "reference")
+SELECTION_VERSION = 3
+CELL_VERSION = 2
+REFINED_VERSION = 1
+# The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
+CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
+                 "contact_phase", "substeps", "reference", "switch_tolerance")
+# ... and those of a refinement, besides its candidate's settings.
+REFINED_SETTINGS = CELL_SETTINGS[1:] + ("max_terms", "compact_terms", "polish")
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
+# The soft term budget of the default selection: equations one can read, as the paper's (17 terms
+# on Go1); a model pruned to it is chosen when it is as accurate on val (docs/results.md).
+COMPACT_TERMS = 60
+SWITCH_TOLERANCE = 0.02  # s: a free prediction's median switching error per transition, at most
+CHECKS = ("physics", "integrator", "free")  # what a refusal names; the last two are set aside in reverse order
+FREE = "free"  # the row's horizon key of the free prediction
 
 
 @dataclass(frozen=True)
@@ -114,7 +156,7 @@ ENCODERS: dict[str, EncoderChoice] = {
 HORIZONS: tuple[float | None, ...] = (None, 0.1)
 REFERENCE_FLOOR = 1e-6  # a reference RMSE below this marks a component the reference held still
 
-SelectProgress = Callable[[int, int, str], None]  # (cells done, cells in total, what finished)
+SelectProgress = Callable[[int, int, str], None]  # (tasks done, tasks in total, what finished)
 
 
 def parse_library(text: str) -> dict[str, Any]:
@@ -155,7 +197,10 @@ class SelectionConfig:
     candidate: ``measure`` of the thresholds, ``collinearity`` of the audit,
     ``alpha`` ridge, ``decoded_weight`` of the SINDy loss (0: the latent
     accelerations alone; the decoded term asks the latent model to explain
-    swing-leg accelerations the latent state does not hold)."""
+    swing-leg accelerations the latent state does not hold). ``max_terms``: the
+    hard term budget (None: none); ``compact_terms``: the soft one, used without
+    ``max_terms`` (None: none); ``switch_tolerance``: s, the largest median
+    switching error of a free prediction."""
 
     encoders: tuple[str, ...] = tuple(ENCODERS)
     latent_dims: tuple[int, ...] = (2, 3, 4)
@@ -173,7 +218,9 @@ class SelectionConfig:
     substeps: int = 2
     reference: dict[str, dict[str, float]] | None = None
     max_terms: int | None = None
+    compact_terms: int | None = COMPACT_TERMS
     polish: tuple[str, ...] = (FLIGHT_PHASE,)
+    switch_tolerance: float = SWITCH_TOLERANCE
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]
@@ -191,8 +238,11 @@ class SelectionConfig:
             raise ValueError(f"workers={self.workers}: the number of workers must be at least 1")
         if self.refine_top < 0:
             raise ValueError(f"refine_top must be >= 0, got {self.refine_top}")
-        if self.max_terms is not None and self.max_terms < 1:
-            raise ValueError(f"max_terms={self.max_terms}: must be a positive number of terms")
+        for key in ("max_terms", "compact_terms"):
+            if getattr(self, key) is not None and getattr(self, key) < 1:
+                raise ValueError(f"{key}={getattr(self, key)}: must be a positive number of terms")
+        if not self.switch_tolerance > 0:
+            raise ValueError(f"switch_tolerance must be > 0 s, got {self.switch_tolerance}")
         if self.reference is not None:
             keys = {"full", "0.1"}
             if set(self.reference) != keys:
@@ -202,32 +252,46 @@ class SelectionConfig:
                 if bad:
                     raise ValueError(f"reference.{h}: unknown component(s) {bad}")
 
-    def yardstick(self, ds: Dataset) -> dict[str, dict[str, float]]:
-        """Per horizon key, per scored component, the RMSE that counts as 1."""
-        if self.reference is not None:
-            return {h: {c: float(v) for c, v in comps.items() if v >= REFERENCE_FLOOR}
-                    for h, comps in self.reference.items()}
-        spread = dict(zip(Q_NAMES, component_spread(ds, self.floor).tolist()))
-        return {"full": spread, "0.1": spread}
+    @property
+    def budget(self) -> int | None:
+        """The term budget of the refinements: ``max_terms``, else ``compact_terms``."""
+        return self.max_terms if self.max_terms is not None else self.compact_terms
 
-    def cells(self) -> list[tuple[str, int, str]]:
-        """(encoder, latent dim, library) of every cell, skipping encoders too narrow for l."""
+    def yardstick(self, ds: Dataset) -> dict[str, dict[str, float]]:
+        """Per horizon key (and the free prediction's), per scored component, the RMSE that
+        counts as 1."""
+        if self.reference is not None:
+            out = {h: {c: float(v) for c, v in comps.items() if v >= REFERENCE_FLOOR}
+                   for h, comps in self.reference.items()}
+            return {**out, FREE: out["full"]}
+        spread = dict(zip(Q_NAMES, component_spread(ds, self.floor).tolist()))
+        return {"full": spread, "0.1": spread, FREE: spread}
+
+    def cells(self) -> list[tuple[str, int]]:
+        """(encoder, latent dim) of every cell, skipping encoders too narrow for l."""
         out = []
         for enc in self.encoders:
             choice = ENCODERS[enc]
-            for l in self.latent_dims:
-                if choice.min_dim <= l <= choice.max_dim:
-                    out += [(enc, l, lib) for lib in self.libraries]
+            out += [(enc, l) for l in self.latent_dims if choice.min_dim <= l <= choice.max_dim]
         return out
 
+    def candidates(self) -> int:
+        """The exact candidates of the grid: cells x libraries x thresholds."""
+        return len(self.cells()) * len(self.libraries) * len(self.thresholds)
+
     def train_config(self, encoder: str, latent_dim: int, library: str, threshold: float,
-                     refine: bool = False) -> TrainConfig:
+                     refine: bool = False, max_terms: int | None = None) -> TrainConfig:
+        """The settings of one candidate; a refinement prunes to ``max_terms`` (None: no pruning),
+        then polishes ``polish``; with the hard budget (``SelectionConfig.max_terms``) every
+        refinement prunes to it and polishes."""
+        if refine and self.max_terms is not None:
+            max_terms = self.max_terms
         return TrainConfig(latent_dim=latent_dim, **parse_library(library), threshold=threshold,
                            measure=self.measure, collinearity=self.collinearity, alpha=self.alpha,
                            decoded_weight=self.decoded_weight, **ENCODERS[encoder].settings(latent_dim),
                            contact_phase=self.contact_phase, refine=refine,
-                           max_terms=self.max_terms if refine else None,
-                           polish=self.polish if refine and self.max_terms is not None else ())
+                           max_terms=max_terms if refine else None,
+                           polish=self.polish if refine and max_terms is not None else ())
 
 
 def component_spread(ds: Dataset, floor: float) -> np.ndarray:
@@ -236,25 +300,119 @@ def component_spread(ds: Dataset, floor: float) -> np.ndarray:
     return unit_floored(ds.q[ds.rows_of("val")].std(axis=0), floor)
 
 
+def _ratios(rmse: dict | None, diverged: int, yardstick: dict[str, float]) -> dict[str, Any]:
+    ratio = (np.array([rmse[c] / v for c, v in yardstick.items()]) if rmse is not None and not diverged else None)
+    return {"score": None if ratio is None else float(ratio.mean()),
+            "worst": None if ratio is None else float(ratio.max()), "diverged_jumps": diverged, "rmse": rmse}
+
+
 def score_model(model: HybridModel, ds: Dataset, yardstick: dict[str, dict[str, float]],
                 substeps: int) -> dict[str, Any]:
     """Validation rollouts at both horizons. Per horizon: ``score`` (mean of RMSE / yardstick
     over the yardstick's components), ``worst`` (their largest ratio), the diverged jumps
     and the RMSE of every component (ratios None if any jump diverged); ``score``, the
     mean over horizons (None if any diverged)."""
-    metrics, _ = evaluate_model(model, ds, "val", HORIZONS, RolloutOptions("rk4", substeps=substeps))
+    metrics, _ = evaluate_model(model, ds, "val", HORIZONS,
+                                RolloutOptions("rk4", substeps=substeps, backend=ROLLOUT_BACKEND))
     out: dict[str, Any] = {"horizons": {}}
     scores = []
     for key, h in metrics.horizons.items():
         rmse = {n: h.components[n].rmse for n in Q_NAMES} if h.components else None
-        ratio = (np.array([rmse[c] / v for c, v in yardstick[key].items()])
-                 if rmse is not None and not h.diverged_jumps else None)
-        out["horizons"][key] = {"score": None if ratio is None else float(ratio.mean()),
-                                "worst": None if ratio is None else float(ratio.max()),
-                                "diverged_jumps": h.diverged_jumps, "rmse": rmse}
+        out["horizons"][key] = _ratios(rmse, h.diverged_jumps, yardstick[key])
         scores.append(out["horizons"][key]["score"])
     out["score"] = None if any(s is None for s in scores) else float(np.mean(scores))
     return out
+
+
+# The selection's rollouts run on the term-table kernel: it compiles once (cached on disk), where
+# ``auto`` may compile each candidate's own code, which does not pay in one val rollout.
+ROLLOUT_BACKEND = "table"
+
+
+def free_prediction(model: HybridModel, ds: Dataset, yardstick: dict[str, float], substeps: int,
+                    switch_tolerance: float) -> dict[str, Any]:
+    """The model rolled out free from each val jump's first state with its own guards and the
+    logged inputs: ``score``, ``worst``, ``diverged_jumps``, ``rmse`` as a horizon of
+    ``score_model``; ``switching``: per transition the logged, matched, missed and extra
+    switches and the median |error| (s); ``follows``: whether it follows the motion (no
+    diverged jump, every transition matched once, medians within ``switch_tolerance``)."""
+    jumps = ds.jumps_in("val")
+    if model.guards is None:
+        return {"score": None, "worst": None, "diverged_jumps": None, "rmse": None, "switching": {},
+                "follows": False}
+    options = RolloutOptions("rk4", substeps=substeps, backend=ROLLOUT_BACKEND)
+    ro, phases = predicted_rollout(model, ds, jumps, options)
+    sw = switching_errors(model, ds, jumps, phases, ro.diverged_at)
+    rows = np.concatenate([np.arange(a, b) for a, b in ds.jump_bounds()[jumps]])
+    q_pred = np.concatenate(ro.q_pred)
+    n_div = int(ro.diverged.sum())
+    rmse = None
+    if not n_div:
+        err = q_pred - ds.q[rows]
+        rmse = {n: float(np.sqrt(np.mean(err[:, i] ** 2))) for i, n in enumerate(Q_NAMES)}
+    out = _ratios(rmse, n_div, yardstick)
+    out["switching"] = {k: {f: r[f] for f in ("logged", "matched", "missed", "extra", "median_abs_s")}
+                        for k, r in sw.items()}
+    out["follows"] = bool(not n_div and all(
+        not r["missed"] and not r["extra"] and (r["median_abs_s"] is None or r["median_abs_s"] <= switch_tolerance)
+        for r in sw.values()))
+    return out
+
+
+def plan_steps(ds: Dataset, substeps: int) -> dict[str, dict[str, float]]:
+    """Per phase of ``ds``, the RK4 steps (s) its model must carry: the planner's (``PlanConfig``:
+    the longest stance over its force intervals and substeps for a stance or partial phase; the
+    median training flight, split into rise and fall, over the flight intervals and substeps)
+    and the rollouts' (the sample period over ``substeps``)."""
+    from symrom.learn.estimator import _median_stay
+    from symrom.plan.problem import PlanConfig
+
+    pc = PlanConfig()
+    out = {}
+    for k, name in enumerate(ds.phase_names):
+        if name == FLIGHT_PHASE:
+            stay = _median_stay(ds, ds.rows_of("train"), k)
+            h = None if stay is None else stay / 2 / (pc.flight_intervals * pc.substeps)
+        elif name in (STANCE_PHASE, PARTIAL_PHASE):
+            h = pc.stance_max / (pc.knots * pc.substeps)
+        else:
+            h = None
+        out[name] = {**({"planner": round(h, 9)} if h is not None else {}), "rollout": ds.dt / substeps}
+    return out
+
+
+def assess(model: HybridModel, ds: Dataset, cfg: SelectionConfig, yardstick: dict, steps: dict) -> dict[str, Any]:
+    """Everything the selection's table holds of a candidate besides its settings: the val
+    scores (``score_model``), its free prediction (``free_prediction``), the checks for use
+    and the refusals (module docstring)."""
+    out = score_model(model, ds, yardstick, cfg.substeps)
+    out[FREE] = free_prediction(model, ds, yardstick[FREE], cfg.substeps, cfg.switch_tolerance)
+    rows = ds.rows_of("train") | ds.rows_of("val")
+    steps_checked = integrator_check(model, ds, rows, steps)
+    phys = physics_check(model, ds)
+    flight = {a.split: {"data": a.data, "model": a.model} for a in phys if a.kind == "flight"}
+    out["integrator"] = [c.to_dict() for c in steps_checked]
+    out["physics"] = {"checks": len(phys), "flight_z": flight, "failed": [a.to_dict() for a in phys if not a.ok]}
+    refused = [{"check": "physics", "reason": a.text()} for a in phys if not a.ok]
+    refused += [{"check": "integrator", "reason": c.text()} for c in steps_checked if not c.carried]
+    if not out[FREE]["follows"]:
+        refused.append({"check": "free", "reason": _free_reason(out[FREE], cfg.switch_tolerance)})
+    out["refused"] = refused
+    return out
+
+
+def _free_reason(free: dict, tolerance: float) -> str:
+    if free["diverged_jumps"] is None:
+        return "the model has no guards to predict its phases"
+    if free["diverged_jumps"]:
+        return f"its free prediction diverged on {free['diverged_jumps']} val jump(s)"
+    bad = []
+    for key, r in free["switching"].items():
+        if r["missed"] or r["extra"]:
+            bad.append(f"{key}: {r['matched']} of {r['logged']} logged switches matched, {r['extra']} extra")
+        elif r["median_abs_s"] is not None and r["median_abs_s"] > tolerance:
+            bad.append(f"{key}: median switching error {1e3 * r['median_abs_s']:.0f} ms")
+    return "its free prediction does not follow the motion (" + "; ".join(bad) + ")"
 
 
 def meets(row: dict, horizons: tuple[str, ...] = ("full", "0.1")) -> bool:
@@ -262,65 +420,109 @@ def meets(row: dict, horizons: tuple[str, ...] = ("full", "0.1")) -> bool:
     return all(row["horizons"][h]["worst"] is not None and row["horizons"][h]["worst"] <= 1.0 for h in horizons)
 
 
-def _row(cfg: SelectionConfig, encoder: str, l: int, library: str, threshold: float, refine: bool,
-         model: HybridModel, scored: dict, seconds: float) -> dict[str, Any]:
-    budget = ({"max_terms": cfg.max_terms, **({"polish": list(cfg.polish)} if cfg.polish else {})}
-              if refine and cfg.max_terms is not None else {})
+def _row(cfg: SelectionConfig, encoder: str, l: int, library: str, threshold: float, model: HybridModel,
+         assessed: dict, seconds: float) -> dict[str, Any]:
+    reg = model.estimator.get("regressor", {})
+    refine = reg.get("kind") == "refine"
+    budget = ({"max_terms": reg["max_terms"], **({"polish": list(reg["polish"])} if reg.get("polish") else {})}
+              if refine and reg.get("max_terms") is not None else {})
     return {"encoder": encoder, "latent_dim": l, "library": library, "threshold": threshold, "refine": refine,
             **budget, "active_terms": int(model.mask.sum()), "active_per_phase": model.active_terms(),
             "fast_unstable_phases": [s.phase for s in model.stability() if s.fast_unstable],
-            "seconds": round(seconds, 3), **scored}
+            "seconds": round(seconds, 3), **assessed}
 
 
-def run_cell(ds: Dataset, cfg: SelectionConfig, encoder: str, l: int, library: str) -> list[dict[str, Any]]:
-    """Train and score every threshold of one (encoder, latent dim, library) cell: one
-    encoder and regression problem, one regressor per threshold."""
+def run_cell(ds: Dataset, cfg: SelectionConfig, steps: dict, encoder: str, l: int) -> list[dict[str, Any]]:
+    """Train and assess every library and threshold of one (encoder, latent dim) cell: one
+    encoder and its logged-state guards, one regression problem per library, one regressor
+    per threshold."""
     yardstick = cfg.yardstick(ds)
     t0 = time.perf_counter()
-    configs = [cfg.train_config(encoder, l, library, t) for t in cfg.thresholds]
-    models = configs[0].estimator().fit_variants(ds, [c.regressor() for c in configs])
-    share = (time.perf_counter() - t0) / len(models)  # the shared fit, split between the thresholds
+    configs = [cfg.train_config(encoder, l, lib, t) for lib in cfg.libraries for t in cfg.thresholds]
+    models = configs[0].estimator().fit_variants(
+        ds, [c.regressor() for c in configs], libraries=[c.estimator().library for c in configs])
+    share = (time.perf_counter() - t0) / len(models)  # the shared fit, split between the candidates
     rows = []
     for c, model in zip(configs, models):
         model = replace(model, provenance=model.provenance.with_settings(asdict(c)))
         t1 = time.perf_counter()
-        scored = score_model(model, ds, yardstick, cfg.substeps)
-        rows.append(_row(cfg, encoder, l, library, c.threshold, False, model, scored,
-                         share + time.perf_counter() - t1))
+        assessed = assess(model, ds, cfg, yardstick, steps)
+        rows.append(_row(cfg, encoder, l, library_name(c.poly_order, c.trig, c.inputs), c.threshold, model,
+                         assessed, share + time.perf_counter() - t1))
     return rows
 
 
-def cell_key(cfg: SelectionConfig, data_sha256: str, cell: tuple[str, int, str]) -> str:
+def cell_key(cfg: SelectionConfig, data_sha256: str, cell: tuple[str, int], steps: dict | None = None) -> str:
     """Hash of everything the rows of ``cell`` depend on (not the rest of the grid, the
     workers, the refinement or the rule), to match stored cells on a resumed run."""
     settings = asdict(cfg)
-    spec = {"version": CELL_VERSION, "data": data_sha256, "cell": list(cell),
+    spec = {"version": CELL_VERSION, "data": data_sha256, "cell": list(cell), "steps": steps,
             **{k: settings[k] for k in CELL_SETTINGS}}
     return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()
 
 
-def cell_path(folder: str | Path, cell: tuple[str, int, str]) -> Path:
-    """The file of ``cell`` in a folder of finished cells: ``base_pose_l02_poly1+inputs.json``."""
-    encoder, l, library = cell
-    return Path(folder) / f"{encoder}_l{l:02d}_{library}.json"
+def cell_path(folder: str | Path, cell: tuple[str, int]) -> Path:
+    """The file of ``cell`` in a folder of finished cells: ``base_pose_l02.json``."""
+    encoder, l = cell
+    return Path(folder) / f"{encoder}_l{l:02d}.json"
 
 
-def run_refined(ds: Dataset, cfg: SelectionConfig, row: dict) -> tuple[dict[str, Any], HybridModel]:
-    """The refined version of a candidate row, scored."""
+Pick = tuple[str, int, str, float, bool]  # (encoder, latent dim, library, threshold, prune) of a refinement
+
+
+def refined_key(cfg: SelectionConfig, data_sha256: str, pick: Pick, steps: dict | None = None) -> str:
+    """Hash of everything the refinement of ``pick`` depends on, to match stored refinements."""
+    settings = asdict(cfg)
+    spec = {"version": REFINED_VERSION, "cell_version": CELL_VERSION, "data": data_sha256, "pick": list(pick),
+            "steps": steps, **{k: settings[k] for k in REFINED_SETTINGS}}
+    return hashlib.sha256(json.dumps(spec, sort_keys=True).encode()).hexdigest()
+
+
+def refined_path(folder: str | Path, pick: Pick) -> Path:
+    """The file of a finished refinement: ``refined/base_pose_l02_poly1+inputs_t0.003.json``."""
+    encoder, l, library, threshold, prune = pick
+    return Path(folder) / "refined" / f"{encoder}_l{l:02d}_{library}_t{threshold:g}{'_pruned' if prune else ''}.json"
+
+
+def run_refinement(ds: Dataset, cfg: SelectionConfig, steps: dict, encoder: str, l: int, library: str,
+                   threshold: float, prune: bool) -> list[dict[str, Any]]:
+    """The refined versions of one exact candidate, assessed, each row with its model (``model``:
+    a model file's dict): the refinement; with ``prune``, the refinement pruned to the budget
+    and polished (``SelectionConfig.train_config``), and, if it pruned, the refinement before
+    the pruning (the refinement without a budget, bit for bit)."""
     t0 = time.perf_counter()
-    model = train(ds, cfg.train_config(row["encoder"], row["latent_dim"], row["library"], row["threshold"], True))
-    scored = score_model(model, ds, cfg.yardstick(ds), cfg.substeps)
-    return _row(cfg, row["encoder"], row["latent_dim"], row["library"], row["threshold"], True, model, scored,
-                time.perf_counter() - t0), model
+    tc = cfg.train_config(encoder, l, library, threshold, refine=True, max_terms=cfg.budget if prune else None)
+    model, unpruned = tc.estimator().fit_pruned(ds)
+    seconds = time.perf_counter() - t0
+    yardstick = cfg.yardstick(ds)
+    out = []
+    for m in (model, unpruned):
+        if m is None:
+            continue
+        settings = replace(tc, max_terms=m.estimator["regressor"].get("max_terms"),
+                           polish=tuple(m.estimator["regressor"].get("polish", ())))
+        m = replace(m, provenance=m.provenance.with_settings(asdict(settings)))
+        t1 = time.perf_counter()
+        assessed = assess(m, ds, cfg, yardstick, steps)
+        out.append({**_row(cfg, encoder, l, library, threshold, m, assessed, seconds + time.perf_counter() - t1),
+                    "model": model_to_dict(m)})
+    return out
+
+
+def _standing(rows: list[dict], set_aside: tuple[str, ...] = ()) -> list[int]:
+    """Indices of the rows with a val score and no refusal but for the checks ``set_aside``."""
+    return [i for i, r in enumerate(rows) if r["score"] is not None
+            and all(x["check"] in set_aside for x in r.get("refused", ()))]
 
 
 def choose(rows: list[dict], tolerance: float, reference: bool = False,
            max_terms: int | None = None) -> int | None:
-    """Index of the chosen row: with a ``reference``, the sparsest that meets it at both
-    horizons if any; else the sparsest with a score within ``tolerance`` of the best.
-    With ``max_terms``, only the rows within that many active terms compete, unless none
-    of them stands (then all rows do)."""
-    ok = [i for i, r in enumerate(rows) if r["score"] is not None]
+    """Index of the chosen row among those standing (a val score and no refusal; if none does,
+    with the ``free`` check and then the ``integrator`` check set aside, never ``physics``):
+    with a ``reference``, the sparsest that meets it at both horizons if any; else the sparsest
+    with a score within ``tolerance`` of the best. With ``max_terms``, only the rows within
+    that many active terms compete, unless none of them stands (then all rows do)."""
+    ok = next((idx for idx in (_standing(rows, aside) for aside in set_asides()) if idx), [])
     if not ok:
         return None
     within = [i for i in ok if max_terms is None or rows[i]["active_terms"] <= max_terms]
@@ -333,10 +535,27 @@ def choose(rows: list[dict], tolerance: float, reference: bool = False,
     return sparsest([i for i in ok if rows[i]["score"] <= (1 + tolerance) * best])
 
 
+def set_asides() -> list[tuple[str, ...]]:
+    """The checks a choice sets aside, in turn, when no candidate passes the rest: none, then
+    ``free``, then ``free`` and ``integrator`` (``physics`` never)."""
+    return [(), ("free",), ("free", "integrator")]
+
+
+def set_aside_for(rows: list[dict]) -> tuple[str, ...]:
+    """The checks ``choose`` had to set aside on ``rows`` (() if a candidate passed them all)."""
+    return next((aside for aside in set_asides() if _standing(rows, aside)), ())
+
+
+def _refinable(r: dict) -> bool:
+    """Whether a row may be refined: not refused by a check a refinement does not change."""
+    return not any(x["check"] in ("physics", "integrator") for x in r.get("refused", ()))
+
+
 def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int | None = None) -> list[int]:
     """Indices of the exact candidates to refine (module docstring): ``k`` of them, and
-    with ``max_terms`` up to ``k`` more from the best cell at 0.1 s."""
-    short = [i for i, r in enumerate(rows) if r["horizons"]["0.1"]["score"] is not None]
+    when one of those has more than ``max_terms`` terms (the budget), up to ``k`` more from
+    the best cell at 0.1 s. Candidates refused on physics or by the integrator are not refined."""
+    short = [i for i, r in enumerate(rows) if r["horizons"]["0.1"]["score"] is not None and _refinable(r)]
     picked = []
     if reference:  # the sparsest that meet the reference with 0.1 s resets
         picked = sorted((i for i in short if meets(rows[i], ("0.1",))),
@@ -345,11 +564,11 @@ def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int 
                   key=lambda i: (rows[i]["score"] is None, rows[i]["score"] if rows[i]["score"] is not None
                                  else rows[i]["horizons"]["0.1"]["score"]))
     picked += rest[:k - len(picked)]
-    if max_terms is None or not short:
+    if max_terms is None or not short or all(rows[i]["active_terms"] <= max_terms for i in picked):
         return picked
     cell = lambda r: (r["encoder"], r["latent_dim"], r["library"])  # noqa: E731
     best = cell(rows[min(short, key=lambda i: rows[i]["horizons"]["0.1"]["score"])])
-    members = [i for i, r in enumerate(rows) if cell(r) == best]
+    members = [i for i, r in enumerate(rows) if cell(r) == best and _refinable(r)]
     members.sort(key=lambda i: (rows[i]["active_terms"] < max_terms,
                                 abs(rows[i]["active_terms"] - max_terms)))
     return picked + [i for i in members if i not in picked][:k]
@@ -358,16 +577,26 @@ def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int 
 def selection_rule(cfg: SelectionConfig) -> str:
     """The score and the choice of ``choose`` under ``cfg``, in words."""
     tol = f"the sparsest within {cfg.tolerance:.0%} of the best score"
-    budget = ("" if cfg.max_terms is None else
-              f"; refinements pruned to at most {cfg.max_terms} active terms"
-              + (f", then {', '.join(cfg.polish)} refined again alone" if cfg.polish else "")
-              + f", and only candidates within {cfg.max_terms} terms compete (all if none stands)")
+    budget = ""
+    if cfg.max_terms is not None:
+        budget = (f"; refinements pruned to at most {cfg.max_terms} active terms"
+                  + (f", then {', '.join(cfg.polish)} refined again alone" if cfg.polish else "")
+                  + f", and only candidates within {cfg.max_terms} terms compete (all if none stands)")
+    elif cfg.compact_terms is not None:
+        budget = (f"; refinements of candidates with more than {cfg.compact_terms} terms also pruned to "
+                  f"{cfg.compact_terms}" + (f" ({', '.join(cfg.polish)} then refined again alone)" if cfg.polish else "")
+                  + ", the pruned models competing with the rest")
+    checks = ("; a candidate must keep the data's momentum balance (physics: never set aside), have every mode "
+              "carried by the planner's and the rollouts' RK4 steps (integrator) and, rolled out free from each "
+              "val jump's first state, follow the motion (free: no divergence, every transition once, median "
+              f"switching error within {1e3 * cfg.switch_tolerance:.0f} ms); if none passes, free and then "
+              "integrator are set aside")
     if cfg.reference is None:
         return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
-                f"a diverged val jump rejected; {tol} chosen" + budget)
+                f"a diverged val jump rejected; {tol} chosen" + budget + checks)
     return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / reference_c; candidates with a "
             "diverged val jump rejected; the sparsest at or below the reference on every component at both "
-            f"horizons chosen, else {tol}" + budget)
+            f"horizons chosen, else {tol}" + budget + checks)
 
 
 @dataclass
@@ -382,6 +611,7 @@ class Selection:
     seconds: float = 0.0
     notes: list[str] = field(default_factory=list)
     execution: dict[str, Any] = field(default_factory=dict)
+    steps: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def rule(self) -> str:
         """The score and the choice, in words."""
@@ -390,15 +620,20 @@ class Selection:
     def summary(self) -> str:
         """The chosen candidate in one line: its settings, terms and val score."""
         if self.chosen is None:
-            return f"none of {len(self.rows)} candidate models chosen: every one diverged on a validation jump"
+            return f"none of {len(self.rows)} candidate models chosen: " + (self.notes[0] if self.notes else "")
         r = self.rows[self.chosen]
         return (f"chosen of {len(self.rows)} candidate models: encoder {r['encoder']}, l={r['latent_dim']}, "
-                f"{r['library']}, threshold {r['threshold']:g}, refined {'yes' if r['refine'] else 'no'}; "
-                f"{r['active_terms']} active terms, val score {r['score']:.3g} ({self.seconds:.0f} s)")
+                f"{r['library']}, threshold {r['threshold']:g}, refined {'yes' if r['refine'] else 'no'}"
+                + (f" (pruned to {r['max_terms']})" if r.get("max_terms") else "")
+                + f"; {r['active_terms']} active terms, val score {r['score']:.3g} ({self.seconds:.0f} s)")
+
+    def refusals(self) -> dict[str, int]:
+        """How many candidates each check refused."""
+        return {c: sum(any(x["check"] == c for x in r.get("refused", ())) for r in self.rows) for c in CHECKS}
 
     def to_dict(self) -> dict[str, Any]:
         return {"version": SELECTION_VERSION, "config": asdict(self.config), "data_sha256": self.data_sha256,
-                "rule": self.rule(),
+                "rule": self.rule(), "steps": self.steps, "refusals": self.refusals(),
                 "chosen": self.chosen, "seconds": round(self.seconds, 2), "notes": self.notes,
                 "execution": self.execution, "rows": self.rows}
 
@@ -414,12 +649,12 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
            cells_dir: str | Path | None = None) -> Selection:
     """Run the grid on ``ds`` (train and val splits only) and return the selection.
 
-    The cells run as tasks on ``backend`` (default: ``cfg.workers`` local processes), the
-    refinements then in this process; the table does not depend on where they ran.
-    ``execution`` of the selection records the back end and every attempt lost to a dying
-    worker. ``cells_dir``: a folder where each finished cell is written at once
-    (``cell_path``, JSON) and from which the cells of an interrupted run are reused when
-    their key (``cell_key``) matches.
+    The cells, then the refinements, run as tasks on ``backend`` (default: ``cfg.workers``
+    local processes); the table does not depend on where they ran. ``execution`` of the
+    selection records the back end and every attempt lost to a dying worker. ``cells_dir``:
+    a folder where each finished cell (``cell_path``) and refinement (``refined_path``, with
+    its models) is written at once, JSON, and from which those of an interrupted run are
+    reused when their key (``cell_key``, ``refined_key``) matches.
     """
     check_splits(ds)
     cfg = replace(cfg, polish=tuple(p for p in cfg.polish if p in ds.phase_names))  # a motion may have no flight
@@ -427,48 +662,73 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     say = progress or (lambda done, total, what: None)
     backend = backend or LocalBackend(cfg.workers)
     sha = data_hash(ds)
+    steps = plan_steps(ds, cfg.substeps)
     cells = cfg.cells()
-    total = len(cells) + cfg.refine_top * (1 if cfg.max_terms is None else 2)
+    total = len(cells) + cfg.refine_top * (1 if cfg.budget is None else 2)
     store = None if cells_dir is None else Store(
-        path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c),
+        path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c, steps),
         record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},
         value=lambda stored: stored["rows"])
-    grid = run_grid(cells, run_cell, (ds, cfg), backend, "selection cell", store, progress=lambda done, n, c, task: say(
-        done, total, f"{c[0]} l={c[1]} {c[2]}" + (" (reused)" if task is None else "")))
+    grid = run_grid(cells, run_cell, (ds, cfg, steps), backend, "selection cell", store,
+                    progress=lambda done, n, c, task: say(done, total, f"{c[0]} l={c[1]}"
+                                                          + (" (reused)" if task is None else "")))
     rows: list[dict] = [r for c in cells for r in grid.results[c]]
-    retries = [{"task": f"{c[0]} l={c[1]} {c[2]}", **r} for c in grid.ran for r in grid.retries[c]]
-    todo = grid.ran
+    retries = [{"task": f"{c[0]} l={c[1]}", **r} for c in grid.ran for r in grid.retries[c]]
+    lib_order = {lib: i for i, lib in enumerate(cfg.libraries)}
     order = {c: i for i, c in enumerate(cells)}
-    rows.sort(key=lambda r: (order[(r["encoder"], r["latent_dim"], r["library"])], r["threshold"]))
-    refined_models = {}
-    # The refinements (refine_top of them) run in this process, which compiles the refinement
-    # kernel once; a fresh worker process would compile it again before refining.
-    picks = to_refine(rows, cfg.refine_top, cfg.reference is not None, cfg.max_terms)
+    rows.sort(key=lambda r: (order[(r["encoder"], r["latent_dim"])], lib_order[r["library"]], r["threshold"]))
+    budget = cfg.budget
+    idx = to_refine(rows, cfg.refine_top, cfg.reference is not None, budget)
+    picks: list[Pick] = [(rows[i]["encoder"], rows[i]["latent_dim"], rows[i]["library"], rows[i]["threshold"],
+                          budget is not None and (cfg.max_terms is not None or rows[i]["active_terms"] > budget))
+                         for i in idx]
     total = len(cells) + len(picks)  # fewer than refine_top when fewer candidates qualify
-    for k, i in enumerate(picks):
-        row = rows[i]
-        # Said before it starts: a refinement takes as long as many cells.
-        say(len(cells) + k, total, f"refining {row['encoder']} l={row['latent_dim']} {row['library']}")
-        new, model = run_refined(ds, cfg, row)
-        rows.append(new)
-        refined_models[len(rows) - 1] = model
-        say(len(cells) + k + 1, total, f"refined {row['encoder']} l={row['latent_dim']} {row['library']}")
-    if not picks:
-        say(total, total, "no candidate to refine")
+    say(len(cells), total, f"refining {len(picks)} candidate model(s)" if picks else "no candidate to refine")
+    rstore = None if cells_dir is None else Store(
+        path=lambda p: refined_path(cells_dir, p), key=lambda p: refined_key(cfg, sha, p, steps),
+        record=lambda p, out, key, execution: {"key": key, "pick": list(p), "rows": out, "execution": execution},
+        value=lambda stored: stored["rows"])
+    # The refinements take longest: the densest first, so that the workers stay busy to the end.
+    terms = {p: rows[i]["active_terms"] for p, i in zip(picks, idx)}
+    refined = run_grid(picks, run_refinement, (ds, cfg, steps), backend, "selection refinement", rstore,
+                       order=lambda p: -terms[p],
+                       progress=lambda done, n, p, task: say(len(cells) + done, total,
+                                                             f"refined {p[0]} l={p[1]} {p[2]} {p[3]:g}"
+                                                             + (" (reused)" if task is None else "")))
+    retries += [{"task": f"refinement {p[0]} l={p[1]} {p[2]} {p[3]:g}", **r}
+                for p in refined.ran for r in refined.retries[p]]
+    models: dict[int, dict] = {}
+    for p in picks:
+        for r in refined.results[p]:
+            r = dict(r)
+            models[len(rows)] = r.pop("model")
+            rows.append(r)
     chosen = choose(rows, cfg.tolerance, cfg.reference is not None, cfg.max_terms)
-    notes = [] if chosen is not None else ["every candidate diverged on a validation jump: none chosen"]
-    if chosen is not None and cfg.max_terms is not None and rows[chosen]["active_terms"] > cfg.max_terms:
-        notes.append(f"no candidate within the budget of {cfg.max_terms} active terms stood: chosen among all")
+    notes = []
+    if chosen is None:
+        physics = sum(any(x["check"] == "physics" for x in r.get("refused", ())) for r in rows)
+        notes.append("every candidate diverged on a validation jump or broke the data's momentum balance "
+                     f"({physics} refused on physics): none chosen")
+    else:
+        aside = set_aside_for(rows)
+        if aside:
+            notes.append(f"no candidate passed every check: {' and '.join(aside)} set aside "
+                         f"(see each row's refused)")
+        if cfg.max_terms is not None and rows[chosen]["active_terms"] > cfg.max_terms:
+            notes.append(f"no candidate within the budget of {cfg.max_terms} active terms stood: chosen among all")
     model = None
     if chosen is not None:
         r = rows[chosen]
-        model = refined_models.get(chosen) or train(
-            ds, cfg.train_config(r["encoder"], r["latent_dim"], r["library"], r["threshold"], r["refine"]))
+        if chosen in models:
+            model = model_from_dict(models[chosen])
+        else:
+            model = train(ds, cfg.train_config(r["encoder"], r["latent_dim"], r["library"], r["threshold"]))
         model = replace(model, provenance=model.provenance.with_selection(SelectionRecord(
             **{k: r[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine", "score", "active_terms")})))
-    execution = {**backend.describe(), "cells_run": len(todo), "cells_reused": len(cells) - len(todo),
+    execution = {**backend.describe(), "cells_run": len(grid.ran), "cells_reused": len(cells) - len(grid.ran),
+                 "refinements_run": len(refined.ran), "refinements_reused": len(picks) - len(refined.ran),
                  "retries": retries}
-    return Selection(rows, chosen, model, cfg, sha, time.perf_counter() - t0, notes, execution)
+    return Selection(rows, chosen, model, cfg, sha, time.perf_counter() - t0, notes, execution, steps)
 
 
 def write_selection(sel: Selection, out: str | Path) -> Path:
@@ -484,8 +744,16 @@ def selection_config(**overrides: Any) -> SelectionConfig:
 
 
 def parts_dir(out: str | Path) -> Path:
-    """Where ``select_into`` keeps the finished cells of a selection written to ``out``."""
+    """Where ``select_into`` keeps the finished cells and refinements of a selection written to ``out``."""
     return Path(str(out) + ".parts")
+
+
+def parts_done(parts: str | Path) -> tuple[int, int]:
+    """(finished cells, finished refinements) kept in a selection's parts folder."""
+    parts = Path(parts)
+    if not parts.is_dir():
+        return 0, 0
+    return len(list(parts.glob("*.json"))), len(list((parts / "refined").glob("*.json")))
 
 
 def check_parts(out: str | Path, resume: bool, force: bool, inputs: tuple = ()) -> Path:
@@ -495,13 +763,15 @@ def check_parts(out: str | Path, resume: bool, force: bool, inputs: tuple = ()) 
     check_output_file(out, force, inputs=inputs)
     parts = parts_dir(out)
     if parts.exists() and not resume and not force:
-        raise ValueError(f"{parts} holds an interrupted selection; resume=True continues it, force=True "
-                         "starts over")
+        cells, refined = parts_done(parts)
+        raise ValueError(f"{parts} holds an interrupted selection ({cells} finished cells, {refined} finished "
+                         "refinements); resume=True continues it, force=True starts over")
     return parts
 
 
 class NoCandidateError(ValueError):
-    """Every candidate of a selection diverged on a validation jump: no model was chosen."""
+    """Every candidate of a selection diverged on a validation jump or broke the momentum balance:
+    no model was chosen."""
 
 
 def select_into(out: str | Path, data: Dataset | str | Path, cfg: SelectionConfig = SelectionConfig(),
@@ -510,11 +780,12 @@ def select_into(out: str | Path, data: Dataset | str | Path, cfg: SelectionConfi
     """The selection's folder ``out``, written atomically: ``selection.json``
     (``write_selection``) and the chosen model (``model.json``, ``equations.txt``).
     ``data``: the dataset or its file (then recorded in the model as where it was trained).
-    Raises ``NoCandidateError`` (after writing the table) when every candidate diverged.
+    Raises ``NoCandidateError`` (after writing the table) when no candidate could be chosen.
 
-    Each finished cell is kept in ``out.parts`` (``parts_dir``) until the folder is
-    written, so that ``resume`` continues an interrupted selection; ``force`` starts over
-    (and replaces ``out``). The parts are removed once the folder is in place."""
+    Each finished cell and refinement is kept in ``out.parts`` (``parts_dir``) until the
+    folder is written, so that ``resume`` continues an interrupted selection without redoing
+    any of them; ``force`` starts over (and replaces ``out``). The parts are removed once the
+    folder is in place."""
     path = None if isinstance(data, Dataset) else Path(data)
     parts = check_parts(out, resume, force, inputs=() if path is None else (path,))
     ds = data if path is None else read_dataset(path)
@@ -530,6 +801,6 @@ def select_into(out: str | Path, data: Dataset | str | Path, cfg: SelectionConfi
             write_model_files(sel.model, tmp)
     shutil.rmtree(parts, ignore_errors=True)
     if sel.model is None:
-        raise NoCandidateError(f"every one of the {len(sel.rows)} candidate models diverged on a validation jump; "
+        raise NoCandidateError(f"none of the {len(sel.rows)} candidate models could be chosen ({sel.notes[0]}); "
                                f"the table is in {Path(out) / 'selection.json'}")
     return sel

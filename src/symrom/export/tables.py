@@ -9,7 +9,9 @@ expressions (the one thing written out as code per model).
 The guards are rows (source, target, dwell, bias, [(column of z, weight)]),
 their terms in the order ``Guard.value`` sums them, and the dwell test is
 ``guards.dwell_ok``'s (``EPS_T``), so that a switch falls on the same sample in
-every target. The input map is ``symrom.data.preprocess.input_from_torques``:
+every target; free prediction follows the model's phase sequence
+(``HybridModel.phase_sequence``, phase indices; empty: none) by the stages of
+``symrom.model.guards``. The input map is ``symrom.data.preprocess.input_from_torques``:
 the leg chains of the model's robot (``LegKinematics.chain_arrays``: fixed
 origin transforms, revolute joints by Rodrigues' formula) give the feet and the
 leg Jacobians J_k (base frame); per foot in contact the ground force is
@@ -69,7 +71,8 @@ class ExportTables:
     model_sha256: the model's hash (``model_hash``); phase_names (P); latent_dim l;
     W_e (l, 18), B_e (l,), W_d (18, l), B_d (18,), input_map (18, l): nu rows = u rows @ it;
     limit (2l,): the bound on |s| of free prediction; eps_t: s, the dwell test's rounding
-    allowance; guards: the rows; chains: the robot's legs, None without a description;
+    allowance; guards: the rows; sequence: the phase indices of one jump of the model's motion
+    (empty: none); chains: the robot's legs, None without a description;
     state (2l), inputs (l): the symbols of ``dynamics``, per phase the l exact right-hand
     sides of ddxi."""
 
@@ -84,6 +87,7 @@ class ExportTables:
     limit: np.ndarray
     eps_t: float
     guards: tuple[GuardRow, ...]
+    sequence: tuple[int, ...]
     chains: LegChains | None
     state: tuple[sympy.Symbol, ...]
     inputs: tuple[sympy.Symbol, ...]
@@ -117,5 +121,6 @@ def export_tables(model: HybridModel) -> ExportTables:
     s, nu = symbols(l)
     rows = tuple(tuple(r) for r in latent_expressions(model.library, model.Xi))
     return ExportTables(model_hash(model), tuple(model.phase_names), l, ae.W_e, ae.B_e, ae.W_d, ae.B_d,
-                        ae.input_map, BOUND * model.yardstick, EPS_T, guard_rows(model), robot_chains(model),
+                        ae.input_map, BOUND * model.yardstick, EPS_T, guard_rows(model), model.phase_sequence(),
+                        robot_chains(model),
                         tuple(s), tuple(nu), rows)

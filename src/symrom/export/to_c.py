@@ -59,6 +59,7 @@ def header(t: ExportTables) -> str:
 #define SYMROM_MODEL_SHA256 "{t.model_sha256}"
 #define SYMROM_PHASES "{", ".join(t.phase_names)}"
 #define SYMROM_N_GUARDS {len(t.guards)}
+#define SYMROM_N_SEQUENCE {len(t.sequence)} /* phases of one jump of the motion (0: no sequence) */
 #define SYMROM_HAS_INPUT_MAP {int(t.chains is not None)}
 #define SYMROM_EPS_T {t.eps_t!r} /* s, rounding allowance of the guards' dwell test */
 #include "symrom_runtime.h"
@@ -81,7 +82,10 @@ def _guards(t: ExportTables) -> list[str]:
             _array("int", "GUARD_SOURCE", source), _array("int", "GUARD_TARGET", target),
             _array("int", "GUARD_N_TERMS", n_terms), _array("double", "GUARD_DWELL", dwell),
             _array("double", "GUARD_BIAS", bias), _array("int", "GUARD_COL", col),
-            _array("double", "GUARD_WEIGHT", weight)]
+            _array("double", "GUARD_WEIGHT", weight),
+            "/* The phases of one jump of the motion, in order (" + (", ".join(t.phase_names[k] for k in t.sequence)
+            or "none; one entry, unused") + "): free prediction takes each transition once. */",
+            _array("int", "SEQUENCE", np.array(t.sequence or (0,), dtype=np.int64))]
 
 
 def source(t: ExportTables) -> str:

@@ -34,7 +34,10 @@ def functions(t: ExportTables) -> dict:
     ``accel_<phase>`` (s, nu -> ddxi), its Jacobians ``jac_<phase>`` (s, nu -> d ddxi / d s,
     d ddxi / d nu) and ``rk4_step_<phase>`` (s, nu, h -> s_next); ``encode`` (q, dq -> s),
     ``encode_input`` (u -> nu), ``decode`` (s -> q); the guards (``guard_switch`` (s, nu,
-    phase, k_in, dt -> phase) and one ``guard_<source>_<target>`` (s, nu -> g) each) and, for a
+    phase, k_in, dt -> phase); ``guard_switch_staged`` (s, nu, phase, k_in, dt, stage -> phase,
+    stage), the same along the model's phase sequence, as free prediction switches: stage -1 for
+    none, else the place in it, phase0's first place at the start; and one
+    ``guard_<source>_<target>`` (s, nu -> g) each) and, for a
     described robot, the input map ``input`` (q, tau, contact, foot_pos -> u) and
     ``input_kinematics`` (q, tau, contact -> u, the feet from the kinematics)."""
     ca = _casadi()
@@ -82,7 +85,8 @@ def functions(t: ExportTables) -> dict:
 
 
 def _guards(t: ExportTables, fns: dict, ca) -> None:
-    """``guard_switch`` and one ``guard_<source>_<target>`` per guard, added to ``fns``."""
+    """``guard_switch``, ``guard_switch_staged`` and one ``guard_<source>_<target>`` per guard,
+    added to ``fns``."""
     l = t.latent_dim
     s, nu = ca.SX.sym("s", 2 * l), ca.SX.sym("nu", l)
     phase, k_in, dt = ca.SX.sym("phase"), ca.SX.sym("k_in"), ca.SX.sym("dt")
@@ -99,6 +103,29 @@ def _guards(t: ExportTables, fns: dict, ca) -> None:
         best_v = ca.if_else(fire, v, best_v)
     fns["guard_switch"] = ca.Function("guard_switch", [s, nu, phase, k_in, dt], [best],
                                       ["s", "nu", "phase", "k_in", "dt"], ["phase_next"])
+    # Along the phase sequence: from stage i only guards into a later phase of it fire, and a
+    # switch moves to that phase's first place after i (stage -1: no sequence, any guard).
+    stage = ca.SX.sym("stage")
+    seq = t.sequence
+    best, best_v = phase, ca.SX(-np.inf)
+    for g in t.guards:
+        terms = g.terms
+        v = g.bias + sum((w * z[c] for c, w in terms[1:]), terms[0][1] * z[terms[0][0]])
+        later = ca.SX(0)
+        for j, p in enumerate(seq):
+            if p == g.target:
+                later = ca.logic_or(later, stage < j)
+        fire = ca.logic_and(ca.logic_and(phase == g.source, k_in * dt + t.eps_t >= g.dwell),
+                            ca.logic_and(ca.logic_and(v >= 0, v > best_v), ca.logic_or(stage < 0, later)))
+        best = ca.if_else(fire, g.target, best)
+        best_v = ca.if_else(fire, v, best_v)
+    moved = ca.SX(-1)
+    for j in reversed(range(len(seq))):
+        moved = ca.if_else(ca.logic_and(stage < j, best == seq[j]), j, moved)
+    stage_next = ca.if_else(stage < 0, -1, ca.if_else(best == phase, stage, moved))
+    fns["guard_switch_staged"] = ca.Function("guard_switch_staged", [s, nu, phase, k_in, dt, stage],
+                                             [best, stage_next],
+                                             ["s", "nu", "phase", "k_in", "dt", "stage"], ["phase_next", "stage_next"])
 
 
 def _input_map(t: ExportTables, fns: dict, ca) -> None:

@@ -47,7 +47,10 @@ The latent state is s = [xi ({l}), dxi ({l})]; q and u (18) in symrom's order.
              f"IN_MAP = numpy.array({t.input_map.tolist()!r})", f"LIMIT = numpy.array({t.limit.tolist()!r})",
              f"EPS_T = {t.eps_t!r}",
              "# guards: (source, target, dwell s, bias, [(column of z = [s, nu], weight), ...])",
-             f"GUARDS = {guards!r}"]
+             f"GUARDS = {guards!r}",
+             "# the phases of one jump of the motion, in order (empty: none): free prediction takes each "
+             "transition once",
+             f"SEQUENCE = {list(t.sequence)!r}"]
     if t.chains is None:
         lines.append("CHAINS = None")
     else:
@@ -62,7 +65,7 @@ The latent state is s = [xi ({l}), dxi ({l})]; q and u (18) in symrom's order.
                   f"    return numpy.array([{body}], dtype=float)"]
     accels = ", ".join(f"accel_{k}" for k in range(len(t.dynamics)))
     lines += ["", "", f"_RUNTIME = Runtime(LATENT_DIM, PHASES, W_E, B_E, W_D, B_D, IN_MAP, [{accels}], LIMIT, EPS_T, "
-              "GUARDS, CHAINS)",
+              "GUARDS, CHAINS, SEQUENCE)",
               "encode, encode_input, decode = _RUNTIME.encode, _RUNTIME.encode_input, _RUNTIME.decode",
               "accel, rk4_step, guard_switch = _RUNTIME.accel, _RUNTIME.rk4_step, _RUNTIME.guard_switch",
               "predict_path = _RUNTIME.predict_path"]

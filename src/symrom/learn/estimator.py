@@ -44,7 +44,7 @@ import numpy as np
 from symrom.data.dataset import Dataset, jump_bounds
 from symrom.learn.adam import Adam
 from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
-from symrom.learn.guards import fit_guards
+from symrom.learn.guards import GuardFit, guard_fit, refit_guards
 from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor_from_dict
 from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
 from symrom.learn.regressors.stlsq import STLSQ
@@ -104,17 +104,55 @@ def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder,
     return out
 
 
-def learn_guards(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder) -> list[Guard]:
-    """The contact guards (``symrom.model.guards``) of the phases of ``ds``, fitted by ``symrom.learn.guards``
-    on the jumps of ``rows`` (N,) bool and chosen on those of ``val_rows``, in the latent coordinates of
-    ``ae``."""
+def logged_guard_fit(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder) -> GuardFit:
+    """The contact guards (``symrom.model.guards``) of the phases of ``ds`` and their finalists
+    (``symrom.learn.guards.GuardFit``), fitted on the logged states of the jumps of ``rows`` (N,)
+    bool and chosen on those of ``val_rows``, in the latent coordinates of ``ae``."""
     idx = np.flatnonzero(rows | val_rows)
     Z = np.c_[ae.encode(ds.q[idx]), ae.encode_derivative(ds.dq[idx]), ae.encode_input(ds.u[idx])]
     bounds = jump_bounds(ds.jump[idx])
     is_train = rows[idx[bounds[:, 0]]]
     trained = [n for k, n in enumerate(ds.phase_names) if (rows & (ds.phase == k)).any()]
-    return fit_guards(Z, np.asarray(ds.phase[idx], dtype=int), bounds[is_train], bounds[~is_train],
-                      list(ds.phase_names), ds.dt, trained)
+    return guard_fit(Z, np.asarray(ds.phase[idx], dtype=int), bounds[is_train], bounds[~is_train],
+                     list(ds.phase_names), ds.dt, trained)
+
+
+OWN_PATH = "the model's own rollouts"  # what refit guards' reports name as their source
+
+
+def own_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows: np.ndarray,
+                    fit: GuardFit) -> list[Guard]:
+    """The guards of ``fit`` levelled again on ``model``'s own rollouts (``symrom.learn.guards.refit_guards``):
+    each jump of ``rows`` and ``val_rows`` (N,) bool rolled out from its first state with its logged inputs
+    and phases (RK4, 2 substeps; a diverging jump up to its divergence); the first fit's guards if no
+    path is left."""
+    from symrom.rollout.integrate import RolloutOptions, rollout
+
+    sel = rows | val_rows
+    jumps = np.unique(ds.jump[sel])
+    bounds = ds.jump_bounds()
+    try:
+        ro = rollout(model, ds, jumps, RolloutOptions(method="rk4", substeps=2))
+        phase = model.phase_index(ds)
+    except ValueError:  # rows in a phase the model has no equations for: nothing to roll out
+        return [replace(g) for g in fit.guards]
+    ae = model.autoencoder
+    Z, ph, tb, vb, start = [], [], [], [], 0
+    for j, X, V in zip(jumps, ro.xi, ro.dxi):
+        a, b = bounds[j]
+        keep = np.flatnonzero(sel[a:b])
+        n = int(np.isfinite(X).all(axis=1).sum())
+        keep = keep[keep < n]
+        if keep.size < 2:
+            continue
+        Z.append(np.c_[X[keep], V[keep], ae.encode_input(ds.u[a + keep])])
+        ph.append(phase[a + keep])
+        (tb if rows[a + keep[0]] else vb).append((start, start + keep.size))
+        start += keep.size
+    if not tb:
+        return [replace(g) for g in fit.guards]
+    return refit_guards(fit, np.concatenate(Z), np.concatenate(ph), np.array(tb),
+                        np.array(vb, dtype=int).reshape(-1, 2), list(model.phase_names), ds.dt, OWN_PATH)
 
 
 def _median_stay(ds: Dataset, rows: np.ndarray, k: int) -> float | None:
@@ -179,35 +217,34 @@ class SymbolicROM:
         self.model_ = self._finish(prepared, self.regressor, say)
         return self
 
-    def fit_variants(self, ds: Dataset, regressors: list[Regressor],
-                     rows: np.ndarray | None = None) -> list[HybridModel]:
-        """One model per regressor, all on this estimator's encoder and library fitted once to
-        the same rows (what a sparsity path or a selection grid needs); ``model_`` unchanged."""
+    def fit_variants(self, ds: Dataset, regressors: list[Regressor], rows: np.ndarray | None = None,
+                     libraries: list[LibrarySpec | TermBlock] | None = None) -> list[HybridModel]:
+        """One model per regressor, all on this estimator's encoder and contact guards fitted once
+        to the same rows (what a sparsity path or a selection grid needs), each with its library
+        in ``libraries`` (default: this estimator's; one regression problem per distinct
+        library); ``model_`` unchanged."""
         say = lambda stage, frac: None  # noqa: E731
+        if libraries is not None and len(libraries) != len(regressors):
+            raise ValueError(f"libraries: {len(libraries)} for {len(regressors)} regressors")
+        specs = [self.library if b is None else b for b in (libraries or [None] * len(regressors))]
+        specs = [LibrarySpec((b,)) if isinstance(b, TermBlock) else b for b in specs]
         prepared = self._prepare(ds, rows, say, any(getattr(r, "needs_trajectories", False) for r in regressors))
-        return [self._finish(prepared, r, say) for r in regressors]
+        return [self._finish(prepared, r, say, spec) for r, spec in zip(regressors, specs)]
 
     def _prepare(self, ds: Dataset, rows: np.ndarray | None, say: Progress, with_trajectories: bool) -> dict:
-        """Steps (a) and (b), and the regression problem of step (c)."""
+        """Steps (a) and (b) and the contact guards on the logged states; the regression problem
+        of step (c) is made per library (``_problem``)."""
         rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
         if rows.shape != (ds.n_samples,):
             raise ValueError(f"rows: shape {rows.shape}, expected ({ds.n_samples},)")
         if not rows.any():
             raise ValueError("no training rows (the dataset has no 'train' jumps)")
         l = int(self.latent_dim)
-        lib = self.library.bind(l)
         say("encoder (contact phase)", 0.0)
         cp = self.contact_phase
         has_contact = cp in ds.phase_names and bool((rows & (ds.phase == ds.phase_names.index(cp))).any())
         ae = self.encoder.fit(ds.q[contact_rows(ds, rows, cp)], ds.q[rows], l)
-        say("dynamics", 0.5)
-        ddxi_all = ae.encode_derivative(ds.ddq[rows])
         val_rows = ds.rows_of("val") & ~rows
-        problem = RegressionProblem(
-            lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
-            target_spread=np.maximum(ddxi_all.std(axis=0), 1e-12), dt=ds.dt,
-            trajectories=trajectories(ds, rows, ae) if with_trajectories else [],
-            validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
         xi, dxi, nu = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]), ae.encode_input(ds.u[rows])
         phases = []
         for k in range(len(ds.phase_names)):
@@ -222,35 +259,75 @@ class SymbolicROM:
                                                 else f"all training rows (they hold no {self.contact_phase!r} row)"),
                                   latent_mean=tuple(xi.mean(axis=0).tolist()),
                                   latent_spread=tuple(xi.std(axis=0).tolist()))
-        say("contact guards", 0.8)
-        guards = learn_guards(ds, rows, val_rows, ae)
-        return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "data": data, "training": training,
-                "guards": guards,
-                "phase_names": list(ds.phase_names),
+        say("contact guards", 0.3)
+        guards = logged_guard_fit(ds, rows, val_rows, ae)
+        return {"ds": ds, "rows": rows, "val_rows": val_rows, "ae": ae, "phases": phases, "data": data,
+                "training": training, "guards": guards, "phase_names": list(ds.phase_names),
+                "with_trajectories": with_trajectories, "problems": {},
                 "scale": np.maximum(np.concatenate([np.abs(xi).max(0), np.abs(dxi).max(0)]), 1e-9)}
 
-    def _finish(self, prep: dict, regressor: Regressor, say: Progress) -> HybridModel:
-        """Step (c) with ``regressor`` on a prepared problem: the fitted model."""
+    def _problem(self, prep: dict, spec: LibrarySpec):
+        """The bound library and the regression problem of step (c) with ``spec`` (made once per
+        distinct library of a prepared fit)."""
+        key = repr(spec)
+        if key not in prep["problems"]:
+            ds, rows, val_rows, ae = prep["ds"], prep["rows"], prep["val_rows"], prep["ae"]
+            lib = spec.bind(ae.latent_dim)
+            ddxi_all = ae.encode_derivative(ds.ddq[rows])
+            prep["problems"][key] = lib, RegressionProblem(
+                lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
+                target_spread=np.maximum(ddxi_all.std(axis=0), 1e-12), dt=ds.dt,
+                trajectories=trajectories(ds, rows, ae) if prep["with_trajectories"] else [],
+                validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
+        return prep["problems"][key]
+
+    def fit_pruned(self, ds: Dataset, rows: np.ndarray | None = None) -> tuple[HybridModel, HybridModel | None]:
+        """Fit with this estimator's regressor, a refinement with a term budget (``Refine.max_terms``):
+        the model, and the model the refinement had before it pruned (what the same refinement
+        without the budget fits, bit for bit), None if it pruned nothing; ``model_`` unchanged."""
+        say = lambda stage, frac: None  # noqa: E731
+        prep = self._prepare(ds, rows, say, getattr(self.regressor, "needs_trajectories", False))
+        lib, coefs, regressor = self._coefficients(prep, self.regressor, say, None)
+        model = self._model(prep, lib, coefs, regressor, say)
+        if coefs.unpruned is None:
+            return model, None
+        return model, self._model(prep, lib, coefs.unpruned, replace(regressor, max_terms=None, polish=()), say)
+
+    def _finish(self, prep: dict, regressor: Regressor, say: Progress,
+                library: LibrarySpec | None = None) -> HybridModel:
+        """Step (c) with ``regressor`` (and ``library``, default this estimator's) on a prepared fit,
+        then the guards levelled on the model's own rollouts: the fitted model."""
+        return self._model(prep, *self._coefficients(prep, regressor, say, library), say)
+
+    def _coefficients(self, prep: dict, regressor: Regressor, say: Progress, library: LibrarySpec | None):
+        """Step (c): the bound library, the coefficients and the regressor that fitted them."""
         if isinstance(regressor, Adam) and isinstance(self.encoder, AdamAutoencoder):
             # One torch stream for the whole run, as in the paper's training.
             regressor = replace(regressor, generator=self.encoder.generator_)
-        problem = prep["problem"]
+        say("dynamics", 0.5)
+        lib, problem = self._problem(prep, self.library if library is None else library)
         coefs = regressor.fit(problem)
-        paths = (regressor.path(problem, self.path_thresholds)
-                 if self.path_thresholds and isinstance(regressor, STLSQ) else {})
+        if self.path_thresholds and isinstance(regressor, STLSQ):
+            paths = regressor.path(problem, self.path_thresholds)
+            for name, path in paths.items():
+                coefs.report.setdefault(name, {})["path"] = path
+        return lib, coefs, regressor
+
+    def _model(self, prep: dict, lib, coefs, regressor: Regressor, say: Progress) -> HybridModel:
+        """The fitted model of step (c)'s coefficients, its guards levelled on its own rollouts."""
         phase_info = {}
         for name, (n_rows, op, stay) in zip(prep["phase_names"], prep["phases"]):
-            report = dict(coefs.report.get(name, {}))
-            if name in paths:
-                report["path"] = paths[name]
             phase_info[name] = PhaseInfo(trained=n_rows > 0, n_rows=n_rows, operating_point=op,
-                                         duration_s=stay, report=report)
+                                         duration_s=stay, report=dict(coefs.report.get(name, {})))
         training = replace(prep["training"], untrained_phases=tuple(n for n, p in phase_info.items() if not p.trained))
+        model = HybridModel(prep["ae"], lib, list(prep["phase_names"]), coefs.Xi, coefs.mask,
+                            prep["scale"].copy(), Provenance(prep["data"], training), phase_info,
+                            self.to_dict(regressor), [replace(g) for g in prep["guards"].guards])
+        say("contact guards on the model's own rollouts", 0.9)
+        model = replace(model, guards=own_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
+                                                      prep["guards"]))
         say("done", 1.0)
-        return HybridModel(prep["ae"], prep["lib"], list(prep["phase_names"]), coefs.Xi, coefs.mask,
-                           prep["scale"].copy(), Provenance(prep["data"], training), phase_info,
-                           self.to_dict(regressor),
-                           [replace(g) for g in prep["guards"]])
+        return model
 
     # ------------------------------------------------------------------ configuration
     def to_dict(self, regressor: Regressor | None = None) -> dict:

@@ -8,14 +8,23 @@ sample of each window at which it fires; its loss is the mean timing error
 (s) over the windows: |fire - switch| on stays that end in ``target``, firing
 before the switch on stays that end in another phase, firing at all on stays
 the jump ends in. Candidates are the levels of one feature (either sign, the
-level the loss minimiser over a grid of quantiles) and linear boundaries of
+level the loss minimiser over a grid of quantiles, over at most ``GRID_ROWS``
+rows) and linear boundaries of
 two of the best single features (directions every 10 degrees on standardised
 features, then the level), scored on at most ``MAX_WINDOWS`` stays per
 transition (evenly spaced). The single best on the validation jumps is kept
 unless a pair brings the validation loss below ``PAIR_GAIN`` of it (sparsity
 first); without validation jumps, the training loss decides. The dwell is half
 the shortest training stay ending in the transition: it keeps a condition that
-already holds at a phase's start from firing at once.
+already holds at a phase's start from firing at once. The losses of many levels
+come from one pass per window (``symrom.learn.compiled.timing_losses``).
+
+A model predicts from its own states, not the logged ones, and its path drifts
+from the logged one (a height a few millimetres off moves a touchdown by tens
+of milliseconds). ``refit_guards`` therefore levels the finalists of the first
+fit (``GuardFit.finalists``) again on the model's own rollouts of the same
+jumps (the estimator does, ``symrom.learn.estimator``): the guard of the path
+the model will follow.
 """
 
 from __future__ import annotations
@@ -33,6 +42,8 @@ ANGLES = 36  # directions of a two-feature boundary (every 10 degrees)
 TOP_SINGLE = 6  # the best single features whose pairs are tried
 DWELL_SHARE = 0.5  # min_dwell_s: this share of the shortest training stay ending in the transition
 MAX_WINDOWS = 200  # stays per transition a candidate is scored on (evenly spaced beyond): bounds the fit's time
+GRID_ROWS = 8192  # rows whose quantiles are a candidate's levels (evenly spaced beyond): bounds the fit's time
+REFIT_ROWS = 4096  # the same for a refit's finalists
 
 
 @dataclass
@@ -79,46 +90,84 @@ def _thin(windows: list) -> list:
     return [windows[int(i)] for i in np.linspace(0, len(windows) - 1, MAX_WINDOWS)]
 
 
-def _losses(p: np.ndarray, windows: list, levels: np.ndarray, dt: float) -> np.ndarray:
-    """Mean timing loss (s) (len(levels),) of the guard ``p >= level`` on the windows."""
-    total = np.zeros(levels.size)
-    for a, end, e, kind in windows:
-        r = np.maximum.accumulate(p[a:end])
-        kf = np.searchsorted(r, levels, side="left")  # first sample with p >= level (len: never)
-        L = end - a
-        if kind == 0:
-            err = np.where(kf < L, np.abs(kf - e), max(L - e, 1))
-        elif kind == 1:
-            err = np.maximum(e - kf, 0)
-        else:
-            err = np.where(kf < L, L - kf, 0)
-        total += err
-    return total * dt / max(len(windows), 1)
+def _arrays(windows: list) -> tuple[np.ndarray, ...]:
+    """The windows (a, end, switch offset, kind) as four int64 arrays, the kernel's layout."""
+    if not windows:
+        return tuple(np.zeros(0, dtype=np.int64) for _ in range(4))
+    return tuple(np.ascontiguousarray(c, dtype=np.int64) for c in np.array(windows, dtype=np.int64).T)
 
 
-def _grid(p: np.ndarray, windows: list) -> np.ndarray:
-    """Candidate levels: quantiles of ``p`` at the switch samples and over the windows."""
+def _grid(P: np.ndarray, windows: list, max_rows: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate levels of every feature of P (F, N): the unique finite quantiles of the feature
+    at the switch samples and over the windows' rows (at most ``max_rows`` of them, evenly
+    spaced), ascending in the first n[f] entries of row f of levels (F, K) (the rest +inf);
+    returns levels, n."""
     at = [a + e for a, end, e, kind in windows if kind == 0 and a + e < end]
     rows = np.concatenate([np.arange(a, end) for a, end, _, _ in windows])
+    if max_rows is not None and rows.size > max_rows:
+        rows = rows[np.linspace(0, rows.size - 1, max_rows).round().astype(int)]
     qs = np.linspace(0, 1, LEVELS)
-    vals = np.r_[np.quantile(p[at], qs) if at else [], np.quantile(p[rows], qs)]
-    return np.unique(vals[np.isfinite(vals)])
+    # Sorted first: the quantiles are the same numbers, and partitioning sorted rows is fast.
+    vals = np.quantile(np.sort(P[:, rows], axis=1), qs, axis=1)  # (LEVELS, F)
+    if at:
+        vals = np.r_[np.quantile(np.sort(P[:, at], axis=1), qs, axis=1), vals]
+    cols = [np.unique(v[np.isfinite(v)]) for v in vals.T]
+    n = np.array([c.size for c in cols], dtype=np.int64)
+    levels = np.full((len(cols), max(int(n.max()), 1)), np.inf)
+    for f, c in enumerate(cols):
+        levels[f, :c.size] = c
+    return levels, n
 
 
-def _fit_level(p: np.ndarray, train: list, val: list, dt: float) -> tuple[float, float, float]:
-    """(level, train loss, val loss (nan without val windows)) of the best level of ``p``."""
-    levels = _grid(p, train)
-    loss = _losses(p, train, levels, dt)
-    i = int(np.argmin(loss))
-    c = float(levels[i])
-    v = float(_losses(p, val, np.array([c]), dt)[0]) if val else float("nan")
-    return c, float(loss[i]), v
+def _losses(P: np.ndarray, windows: tuple, levels: np.ndarray, n: np.ndarray, dt: float) -> np.ndarray:
+    """Mean timing loss (s) (F, K) of the guards ``P[f] >= levels[f, k]`` on the windows
+    (``_arrays``); entries beyond n[f] are +inf."""
+    from symrom.learn.compiled import timing_losses
+
+    total = np.zeros(levels.shape, dtype=np.int64)
+    timing_losses(np.ascontiguousarray(P), *windows, np.ascontiguousarray(levels), n, total)
+    loss = total * dt / max(windows[0].size, 1)
+    loss[np.arange(levels.shape[1])[None, :] >= n[:, None]] = np.inf
+    return loss
+
+
+def _fit_levels(P: np.ndarray, train: list, val: list, dt: float) -> list[tuple[float, float, float]]:
+    """Per feature of P (F, N): (level, train loss, val loss (nan without val windows)) of its
+    best level (the first of the smallest train loss)."""
+    levels, n = _grid(P, train, GRID_ROWS)
+    loss = _losses(P, _arrays(train), levels, n, dt)
+    best = np.argmin(loss, axis=1)
+    c = levels[np.arange(levels.shape[0]), best]
+    lt = loss[np.arange(levels.shape[0]), best]
+    if val:
+        lv = _losses(P, _arrays(val), c[:, None], np.ones(c.size, dtype=np.int64), dt)[:, 0]
+    else:
+        lv = np.full(c.size, np.nan)
+    return [(float(a), float(b), float(v)) for a, b, v in zip(c, lt, lv)]
+
+
+@dataclass
+class GuardFit:
+    """The guards ``fit_guards`` chose and, per transition (source, target) as phase indices,
+    its finalists: the features of the chosen guard, of the ``TOP_SINGLE`` best single features
+    and of each pair's best direction, as (columns of z, weights): what ``refit_guards`` levels
+    again on another path of the same jumps."""
+
+    guards: list[Guard]
+    finalists: dict[tuple[int, int], list[tuple[tuple[int, ...], np.ndarray]]]
 
 
 def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_bounds: np.ndarray,
                phase_names: list[str], dt: float, trained: list[str] | None = None,
                use_inputs: bool = False) -> list[Guard]:
-    """One guard per transition seen in the training jumps.
+    """One guard per transition seen in the training jumps (``guard_fit``'s guards)."""
+    return guard_fit(Z, phase, train_bounds, val_bounds, phase_names, dt, trained, use_inputs).guards
+
+
+def guard_fit(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_bounds: np.ndarray,
+              phase_names: list[str], dt: float, trained: list[str] | None = None,
+              use_inputs: bool = False) -> GuardFit:
+    """One guard per transition seen in the training jumps, and its finalists.
 
     Z (N, 3l): [xi, dxi, nu] of every row; phase (N,): the model's phase index per row;
     train_bounds, val_bounds (J, 2): ``[start, stop)`` rows of the training and validation
@@ -132,7 +181,7 @@ def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_b
     train_stays, val_stays = stays(phase, train_bounds), stays(phase, val_bounds)
     pairs = sorted({(int(phase[s.start]), s.after) for s in train_stays if s.after >= 0})
     spread = np.maximum(Z[np.concatenate([np.arange(a, b) for a, b in train_bounds])].std(axis=0), 1e-12)
-    out = []
+    out, finalists = [], {}
     for src, tgt in pairs:
         if trained is not None and phase_names[tgt] not in trained:
             continue
@@ -141,24 +190,33 @@ def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_b
         tw = _thin(_windows(train_stays, phase, src, tgt, dwell))
         vw = _thin(_windows(val_stays, phase, src, tgt, dwell))
         single = []  # (val-or-train loss, train loss, val loss, terms idx, weights, level)
-        for i in range(3 * l if use_inputs else 2 * l):
-            for sign in (1.0, -1.0):
-                c, lt, lv = _fit_level(sign * Z[:, i], tw, vw, dt)
-                single.append((lv if vw else lt, lt, lv, (i,), np.array([sign]), c))
+        cand = [(i, sign) for i in range(3 * l if use_inputs else 2 * l) for sign in (1.0, -1.0)]
+        fits = _fit_levels(np.stack([sign * Z[:, i] for i, sign in cand]), tw, vw, dt)
+        for (i, sign), (c, lt, lv) in zip(cand, fits):
+            single.append((lv if vw else lt, lt, lv, (i,), np.array([sign]), c))
         single.sort(key=lambda r: (r[0], r[1]))
         best = single[0]
         top = []
         for r in single:
             if r[3][0] not in top:
                 top.append(r[3][0])
-        pair_best = None
+        pair_best, pair_each = None, []
         for i, j in combinations(sorted(top[:TOP_SINGLE]), 2):
-            for th in np.arange(ANGLES) * 2 * np.pi / ANGLES:
-                w = np.array([np.cos(th) / spread[i], np.sin(th) / spread[j]])
-                c, lt, lv = _fit_level(Z[:, [i, j]] @ w, tw, vw, dt)
+            ws = [np.array([np.cos(th) / spread[i], np.sin(th) / spread[j]])
+                  for th in np.arange(ANGLES) * 2 * np.pi / ANGLES]
+            Zij = Z[:, [i, j]]
+            P = np.empty((ANGLES, Z.shape[0]))
+            for k, w in enumerate(ws):
+                P[k] = Zij @ w
+            fits = _fit_levels(P, tw, vw, dt)
+            this = None
+            for w, (c, lt, lv) in zip(ws, fits):
                 cand = (lv if vw else lt, lt, lv, (i, j), w, c)
                 if pair_best is None or cand[:2] < pair_best[:2]:
                     pair_best = cand
+                if this is None or cand[:2] < this[:2]:
+                    this = cand
+            pair_each.append(this)
         chosen = best
         if pair_best is not None and pair_best[0] < PAIR_GAIN * best[0]:
             chosen = pair_best
@@ -169,4 +227,58 @@ def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_b
                   "selected_on": "val" if vw else "train"}
         out.append(Guard(phase_names[src], phase_names[tgt], [names[i] for i in idx], w, -c,
                          dwell * dt, report))
+        finalists[(src, tgt)] = [(idx, w)] + [(r[3], r[4]) for r in single[:TOP_SINGLE]] + \
+            [(r[3], r[4]) for r in pair_each]
+    return GuardFit(out, finalists)
+
+
+def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray,
+                 val_bounds: np.ndarray, phase_names: list[str], dt: float, source: str) -> list[Guard]:
+    """The guards of ``fit`` fitted again on another path of the same jumps (``source`` names
+    it in their reports: a model's own rollouts).
+
+    Z (N, 3l), phase (N,), bounds, dt: as ``guard_fit``'s, the logged phases with the other
+    path's states. Per transition, each finalist gets the level the timing loss on the new
+    path's training stays likes best (candidate levels: ``LEVELS`` quantiles over at most
+    ``REFIT_ROWS`` of its rows); the single best on the validation stays is kept unless a pair
+    brings the loss below ``PAIR_GAIN`` of it, and the first fit's guard stays if it is as
+    good on the new path. The dwell is the first fit's."""
+    l = Z.shape[1] // 3
+    names = feature_names(l)
+    train_stays, val_stays = stays(phase, train_bounds), stays(phase, val_bounds)
+    out = []
+    for g in fit.guards:
+        src, tgt = phase_names.index(g.source), phase_names.index(g.target)
+        dwell = int(round(g.min_dwell_s / dt))
+        tw = _thin(_windows(train_stays, phase, src, tgt, dwell))
+        vw = _thin(_windows(val_stays, phase, src, tgt, dwell))
+        if not any(kind == 0 for _, _, _, kind in tw):  # the new path holds none of its switches
+            out.append(g)
+            continue
+        cands = fit.finalists[(src, tgt)]
+        P = np.stack([Z[:, list(idx)] @ w for idx, w in cands])
+        levels, n = _grid(P, tw, REFIT_ROWS)
+        loss = _losses(P, _arrays(tw), levels, n, dt)
+        best = np.argmin(loss, axis=1)
+        c = levels[np.arange(len(cands)), best]
+        lt = loss[np.arange(len(cands)), best]
+        use = vw if vw else tw
+        lv = _losses(P, _arrays(use), c[:, None], np.ones(len(cands), dtype=np.int64), dt)[:, 0]
+        # the first fit's guard, as it is, on the new path
+        first = _losses((Z[:, g.indices(l)] @ g.weights)[None], _arrays(use), np.array([[-g.bias]]),
+                        np.ones(1, dtype=np.int64), dt)[0, 0]
+        order = sorted(range(len(cands)), key=lambda k: (lv[k], lt[k]))
+        single = next((k for k in order if len(cands[k][0]) == 1), None)
+        pair = next((k for k in order if len(cands[k][0]) == 2), None)
+        k = single if single is not None else pair
+        if pair is not None and single is not None and lv[pair] < PAIR_GAIN * lv[single]:
+            k = pair
+        if not lv[k] < first:
+            out.append(g)
+            continue
+        idx, w = cands[k]
+        report = {**g.report, "refit_on": source, "refit_train_loss_s": float(lt[k]),
+                  "refit_val_loss_s": float(lv[k]) if vw else None, "first_fit_loss_s": float(first),
+                  "selected_on": f"val ({source})" if vw else f"train ({source})"}
+        out.append(Guard(g.source, g.target, [names[i] for i in idx], w, -float(c[k]), g.min_dwell_s, report))
     return out

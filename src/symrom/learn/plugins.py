@@ -70,6 +70,8 @@ def regressor_from_dict(d: dict, where: str = "regressor") -> Regressor:
     cls = _kind(d, REGRESSORS, where)
     body = _settings(cls, d, where)
     if cls is Refine:
+        body.setdefault("acceleration_weight", 0.0)  # a record from before the terms: rollouts alone
+        body.setdefault("momentum_weight", 0.0)
         if "initial" in body:
             body["initial"] = regressor_from_dict(body["initial"], f"{where}.initial")
         if "windows" in body:

@@ -7,8 +7,18 @@ there at least ``min_dwell_s``, the first sample k at which g(z_k) >= 0
 switches it to ``target`` (the step from k on is taken in ``target``). When
 several guards of one phase fire at the same sample, the largest g wins.
 
+A motion's jump passes through its phases in one order (``symrom.motions``: a
+pronk's contact, flight, contact). Along such a sequence of phase indices a
+prediction keeps its *stage*, the place in the sequence it is at: from stage i
+only guards into a phase later in the sequence may fire (``sequence_targets``),
+and a switch moves to that phase's first place after i (``advance``). So each
+transition is taken once, and a phase the motion has left is never entered
+again; at the last stage nothing switches. Stage -1: no sequence, every guard
+of the phase may fire.
+
 This module holds the guard as a record of the model and how guards decide
-(``switch``, ``first_switch``, ``dwell_ok``); ``symrom.learn.guards`` fits them.
+(``switch``, ``first_switch``, ``dwell_ok``, the stages); ``symrom.learn.guards``
+fits them.
 """
 
 from __future__ import annotations
@@ -128,14 +138,54 @@ def dwell_ok(k_in: int, dt: float, guard: Guard) -> bool:
     return k_in * dt + EPS_T >= guard.min_dwell_s
 
 
+def sequence_targets(sequence: tuple[int, ...], stage: int) -> frozenset[int] | None:
+    """The phase indices a switch may go to from ``stage`` of ``sequence`` (phase indices):
+    those later in it (none at its end); None (any) at stage -1."""
+    if stage < 0:
+        return None
+    return frozenset(sequence[stage + 1:])
+
+
+def advance(sequence: tuple[int, ...], stage: int, target: int) -> int:
+    """The stage after a switch into phase ``target`` from ``stage``: its first place after
+    ``stage`` in ``sequence`` (-1 stays -1)."""
+    if stage < 0:
+        return -1
+    return stage + 1 + sequence[stage + 1:].index(target)
+
+
+def first_stage(sequence: tuple[int, ...], phase: int) -> int:
+    """The stage of a path starting in ``phase``: its first place in ``sequence``, -1 if it
+    has none (then every guard may fire)."""
+    return sequence.index(phase) if phase in sequence else -1
+
+
+def stage_along(sequence: tuple[int, ...], phases: np.ndarray) -> int:
+    """The stage after a path's phases (n,) so far: its first phase's place, advanced at each
+    change; -1 if the path leaves the sequence (no sequence, or a phase out of its order)."""
+    phases = np.asarray(phases)
+    if phases.size == 0:
+        return -1
+    stage = first_stage(sequence, int(phases[0]))
+    for k in np.flatnonzero(np.diff(phases)) + 1:
+        allowed = sequence_targets(sequence, stage)
+        if allowed is None or int(phases[k]) not in allowed:
+            return -1
+        stage = advance(sequence, stage, int(phases[k]))
+    return stage
+
+
 def switch(guards: list[Guard], phase_names: list[str], phase: int, k_in: int, dt: float,
-           z: np.ndarray) -> int:
+           z: np.ndarray, targets: frozenset[int] | None = None) -> int:
     """The phase index after sample z (3l,) in phase ``phase`` entered ``k_in`` samples ago:
-    the target of the firing guard of ``phase`` with the largest g, or ``phase``."""
+    the target of the firing guard of ``phase`` with the largest g, or ``phase``; only guards
+    into ``targets`` (phase indices; None: any) may fire."""
     best, best_g = phase, -np.inf
     name = phase_names[phase]
     for g in guards:
         if g.source != name or not dwell_ok(k_in, dt, g):
+            continue
+        if targets is not None and phase_names.index(g.target) not in targets:
             continue
         v = float(g.value(z))
         if v >= 0 and v > best_g:
@@ -144,12 +194,13 @@ def switch(guards: list[Guard], phase_names: list[str], phase: int, k_in: int, d
 
 
 def first_switch(guards: list[Guard], phase_names: list[str], phase: int, k_enter: int, dt: float,
-                 Z: np.ndarray, start: int) -> tuple[int, int] | None:
+                 Z: np.ndarray, start: int, targets: frozenset[int] | None = None) -> tuple[int, int] | None:
     """Along a path Z (n, 3l) held in ``phase`` (entered at sample ``k_enter``), the first
-    sample k >= ``start`` at which a guard of ``phase`` fires and the target it switches to
-    (largest g), or None. The vectorised form of ``switch``."""
+    sample k >= ``start`` at which a guard of ``phase`` into ``targets`` (None: any) fires and
+    the target it switches to (largest g), or None. The vectorised form of ``switch``."""
     name = phase_names[phase]
-    mine = [g for g in guards if g.source == name]
+    mine = [g for g in guards if g.source == name
+            and (targets is None or phase_names.index(g.target) in targets)]
     if not mine or start >= len(Z):
         return None
     k = np.arange(start, len(Z))

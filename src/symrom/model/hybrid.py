@@ -28,6 +28,7 @@ from symrom.model.expressions import Equations, latent_dynamics, latent_expressi
 from symrom.model.guards import Guard
 from symrom.model.library import Library
 from symrom.model.provenance import Provenance
+from symrom.motions import phase_sequence
 from symrom.names import Q_NAMES
 from symrom.rollout.system import GeneratedCode, Padded, RolloutSystem
 
@@ -159,6 +160,17 @@ class HybridModel:
         """Number of nonzero coefficients per phase."""
         return {n: int(self.mask[i].sum()) for i, n in enumerate(self.phase_names)}
 
+    def phase_sequence(self) -> tuple[int, ...]:
+        """The model's phase indices along one jump of its motion (``symrom.motions``: a
+        pronk's contact, flight, contact), what a free prediction follows; () when the motion
+        is not in the registry or a phase of its sequence is not a trained phase of the model
+        (then the guards may switch in any order)."""
+        names = phase_sequence(self.provenance.data.motion)
+        trained = self.trained_phases()
+        if not names or any(n not in trained for n in names):
+            return ()
+        return tuple(self.phase_names.index(n) for n in names)
+
     def trained_phases(self) -> list[str]:
         """The phases whose equations were fitted to data (all, for models without phase_info)."""
         return [n for n in self.phase_names if n not in self.phase_info or self.phase_info[n].trained]
@@ -286,13 +298,14 @@ class HybridModel:
         return input_from_torques(robot, q, tau, contact, foot_pos)
 
     def predict_path(self, q0: np.ndarray, dq0: np.ndarray, inputs, dt: float, phases=None,
-                     n: int | None = None, phase0: str | None = None, options=None, dwell0: float = 0.0):
+                     n: int | None = None, phase0: str | None = None, options=None, dwell0: float = 0.0,
+                     stage0: int | None = None):
         """Roll out from a chosen state with one's own inputs; ``symrom.model.path.predict_path``
         (its docstring gives the arguments and shapes)."""
         from symrom.model.path import predict_path
 
         return predict_path(self, q0, dq0, inputs, dt, phases=phases, n=n, phase0=phase0, options=options,
-                            dwell0=dwell0)
+                            dwell0=dwell0, stage0=stage0)
 
     # ------------------------------------------------------------ equations
     def equations(self, digits: int = 3) -> Equations:

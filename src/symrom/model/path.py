@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from symrom.model.guards import first_switch, switch
+from symrom.model.guards import advance, first_stage, first_switch, sequence_targets, switch
 from symrom.names import N_Q
 
 
@@ -104,14 +104,16 @@ def schedule_indices(model, phases, n: int) -> np.ndarray:
 
 def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Callable, dt: float,
                  phases=None, n: int | None = None, phase0: str | None = None, options=None,
-                 dwell0: float = 0.0) -> PathPrediction:
+                 dwell0: float = 0.0, stage0: int | None = None) -> PathPrediction:
     """Predict the path of ``model`` (a ``HybridModel``) from q0, dq0 (18,) (rad, m, /s).
 
     inputs: u (n, 18) (N m, N, N m), held over each sample, or a callable
     ``inputs(t, PathState) -> u (18,)`` (then ``n`` samples are predicted);
     dt: sample period, s; phases: a schedule (n,) of phase names or model phase
     indices, or None to let the guards decide, starting in ``phase0`` (default: the
-    model's first phase) entered ``dwell0`` s before sample 0; options: ``RolloutOptions`` (method
+    model's first phase) entered ``dwell0`` s before sample 0, at ``stage0`` of the model's phase
+    sequence (default: phase0's first place in it; -1: no sequence, any guard of a phase may
+    fire); options: ``RolloutOptions`` (method
     ``rk4``; its substeps, bound and backend; not its reset: there is no truth to reset
     to). Returns a ``PathPrediction``; a
     diverging path ends in NaN with its ``diverged_at``. ``NoGuardsError`` when the
@@ -140,6 +142,11 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
             raise ValueError(f"phase0: {start!r} is not a trained phase of the model "
                              f"({', '.join(model.trained_phases())})")
         p0 = names.index(start)
+        seq = model.phase_sequence()
+        stage = first_stage(seq, p0) if stage0 is None else int(stage0)
+        if stage != -1 and not (0 <= stage < len(seq) and seq[stage] == p0):
+            raise ValueError(f"stage0={stage0}: the model's phase sequence "
+                             f"{[names[i] for i in seq]} has no {start!r} at that place")
     k_enter0 = -int(round(dwell0 / dt))  # the sample at which phase0 was entered
     x0, v0 = ae.encode(q0[None])[0], ae.encode_derivative(dq0[None])[0]
     limit = options.bound * model.yardstick
@@ -148,7 +155,7 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
             raise ValueError("n: the number of samples to predict is needed with an input callable")
         sched = None if phases is None else schedule_indices(model, phases, int(n))
         return _step_callable(model, x0, v0, inputs, dt, int(n), sched, None if phases is not None else p0,
-                              options, limit, k_enter0)
+                              options, limit, k_enter0, None if phases is not None else (seq, stage))
     u = np.asarray(inputs, dtype=float)
     if u.ndim != 2 or u.shape[1] != N_Q or u.shape[0] < 1:
         raise ValueError(f"inputs: shape {u.shape}, expected (n, {N_Q}) with n >= 1")
@@ -179,10 +186,12 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
                 div = k0 + d
             stop = n if d < 0 else k0 + d
             Z = np.c_[X[:stop], V[:stop], nu[:stop]]
-            hit = first_switch(model.guards, names, int(ph[k0]), k_enter, dt, Z, search)
+            hit = first_switch(model.guards, names, int(ph[k0]), k_enter, dt, Z, search,
+                               sequence_targets(seq, stage))
             if hit is None:
                 break
             k, target = hit
+            stage = advance(seq, stage, target)
             ph[k:] = target
             k0 = k_enter = k
             search = k + 1  # one switch per sample, as stepping sample by sample decides
@@ -198,12 +207,15 @@ def _prediction(model, X, V, u, ph, dt, div) -> PathPrediction:
 
 
 def _step_callable(model, x, v, inputs: Callable, dt: float, n: int, sched: np.ndarray | None,
-                   p0: int | None, options, limit: np.ndarray, k_enter0: int = 0) -> PathPrediction:
-    """Sample-by-sample RK4 (``substeps`` per sample) asking ``inputs`` for each sample's u."""
+                   p0: int | None, options, limit: np.ndarray, k_enter0: int = 0,
+                   staged: tuple[tuple[int, ...], int] | None = None) -> PathPrediction:
+    """Sample-by-sample RK4 (``substeps`` per sample) asking ``inputs`` for each sample's u;
+    staged: (the phase sequence, the stage at sample 0) when the guards decide."""
     ae, l, names = model.autoencoder, model.latent_dim, list(model.phase_names)
     X, V, U = np.full((n, l), np.nan), np.full((n, l), np.nan), np.full((n, N_Q), np.nan)
     ph = np.zeros(n, dtype=np.int64) if sched is None else sched.copy()
     phase, k_enter, div = (p0 if sched is None else int(sched[0])), k_enter0, -1
+    seq, stage = staged if staged is not None else ((), -1)
     h = dt / options.substeps
 
     def acc(xs, vs, nu, p):
@@ -223,9 +235,10 @@ def _step_callable(model, x, v, inputs: Callable, dt: float, n: int, sched: np.n
         U[k] = u
         nu = ae.encode_input(u[None])[0]
         if sched is None:
-            new = switch(model.guards, names, phase, k - k_enter, dt, np.r_[x, v, nu])
+            new = switch(model.guards, names, phase, k - k_enter, dt, np.r_[x, v, nu],
+                         sequence_targets(seq, stage))
             if new != phase:
-                phase, k_enter = new, k
+                phase, k_enter, stage = new, k, advance(seq, stage, new)
             ph[k] = phase
         else:
             phase = int(sched[k])

@@ -69,13 +69,24 @@ int symrom_rk4_step(int phase, double s[2 * L], const double nu[L], double h) {
     return 0;
 }
 
-int symrom_guard_switch(int phase, int k_in, double dt, const double s[2 * L], const double nu[L]) {
+/* The first place after `stage` of the phase sequence holding phase `target`, -1 if none (stage -1:
+ * no sequence, any target goes and the stage stays -1). */
+static int later_stage(int stage, int target) {
+    if (stage < 0) return -1;
+    for (int j = stage + 1; j < SYMROM_N_SEQUENCE; j++) if (SEQUENCE[j] == target) return j;
+    return -1;
+}
+
+/* symrom_guard_switch at `stage` of the phase sequence: only guards into a later phase of it fire
+ * (stage -1: any guard). */
+static int guard_switch_at(int stage, int phase, int k_in, double dt, const double s[2 * L], const double nu[L]) {
     double z[3 * L], best_v = -INFINITY;
     int best = phase;
     for (int i = 0; i < 2 * L; i++) z[i] = s[i];
     for (int i = 0; i < L; i++) z[2 * L + i] = nu[i];
     for (int g = 0; g < SYMROM_N_GUARDS; g++) {
         if (phase != GUARD_SOURCE[g] || !(k_in * dt + SYMROM_EPS_T >= GUARD_DWELL[g])) continue;
+        if (stage >= 0 && later_stage(stage, GUARD_TARGET[g]) < 0) continue;
         double sum = GUARD_WEIGHT[g][0] * z[GUARD_COL[g][0]];
         for (int i = 1; i < GUARD_N_TERMS[g]; i++) sum += GUARD_WEIGHT[g][i] * z[GUARD_COL[g][i]];
         double v = GUARD_BIAS[g] + sum;
@@ -84,10 +95,15 @@ int symrom_guard_switch(int phase, int k_in, double dt, const double s[2 * L], c
     return best;
 }
 
+int symrom_guard_switch(int phase, int k_in, double dt, const double s[2 * L], const double nu[L]) {
+    return guard_switch_at(-1, phase, k_in, dt, s, nu);
+}
+
 int symrom_predict_path(int n, double dt, int substeps, const double q0[18], const double dq0[18],
                         const double *u, int predict_phases, int phase0, int *phases, double *q, double *dq) {
     double s[2 * L], nu[L];
-    int phase = phase0, k_enter = 0, div = -1;
+    int phase = phase0, k_enter = 0, div = -1, stage = -1;
+    for (int j = 0; j < SYMROM_N_SEQUENCE; j++) if (SEQUENCE[j] == phase0) { stage = j; break; }
     symrom_encode(q0, dq0, s);
     for (int k = 0; k < n; k++) {
         int ok = 1;
@@ -101,8 +117,8 @@ int symrom_predict_path(int n, double dt, int substeps, const double q0[18], con
         }
         symrom_encode_input(u + 18 * k, nu);
         if (predict_phases) {
-            int next = symrom_guard_switch(phase, k - k_enter, dt, s, nu);
-            if (next != phase) { phase = next; k_enter = k; }
+            int next = guard_switch_at(stage, phase, k - k_enter, dt, s, nu);
+            if (next != phase) { stage = later_stage(stage, next); phase = next; k_enter = k; }
             phases[k] = phase;
         } else {
             phase = phases[k];

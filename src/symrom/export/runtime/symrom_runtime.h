@@ -27,7 +27,9 @@ int symrom_guard_switch(int phase, int k_in, double dt, const double s[2 * SYMRO
                         const double nu[SYMROM_LATENT_DIM]);
 /* Predict n samples every dt s from q0, dq0 (18) with inputs u (n x 18, row-major) held over each
  * sample, substeps RK4 steps per sample. predict_phases 0: phases (n) is the schedule (read);
- * 1: the guards decide from phase0, entered at sample 0, and phases (n) receives them. q, dq
+ * 1: the guards decide from phase0, entered at sample 0, and phases (n) receives them; along the
+ * motion's phase sequence (SEQUENCE, from phase0's first place in it) each transition is taken
+ * once and no phase the jump has left is entered again. q, dq
  * (n x 18) receive the path, NaN from a divergence (|s_i| beyond the model's limit). Returns the
  * first diverged sample, -1 if none, -2 for an unknown phase in the schedule. */
 int symrom_predict_path(int n, double dt, int substeps, const double q0[18], const double dq0[18],

@@ -19,15 +19,18 @@ class Runtime:
     (s (2l,), nu (l,)) -> ddxi (l,); limit (2l,): the bound on |s| of free prediction; eps_t: s,
     the rounding allowance of the guards' dwell test; guards: rows (source, target, dwell s,
     bias, [(column of z = [s, nu], weight), ...]); chains: the robot's leg chains (n_el (4,),
-    xyz (4, E, 3) m, rot (4, E, 3, 3), axis (4, E, 3), col (4, E)), None without the input map.
+    xyz (4, E, 3) m, rot (4, E, 3, 3), axis (4, E, 3), col (4, E)), None without the input map;
+    sequence: the phase indices of one jump of the motion, in order (empty: none). Along it a
+    free prediction keeps its stage (its place in the sequence): from stage i only guards into
+    a phase later in the sequence fire, and a switch moves to that phase's first place after i.
     """
 
     def __init__(self, latent_dim, phases, W_E, B_E, W_D, B_D, IN_MAP, accel_phase, limit, eps_t, guards,
-                 chains=None):
+                 chains=None, sequence=()):
         self.l, self.phases = latent_dim, list(phases)
         self.W_E, self.B_E, self.W_D, self.B_D, self.IN_MAP = W_E, B_E, W_D, B_D, IN_MAP
         self.accel_phase, self.limit, self.eps_t, self.guards = list(accel_phase), limit, eps_t, list(guards)
-        self.chains = chains
+        self.chains, self.sequence = chains, list(sequence)
 
     def encode(self, q, dq):
         """q, dq (18,) -> s (2l,)."""
@@ -59,13 +62,16 @@ class Runtime:
         k4 = field(s + h * k3)
         return s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
-    def guard_switch(self, phase, k_in, dt, s, nu):
+    def guard_switch(self, phase, k_in, dt, s, nu, stage=-1):
         """The phase after sample s (2l,), nu (l,) in ``phase`` entered k_in samples (dt s) ago:
-        the target of the firing guard with the largest value, else ``phase``."""
+        the target of the firing guard with the largest value, else ``phase``; at ``stage`` of
+        the sequence only guards into a later phase of it (-1: any guard)."""
         z = numpy.concatenate([s, nu])
         best, best_v = phase, -numpy.inf
         for source, target, dwell, bias, terms in self.guards:
             if phase != source or not k_in * dt + self.eps_t >= dwell:
+                continue
+            if stage >= 0 and target not in self.sequence[stage + 1:]:
                 continue
             total = terms[0][1] * z[terms[0][0]]
             for c, w in terms[1:]:
@@ -77,12 +83,13 @@ class Runtime:
 
     def predict_path(self, q0, dq0, u, dt, phases=None, phase0=0, substeps=2):
         """q, dq (n, 18) and phases (n,) from q0, dq0 (18,) with inputs u (n, 18) held over each
-        sample; phases: a schedule of phase indices, or None for the guards from phase0. NaN from
-        a divergence."""
+        sample; phases: a schedule of phase indices, or None for the guards from phase0 (at its
+        first place in the sequence). NaN from a divergence."""
         n = len(u)
         q, dq = numpy.full((n, 18), numpy.nan), numpy.full((n, 18), numpy.nan)
         out = numpy.zeros(n, dtype=int)
         s, phase, k_enter = self.encode(q0, dq0), phase0, 0
+        stage = self.sequence.index(phase0) if phase0 in self.sequence else -1
         for k in range(n):
             if not numpy.all(numpy.abs(s) <= self.limit):
                 out[k:] = phase
@@ -90,8 +97,10 @@ class Runtime:
             q[k], dq[k] = self.decode(s), self.W_D @ s[self.l:]
             nu = self.encode_input(u[k])
             if phases is None:
-                nxt = self.guard_switch(phase, k - k_enter, dt, s, nu)
+                nxt = self.guard_switch(phase, k - k_enter, dt, s, nu, stage)
                 if nxt != phase:
+                    if stage >= 0:
+                        stage = stage + 1 + self.sequence[stage + 1:].index(nxt)
                     phase, k_enter = nxt, k
             else:
                 phase = int(phases[k])

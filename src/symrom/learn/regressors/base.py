@@ -72,11 +72,14 @@ class RegressionProblem:
 @dataclass
 class Coefficients:
     """A regressor's result: Xi (P, p, l), mask (P, p, l) bool of active terms, and
-    per phase name a JSON-ready report (terms left out and why, paths, refinement)."""
+    per phase name a JSON-ready report (terms left out and why, paths, refinement);
+    unpruned: for a regressor that pruned its result to a term budget, the result before
+    the pruning (what it fits without the budget), else None."""
 
     Xi: np.ndarray
     mask: np.ndarray
     report: dict[str, dict[str, Any]] = field(default_factory=dict)
+    unpruned: Coefficients | None = field(default=None, repr=False)
 
 
 class Regressor(ABC):
@@ -120,11 +123,15 @@ class Regressor(ABC):
             allowed[k] = keep
             report[name] = {"trained": True, "n_rows": ph.n_rows, "dropped": dropped}
         result = self._reduce(problem, allowed, init)
-        if np.any(result.mask & ~allowed[:, :, None]):
-            raise RuntimeError(f"{type(self).__name__} used a term outside the allowed set")
-        for name, extra in result.report.items():
-            report.setdefault(name, {}).update(extra)
-        result.report = report
+        for res in (result, result.unpruned):
+            if res is None:
+                continue
+            if np.any(res.mask & ~allowed[:, :, None]):
+                raise RuntimeError(f"{type(self).__name__} used a term outside the allowed set")
+            full = {name: dict(r) for name, r in report.items()}
+            for name, extra in res.report.items():
+                full.setdefault(name, {}).update(extra)
+            res.report = full
         return result
 
     @abstractmethod

@@ -26,7 +26,8 @@ Refinement moves the coefficients STLSQ chose and never adds terms. With a
 term budget, ``max_terms``, it then removes terms while the model has more:
 ``prune_share`` of them at a time (never below the budget), the least needed
 first by their saliency on the rollout costs (``prune``), and runs the schedule
-again from there. ``max_jumps`` caps the training jumps used (evenly spaced).
+again from there (the result before the pruning is kept as ``Coefficients.unpruned``: what
+the refinement without the budget fits). ``max_jumps`` caps the training jumps used (evenly spaced).
 ``hold`` names phases whose coefficients are held at the start's values: they act
 in every rollout but are not fitted (a flight phase whose gravity must stay).
 ``short_weight`` weighs the shortest windows' error against the longer windows' in
@@ -39,6 +40,26 @@ at a time in that order, each alone with every other phase held, on the windows
 kept). Pruning to a budget costs short-horizon accuracy; in a phase whose
 coefficients the joint fit trades against the others' (a froggy jump's flight),
 a pass on that phase alone can get it back (SIM A1: docs/results.md).
+
+The rollouts alone would trade the accelerations for the path: a short phase
+(a froggy jump's rear-only push, a few rows a jump) takes coefficients that
+make it stiff, and a flight can stop falling at g, while the rollout error
+still drops. ``acceleration_weight`` keeps the acceleration fit: each training
+row's latent acceleration error (per latent, over its spread) counts that many
+times its rise from the start, which is the least-squares fit
+(``acceleration_prior``; half the squared rise, with exact derivatives, beside
+the rollout residuals). At 1 (the default) the refined models keep their
+flight's fall and their phases' mean accelerations on val where the rollouts
+alone lose them, at the same rollout error (docs/results.md).
+
+``backend`` says what rolls the windows out (``symrom.learn.shooting.simulate``):
+``table``, the compiled kernel, several times faster per rollout but compiled
+once per process first; ``numpy``, nothing to compile; ``auto`` (default), the
+kernel when the refinement's work pays for its compilation: training window
+samples times active coefficients of at least ``KERNEL_PAYS`` (a one-off
+refinement of a few terms on forty jumps does not), else NumPy (a polish stage
+decides by its own work). The choice depends on the problem alone, so a
+refinement gives the same coefficients wherever it runs.
 """
 
 from __future__ import annotations
@@ -51,12 +72,16 @@ import scipy.linalg
 
 from symrom.learn.regressors.base import Coefficients, RegressionProblem, Regressor
 from symrom.learn.regressors.stlsq import STLSQ
+from symrom.learn.shooting import BACKENDS as SHOOTING_BACKENDS
 from symrom.learn.shooting import Parameters, Windows, cut_windows, simulate
 
 # A sample after its window left the bound counts this many times the bound (in
 # units of the spread): more than any sample still inside, so leaving is never a
 # way to lower the cost, and finite, so the solver can go on.
 DIVERGED_FACTOR = 2.0
+# Training window samples x active coefficients from which the compiled kernel's speed pays for its
+# compilation (about 10-20 s of one core) over a refinement's rollouts (docs/benchmarks.md).
+KERNEL_PAYS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -70,7 +95,9 @@ class Refine(Regressor):
     coefficients are kept as the start has them (simulated, not fitted); short_weight:
     weight of the shortest windows' squared error in the stages they join; polish: phases
     refined again, each alone, after the schedule and pruning, on ``polish_windows`` (s)
-    with the shortest weighted ``polish_weight``."""
+    with the shortest weighted ``polish_weight``; backend: ``auto``, ``table`` or ``numpy``
+    (module docstring); acceleration_weight: weight of the acceleration fit kept (module
+    docstring; 0: rollouts alone, as a record without it means)."""
 
     kind: ClassVar[str] = "refine"
     initial: Regressor = field(default_factory=STLSQ)
@@ -88,6 +115,9 @@ class Refine(Regressor):
     polish: tuple[str, ...] = ()
     polish_windows: tuple[float | None, ...] = (0.1, None)
     polish_weight: float = 100.0
+    backend: str = "auto"
+    acceleration_weight: float = 1.0
+    momentum_weight: float = 0.0
 
     needs_trajectories = True
 
@@ -108,6 +138,10 @@ class Refine(Regressor):
             raise ValueError(f"polish: phase(s) {sorted(set(self.polish) & set(self.hold))} are held")
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
+        if not self.acceleration_weight >= 0:
+            raise ValueError(f"acceleration_weight must be >= 0, got {self.acceleration_weight}")
+        if self.backend not in SHOOTING_BACKENDS:
+            raise ValueError(f"backend must be one of {SHOOTING_BACKENDS}, got {self.backend!r}")
 
     def polish_stage(self, phase: str, phase_names: list[str]) -> Refine:
         """The refinement that polishes ``phase`` alone: on ``polish_windows``, the shortest
@@ -127,7 +161,9 @@ class Refine(Regressor):
                 **({"hold": list(self.hold)} if self.hold else {}),
                 **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {}),
                 **({"polish": list(self.polish), "polish_windows": list(self.polish_windows),
-                    "polish_weight": self.polish_weight} if self.polish else {})}
+                    "polish_weight": self.polish_weight} if self.polish else {}),
+                **({"backend": self.backend} if self.backend != "auto" else {}),
+                "acceleration_weight": self.acceleration_weight, "momentum_weight": self.momentum_weight}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
@@ -164,15 +200,29 @@ class Refine(Regressor):
             def normal(th, sens):
                 Xi = fixed + params.matrix(th, mask.shape)
                 parts = [(c, _normal_equations(problem.library, Xi, params, w, problem.dt, limit, spread,
-                                               self.substeps, self.stride, sens)) for w, c in wins]
-                return (sum(c * p[0] for c, p in parts), sum(p[1] for _, p in parts),
-                        sum(c * p[2] for c, p in parts) if sens else None,
-                        sum(c * p[3] for c, p in parts) if sens else None)
+                                               self.substeps, self.stride, sens, backend)) for w, c in wins]
+                out = (sum(c * p[0] for c, p in parts), sum(p[1] for _, p in parts),
+                       sum(c * p[2] for c, p in parts) if sens else None,
+                       sum(c * p[3] for c, p in parts) if sens else None)
+                if prior is None:
+                    return out
+                pc, pA, pg = prior(Xi, params, sens)
+                return (out[0] + pc, out[1], out[2] + pA if sens else None, out[3] + pg if sens else None)
             return normal
 
+        prior = (acceleration_prior(problem, start.Xi * start.mask, self.acceleration_weight, self.momentum_weight)
+                 if self.acceleration_weight > 0 or self.momentum_weight > 0 else None)
         mask = start.mask & ~held[:, None, None]
+        backend = self.backend
+        if backend == "auto":  # the kernel (if the library has a table) where its speed pays for compiling it
+            backend = "auto" if sum(t.xi.shape[0] for t in trajs) * int(mask.sum()) >= KERNEL_PAYS else "numpy"
         Xi = start.Xi * mask
         Xi, stages, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
+        unpruned = None
+        if self.max_terms is not None and mask.sum() > self.max_terms:  # the result without the budget
+            unpruned = Coefficients(Xi + fixed, mask | (start.mask & held[:, None, None]), {
+                name: {**start.report.get(name, {}), "refinement": {"stages": list(stages), "jumps": len(trajs)}}
+                for name in problem.phase_names})
         prunings = []
         while self.max_terms is not None and mask.sum() > self.max_terms:
             n = int(mask.sum())
@@ -191,7 +241,7 @@ class Refine(Regressor):
             done = self.polish_stage(name, problem.phase_names)._reduce(problem, allowed, Coefficients(Xi, mask))
             Xi, mask = done.Xi, done.mask
             report[name]["refinement"]["polish"] = done.report[name]["refinement"]["stages"]
-        return Coefficients(Xi, mask, report)
+        return Coefficients(Xi, mask, report, unpruned)
 
     def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[tuple[Windows, float]]], lengths: list,
                   dt: float, cost) -> tuple[np.ndarray, list[dict], int]:
@@ -211,6 +261,47 @@ class Refine(Regressor):
             theta, last = new, i
             stages.append(record)
         return params.matrix(theta, mask.shape), stages, last
+
+
+def acceleration_prior(problem: RegressionProblem, Xi0: np.ndarray, weight: float, momentum: float = 0.0):
+    """prior(Xi, params, sens) -> (cost, J^T J, J^T r) of keeping the acceleration fit: half of
+    ``weight`` times the rise of the squared latent acceleration error over the training rows,
+    each latent per its spread (``problem.target_spread``), from the start's Xi0 (P, p, l):
+    sum over phases k and latents j of (Xi - Xi0)_kj^T Theta_k^T Theta_k (Xi - Xi0)_kj / s_j^2,
+    which is the whole rise while the start is the least-squares fit on its support (STLSQ's,
+    up to its small ridge) and the refinement moves within that support."""
+    s2 = np.asarray(problem.target_spread, dtype=float) ** 2
+    grams = []
+    for ph in problem.phases:
+        if ph is None:
+            grams.append(None)
+            continue
+        mean = ph.theta.mean(axis=0)
+        grams.append(weight * (ph.theta.T @ ph.theta) + momentum * ph.n_rows * np.outer(mean, mean))
+    weight = 1.0
+
+    def prior(Xi: np.ndarray, params: Parameters, sens: bool):
+        D = Xi - Xi0  # (P, p, l)
+        cost, GD = 0.0, np.zeros_like(D)
+        for k, G in enumerate(grams):
+            if G is None:
+                continue
+            GD[k] = G @ D[k] / s2
+            cost += 0.5 * weight * float(np.sum(D[k] * GD[k]))
+        if not sens:
+            return cost, None, None
+        g = weight * GD[params.phase, params.term, params.latent]
+        same = (params.phase[:, None] == params.phase[None, :]) & (params.latent[:, None] == params.latent[None, :])
+        A = np.zeros((params.size, params.size))
+        for k, G in enumerate(grams):
+            if G is None:
+                continue
+            on = params.phase == k
+            sub = G[np.ix_(params.term[on], params.term[on])] / s2[params.latent[on]][:, None]
+            A[np.ix_(on, on)] = weight * np.where(same[np.ix_(on, on)], sub, 0.0)
+        return cost, A, g
+
+    return prior
 
 
 def prune(Xi: np.ndarray, mask: np.ndarray, normals: list, drop: int) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -290,12 +381,13 @@ def levenberg_marquardt(normal, theta: np.ndarray, max_evaluations: int,
 
 
 def _normal_equations(lib, Xi: np.ndarray, params: Parameters, win: Windows, dt: float, limit: np.ndarray,
-                      spread: np.ndarray, substeps: int, stride: int, sens: bool
+                      spread: np.ndarray, substeps: int, stride: int, sens: bool, backend: str = "auto"
                       ) -> tuple[float, int, np.ndarray | None, np.ndarray | None]:
     """Half the squared normalised state error of every ``stride``-th valid sample after a
     window's start (a sample after its window left the bound counts ``DIVERGED_FACTOR``
     times the bound), the number of windows that left it and, with ``sens``, J^T J and J^T r."""
-    X, V, S, alive = simulate(lib, Xi, params, win, dt, limit, substeps, sensitivities=sens, stride=stride)
+    X, V, S, alive = simulate(lib, Xi, params, win, dt, limit, substeps, sensitivities=sens, stride=stride,
+                              backend=backend)
     err = (np.concatenate([X - win.xi, V - win.dxi], axis=2) / spread)[:, ::stride]  # (W, L', 2l)
     use = win.valid[:, ::stride].copy()
     use[:, 0] = False  # the start is the truth

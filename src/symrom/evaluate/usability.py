@@ -1,0 +1,220 @@
+"""Whether a model can be acted on, beyond how well it rolls out along logged jumps.
+
+A model that scores well on logged rollouts may still be useless to a planner
+or a controller. Two checks say why (the validation selection applies them to
+every candidate; docs/design.md, "Model selection"):
+
+- **Integrator** (``integrator_check``): each phase's dynamics linearised at
+  states of the phase's rows (``STATES`` of them, evenly spaced, and the
+  operating point) give its modes lambda; one classical Runge-Kutta step of h
+  maps a mode by R(h lambda) = 1 + z + z^2/2 + z^3/6 + z^4/24, the flow by
+  exp(h lambda). A step carries the phase when, for every mode,
+  |R(h lambda) - exp(h lambda)| <= ``STEP_TOLERANCE`` max(1, |exp(h lambda)|):
+  one step moves each mode as the model does, to a tenth of the state. The
+  steps are the caller's: a planner's (its shooting intervals over a stance
+  and a flight) and a rollout's (the data's sample period over its substeps).
+  A stiff mode (a contact at -207 /s) passes at a rollout's 1 ms and fails at
+  a planner's 30 ms, where one step amplifies it 36-fold.
+- **Physics** (``physics_check``): the model's decoded base acceleration
+  (x and z, W_d ddxi at the logged states, inputs and phases) against the
+  data's, per phase and split (its mean over the phase's rows). In flight the
+  base falls at the data's acceleration: the z means within ``FLIGHT_SHARE``
+  (5 %) of the data's. In every phase the means differ by no more than the
+  noise allows: ``NOISE_SE`` standard errors of the data's mean, the error
+  taken between the phase's stays (the jumps differ; the samples of one stay
+  do not make independent draws), plus ``FLIGHT_SHARE`` of the data's flight
+  acceleration (what the flight test allows; without flight rows, of g).
+  A model that trades the momentum balance for rollout accuracy (a flight that
+  falls upward, a push without its force) is caught here whatever its scores.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from symrom.data.dataset import Dataset, jump_bounds
+from symrom.names import BASE_POS, FLIGHT_PHASE
+
+STEP_TOLERANCE = 0.1  # largest |R(h lambda) - exp(h lambda)| / max(1, |exp(h lambda)|) of a carried mode
+STATES = 32  # states per phase where the modes are taken (evenly spaced over its rows)
+FLIGHT_SHARE = 0.05  # the flight's z acceleration within this share of the data's
+NOISE_SE = 3.0  # standard errors of the data's phase mean a model's mean may differ by (beyond FLIGHT_SHARE)
+GRAVITY = 9.81  # m/s^2: the scale of the allowance of data without flight rows
+AXES = {"x": BASE_POS.start, "z": BASE_POS.start + 2}  # decoded base axes checked: index into q
+
+
+def rk4_map(z: np.ndarray) -> np.ndarray:
+    """R(z) (complex, any shape): one classical Runge-Kutta step's factor on a linear mode, z = h lambda."""
+    return 1 + z + z ** 2 / 2 + z ** 3 / 6 + z ** 4 / 24
+
+
+@dataclass(frozen=True)
+class StepCheck:
+    """One phase against one integrator step: integrator (``planner``, ``rollout``); step_s,
+    s; eigenvalue: the mode worst carried (1/s); error: its |R(h lambda) - exp(h lambda)|
+    / max(1, |exp(h lambda)|); carried: error <= ``STEP_TOLERANCE``."""
+
+    phase: str
+    integrator: str
+    step_s: float
+    eigenvalue: complex
+    error: float
+    carried: bool
+
+    def text(self) -> str:
+        z = self.eigenvalue
+        mode = f"{z.real:.3g}{z.imag:+.3g}j" if abs(z.imag) > 1e-9 else f"{z.real:.3g}"
+        return (f"{self.phase}: the {self.integrator}'s RK4 step of {self.step_s * 1e3:.3g} ms "
+                f"{'carries' if self.carried else 'cannot carry'} mode {mode} /s (step error {self.error:.2g})")
+
+    def to_dict(self) -> dict:
+        return {"phase": self.phase, "integrator": self.integrator, "step_s": self.step_s,
+                "eigenvalue": [float(self.eigenvalue.real), float(self.eigenvalue.imag)],
+                "error": float(self.error), "carried": self.carried}
+
+
+def phase_modes(model, ds: Dataset, rows: np.ndarray, phase: str, states: int = STATES) -> np.ndarray:
+    """Eigenvalues (M,) complex (1/s) of ``phase``'s dynamics linearised at ``states`` of its
+    ``rows`` (N,) bool (evenly spaced) and at its operating point."""
+    k = model.phase_names.index(phase)
+    idx = np.flatnonzero(rows & (model.phase_index(ds) == k)) if rows.any() else np.zeros(0, int)
+    idx = idx[np.linspace(0, idx.size - 1, min(states, idx.size)).round().astype(int)] if idx.size else idx
+    ae, l = model.autoencoder, model.latent_dim
+    xi, dxi, nu = ae.encode(ds.q[idx]), ae.encode_derivative(ds.dq[idx]), ae.encode_input(ds.u[idx])
+    info = model.phase_info.get(phase)
+    if info is not None and info.operating_point is not None:
+        op = np.asarray(info.operating_point, dtype=float)
+        xi, dxi, nu = np.r_[xi, op[None, :l]], np.r_[dxi, op[None, l:2 * l]], np.r_[nu, op[None, 2 * l:]]
+    if not len(xi):
+        return np.zeros(0, complex)
+    J = model.library.jacobian(xi, dxi, nu)  # (M, p, 2l)
+    A = np.zeros((len(xi), 2 * l, 2 * l))
+    A[:, :l, l:] = np.eye(l)
+    A[:, l:] = np.einsum("pj,mpd->mjd", model.Xi[k], J)
+    with np.errstate(all="ignore"):
+        return np.linalg.eigvals(A).reshape(-1)
+
+
+def integrator_check(model, ds: Dataset, rows: np.ndarray, steps: dict[str, dict[str, float]],
+                     tolerance: float = STEP_TOLERANCE) -> list[StepCheck]:
+    """Per phase of ``steps`` ({phase: {integrator: step s}}) trained in the model, whether each
+    step carries the phase's modes at the states of ``rows`` (N,) bool (module docstring)."""
+    out = []
+    for phase, by in steps.items():
+        if phase not in model.trained_phases():
+            continue
+        lam = phase_modes(model, ds, rows, phase)
+        for who, h in by.items():
+            if not lam.size:
+                continue
+            z = h * lam
+            with np.errstate(all="ignore"):
+                exact = np.exp(np.minimum(z.real, 700.0)) * np.exp(1j * z.imag)
+                err = np.abs(rk4_map(z) - exact) / np.maximum(1.0, np.abs(exact))
+            err = np.where(np.isfinite(err), err, np.inf)
+            i = int(np.argmax(err))
+            out.append(StepCheck(phase, who, float(h), complex(lam[i]), float(err[i]), bool(err[i] <= tolerance)))
+    return out
+
+
+@dataclass(frozen=True)
+class AccelerationCheck:
+    """The decoded base acceleration of one phase, axis and split: kind (``flight``: z within
+    ``FLIGHT_SHARE`` of the data's; ``momentum``: within the noise); data and model: the mean
+    over the rows, m/s^2; allowed: the largest |model - data| that passes; ok; rows, stays:
+    how many rows and stays the mean is over."""
+
+    kind: str
+    phase: str
+    split: str
+    axis: str
+    data: float
+    model: float
+    allowed: float
+    ok: bool
+    rows: int
+    stays: int
+
+    def text(self) -> str:
+        what = "falls" if self.kind == "flight" else "accelerates"
+        return (f"{self.phase} ({self.split} rows): the base {what} at {self.model:+.3g} m/s^2 in {self.axis} "
+                f"where the data {'do' if self.ok else 'do not'} allow it ({self.data:+.3g} +- {self.allowed:.2g})")
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "phase": self.phase, "split": self.split, "axis": self.axis,
+                "data": float(self.data), "model": float(self.model), "allowed": float(self.allowed),
+                "ok": self.ok, "rows": self.rows, "stays": self.stays}
+
+
+def _stays(phase: np.ndarray, jump: np.ndarray, sel: np.ndarray) -> np.ndarray:
+    """A stay number (N,) for every row of ``sel``: contiguous runs of one phase within a jump."""
+    key = np.full(phase.shape[0], -1)
+    n = 0
+    for a, b in jump_bounds(jump):
+        r = np.flatnonzero(sel[a:b]) + a
+        if not r.size:
+            continue
+        cut = np.flatnonzero((np.diff(r) != 1) | (np.diff(phase[r]) != 0)) + 1
+        for part in np.split(r, cut):
+            key[part] = n
+            n += 1
+    return key
+
+
+def decoded_acceleration(model, ds: Dataset, rows: np.ndarray, columns: list[int] | None = None) -> np.ndarray:
+    """The model's decoded acceleration W_d ddxi (n, 18) (or its ``columns`` of q) at the logged
+    states, inputs and phases of ``rows`` (N,) bool."""
+    ae = model.autoencoder
+    W_d = ae.W_d if columns is None else ae.W_d[columns]
+    idx = np.flatnonzero(rows)
+    phase = model.phase_index(ds, rows)
+    out = np.zeros((idx.size, W_d.shape[0]))
+    for k in np.unique(phase):
+        r = idx[phase == k]
+        theta = model.library.transform(ae.encode(ds.q[r]), ae.encode_derivative(ds.dq[r]), ae.encode_input(ds.u[r]))
+        out[phase == k] = theta @ (model.Xi[k] @ W_d.T)
+    return out
+
+
+def physics_check(model, ds: Dataset, splits: tuple[str, ...] = ("train", "val"),
+                  share: float = FLIGHT_SHARE, noise_se: float = NOISE_SE) -> list[AccelerationCheck]:
+    """The model's decoded base accelerations (x, z) against the data's, per trained phase and
+    split (module docstring)."""
+    out = []
+    flight = ds.phase_names.index(FLIGHT_PHASE) if FLIGHT_PHASE in ds.phase_names else None
+    every = np.zeros(ds.n_samples, bool)
+    for split in splits:
+        every |= ds.rows_of(split)
+    pred = np.full((ds.n_samples, len(AXES)), np.nan)
+    if every.any():
+        pred[every] = decoded_acceleration(model, ds, every, list(AXES.values()))
+    data = ds.ddq[:, list(AXES.values())]
+    for split in splits:
+        rows = ds.rows_of(split)
+        if not rows.any():
+            continue
+        key = _stays(ds.phase, ds.jump, rows)
+        fl = rows & (ds.phase == flight) if flight is not None else np.zeros(ds.n_samples, bool)
+        scale = abs(float(data[fl, 1].mean())) if fl.any() else GRAVITY
+        for k, name in enumerate(ds.phase_names):
+            if name not in model.trained_phases():
+                continue
+            sel = rows & (ds.phase == k)
+            if not sel.any():
+                continue
+            stays, which = np.unique(key[sel], return_inverse=True)
+            count = np.bincount(which)
+            for a, axis in enumerate(AXES):
+                d, m = float(data[sel, a].mean()), float(pred[sel, a].mean())
+                per = np.bincount(which, weights=data[sel, a]) / count  # each stay's mean
+                se = float(per.std(ddof=1) / np.sqrt(per.size)) if per.size > 1 else 0.0
+                allowed = noise_se * se + share * scale
+                out.append(AccelerationCheck("momentum", name, split, axis, d, m, allowed,
+                                             bool(abs(m - d) <= allowed), int(sel.sum()), int(stays.size)))
+                if k == flight and axis == "z":
+                    allowed = share * abs(d)
+                    out.append(AccelerationCheck("flight", name, split, axis, d, m, allowed,
+                                                 bool(abs(m - d) <= allowed), int(sel.sum()), int(stays.size)))
+    return out
