@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset, jump_bounds
+from symrom.data.envelope import jump_envelope
 from symrom.learn.adam import Adam
 from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
 from symrom.learn.guards import fit_guards
@@ -201,7 +202,8 @@ class SymbolicROM:
                   "n_train_jumps": int(np.unique(ds.jump[rows]).size),
                   "encoder_rows": (f"the {self.contact_phase!r} phase" if has_contact
                                    else f"all training rows (they hold no {self.contact_phase!r} row)"),
-                  "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist()}
+                  "latent_mean": xi.mean(axis=0).tolist(), "latent_spread": xi.std(axis=0).tolist(),
+                  "envelope": jump_envelope(ds, np.unique(ds.jump[rows]))}
         say("contact guards", 0.8)
         guards = learn_guards(ds, rows, val_rows, ae)
         return {"ae": ae, "lib": lib, "problem": problem, "phases": phases, "record": record, "guards": guards,
