@@ -402,6 +402,7 @@ class FroggyController:
         """
         if self.push is not None and self._push_start is None and self.phase not in ("flight", "land") \
                 and s.t >= self._t_push:
+            self._t_push = s.t  # the policy's push begins at this tick
             self._set_timing(self.push.start(s))
         was = self.phase
         self.phase = self._stage(s)
