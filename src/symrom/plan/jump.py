@@ -174,10 +174,18 @@ class RobotPlanner:
     nominal_apex: float
     motion: MotionPlan | None = None
     envelope: dict | None = None
+    _replanner: Replanner | None = None
 
     @property
     def dyn(self) -> PlanDynamics:
         return self.nlp.dyn
+
+    @property
+    def replanner(self) -> Replanner:
+        """The closed loop's re-planner of this planner's problem (``plan.replan``), built once."""
+        if self._replanner is None:
+            self._replanner = Replanner(self.nlp)
+        return self._replanner
 
     @property
     def touchdown_height(self) -> float:
@@ -471,7 +479,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
 
     feedback = None
     if control == "mpc":
-        feedback = ModelFeedback(planner, Replanner(planner.nlp), x, z, replan_hz)
+        feedback = ModelFeedback(planner, planner.replanner, x, z, replan_hz)
     mp = planner.motion
     if mp.motion == "pronk":
         params = replace(mp.params, distance=x)

@@ -75,17 +75,19 @@ class Schedule:
 @dataclass
 class ReplanStats:
     """Per re-plan: t s since the push began, solve_time_s (wall time: linearisation, QP and
-    update), status (``ok``, or why the last schedule was kept), landing_x m and apex_z m the
-    new schedule predicts."""
+    update), solve_cpu_s (the process's CPU time during it: one core), status (``ok``;
+    ``softened``: the guards met as closely as the bounds allow; or why the last schedule was
+    kept), landing_x m and apex_z m the new schedule predicts."""
 
     t: list[float] = field(default_factory=list)
     solve_time_s: list[float] = field(default_factory=list)
+    solve_cpu_s: list[float] = field(default_factory=list)
     status: list[str] = field(default_factory=list)
     landing_x: list[float] = field(default_factory=list)
     apex_z: list[float] = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"t_s": self.t, "solve_time_s": self.solve_time_s, "status": self.status,
+        return {"t_s": self.t, "solve_time_s": self.solve_time_s, "solve_cpu_s": self.solve_cpu_s, "status": self.status,
                 "landing_x_m": self.landing_x, "apex_z_m": self.apex_z}
 
 
@@ -97,13 +99,15 @@ class Replanner:
     prox: the proximal weight on each step (per s^2 on durations, per (m g)^2 on forces);
     min_left: the least time left in the current stance, s."""
 
-    def __init__(self, nlp: JumpPlanner, prox: float = 1e-3, min_left: float = 0.004):
-        self.nlp, self.prox, self.min_left = nlp, float(prox), float(min_left)
+    def __init__(self, nlp: JumpPlanner, prox: float = 0.03, prox_time: float = 0.03, min_left: float = 0.004):
+        self.nlp, self.prox, self.prox_time, self.min_left = nlp, float(prox), float(prox_time), float(min_left)
         self._fns: dict[int, ca.Function] = {}
         self._bounds: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._began: dict[int, float] = {}  # when each stance began, s since the push began
         self._stats = ReplanStats()
         self.schedule: Schedule | None = None
+        for first in range(len(nlp.stances)):  # built once, ahead of the first re-plan
+            self._function(first)
 
     # ----------------------------------------------------------------- the QP's pieces
     def _function(self, first: int) -> ca.Function:
@@ -229,7 +233,7 @@ class Replanner:
         """Re-plan the rest of the push from the model state s (n,) measured ``tau`` s after the
         push began (module docstring); returns the new ``Schedule`` (the last one if the QP
         failed), recording the solve's wall time."""
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         sch = self.schedule
         first = sch.stance_at(tau)
         if first not in self._began:  # a stance began at the end of the one before
@@ -243,7 +247,8 @@ class Replanner:
         r, c = r.ravel(), c.ravel()
         lo_c, hi_c = self._bounds[first]
         ny = y0.size
-        H = Jr.T @ Jr + self.prox * np.eye(ny)
+        n_t = len(self.nlp.stances) - first + 2  # durations come first in y
+        H = Jr.T @ Jr + np.diag(np.r_[np.full(n_t, self.prox_time), np.full(ny - n_t, self.prox)])
         f = Jr.T @ r
         bu = np.concatenate([hi_y - y0, hi_c - c])
         bl = np.concatenate([lo_y - y0, lo_c - c])
@@ -262,10 +267,11 @@ class Replanner:
         else:
             y = np.clip(y0 + d, lo_y, hi_y)
             self.schedule = self._schedule(y, tau, first, fn, p)
-        elapsed = time.perf_counter() - t0
+        elapsed, cpu = time.perf_counter() - t0, time.process_time() - c0
         st = self._stats
         st.t.append(float(tau))
         st.solve_time_s.append(elapsed)
+        st.solve_cpu_s.append(cpu)
         st.status.append(status)
         st.landing_x.append(self.schedule.landing_x)
         st.apex_z.append(self.schedule.apex_z)
