@@ -67,7 +67,7 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
     for x in tx:
         try:
             r = jump(planner, float(x), engine=engine, control=control, disturbances=dist)
-        except Exception as e:  # a failed jump is a result, recorded with its reason
+        except Exception as e:  # noqa: BLE001 - a failed jump is a result, recorded with its reason
             rows.append({"target_x": float(x), "failed": f"{type(e).__name__}: {e}"})
             continue
         ex = r.execution
@@ -158,7 +158,7 @@ def table(res: dict) -> str:
 def replan_table(res: dict) -> str:
     lines = ["| planner | world | re-plans per jump | solve median (wall) | p95 | CPU median | p95 | not ok |",
              "|---|---|---|---|---|---|---|---|"]
-    for key, r in res["results"].items():
+    for r in res["results"].values():
         if "replan_solve_time_s" not in r:
             continue
         s, c = r["replan_solve_time_s"], r["replan_solve_cpu_s"]

@@ -35,7 +35,7 @@ def _run(force_at, end_at, gain_scale: float, replan=None, period: float = 0.01,
             last, n = tau, n + 1
         Fx, Fz = force_at(tau)
 
-        def f(v):
+        def f(v, Fx=Fx, Fz=Fz):
             return np.array([v[2], v[3], gain_scale * GAIN_X * Fx + DAMP_X * v[2], gain_scale * GAIN_Z * Fz + G_C])
 
         k1 = f(s)
@@ -88,7 +88,7 @@ def test_replanning_keeps_the_plan_when_nothing_is_disturbed(planted_nlp):
     plan = _plan(planted_nlp, target)
     rp = Replanner(planted_nlp)
     rp.begin(plan, target, plan.x0, Z_LO, Z_LO, None, 0.43)
-    x, n = _run(lambda tau: rp.schedule.force_at(tau), lambda: rp.schedule.end, 1.0,
+    x, _ = _run(lambda tau: rp.schedule.force_at(tau), lambda: rp.schedule.end, 1.0,
                 replan=lambda s, tau: rp.step(s, tau))
     assert abs(x - target) < 2e-3
     assert np.allclose(rp.stats.landing_x, target, atol=2e-3)  # each re-plan still predicts the target

@@ -235,4 +235,4 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
                      replans=feedback.stats if feedback is not None else None, push_s=float(push_s))
 
 
-__all__ = ["AttitudeGains", "Execution", "ExecutionError", "Feedback", "MOTIONS", "PlannedPush", "execute"]
+__all__ = ["MOTIONS", "AttitudeGains", "Execution", "ExecutionError", "Feedback", "PlannedPush", "execute"]

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -174,7 +174,7 @@ class RobotPlanner:
     nominal_apex: float
     motion: MotionPlan | None = None
     envelope: dict | None = None
-    _replanner: Replanner | None = None
+    _replanner: Replanner | None = field(default=None, repr=False)
 
     @property
     def dyn(self) -> PlanDynamics:
@@ -388,8 +388,8 @@ class JumpResult:
         d = {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
              "robot": self.robot, "engine": self.engine, "motion": ex.motion, "control": self.control,
              "disturbances": ex.disturbances.to_dict(), "target_x": self.target_x, "target_z": self.target_z,
-             "planned_target_x": self.planned_target_x if self.planned_target_x is not None else self.target_x,
-             "planned_target_z": self.planned_target_z if self.planned_target_x is not None else self.target_z,
+             "planned_target_x": self.target_x if self.planned_target_x is None else self.planned_target_x,
+             "planned_target_z": self.target_z if self.planned_target_x is None else self.planned_target_z,
              "landing_x": ex.landing_x, "error_x": self.error_x, "error_z": self.error_z,
              "planned_landing_x": plan.landing_x, "target_reachable": self.reachable,
              "reach": None if self.reach is None else self.reach.to_dict(), "apex_z": ex.apex_z,
@@ -488,8 +488,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     ex = execute(planner.robot, plan_fn, engine, params, motion=mp.motion, feedback=feedback,
                  disturbances=disturbances)
     return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex,
-                      control, x if (x, z) != (target_x, target_z) else None, z if (x, z) != (target_x, target_z) else None,
-                      reach, in_reach)
+                      control, float(x), z, reach, in_reach)
 
 
 @dataclass(frozen=True)
@@ -561,5 +560,22 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
             (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
 
 
-__all__ = ["CONTROLS", "JumpReach", "JumpRequest", "JumpResult", "MotionPlan", "ModelFeedback", "OutOfReach", "PLANNERS", "RobotPlanner",
-           "aim", "jump", "make_planner", "motion_plan", "pronk_params", "read_aslip_params", "run_jump", "write_landing"]
+__all__ = [
+    "CONTROLS",
+    "PLANNERS",
+    "JumpReach",
+    "JumpRequest",
+    "JumpResult",
+    "ModelFeedback",
+    "MotionPlan",
+    "OutOfReach",
+    "RobotPlanner",
+    "aim",
+    "jump",
+    "make_planner",
+    "motion_plan",
+    "pronk_params",
+    "read_aslip_params",
+    "run_jump",
+    "write_landing",
+]

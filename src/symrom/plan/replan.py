@@ -214,12 +214,13 @@ class Replanner:
                 b = max(b, a + self.min_left)
             T.append(b - a)
             mids = a + (np.arange(st.knots) + 0.5) * (b - a) / st.knots
-            F.extend(sch.force_at(min(m, sch.ends[j] - 1e-9)) if m < sch.ends[j] else sch.forces[j][-1] for m in mids)
+            # past the stance's old end (it was lengthened to min_left): its last force
+            F.extend(sch.force_at(m) if m < sch.ends[j] else sch.forces[j][-1] for m in mids)
         T += [sch.t_rise, sch.t_fall]
         return np.concatenate([T, np.asarray(F, float).ravel() / w])
 
     def _bounds_y(self, tau: float, first: int) -> tuple[np.ndarray, np.ndarray]:
-        cfg, stances, sch = self.nlp.config, self.nlp.stances[first:], self.schedule
+        cfg, stances = self.nlp.config, self.nlp.stances[first:]
         w = self.nlp.mass * GRAVITY
         since = tau - self._began[first]  # time spent in the current stance
         lo = [max(stances[0].t_min - since, self.min_left)] + [st.t_min for st in stances[1:]] + [cfg.t_min] * 2

@@ -294,7 +294,7 @@ def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...
     # the force rows exactly: f = f_p + N z, with N the null space of the force rows
     Af, Am = A[:3], A[3:]
     f_p = np.linalg.lstsq(Af, force, rcond=None)[0]
-    _, sv, vt = np.linalg.svd(Af)
+    vt = np.linalg.svd(Af)[2]
     N = vt[3:].T  # (3 n, 3 n - 3)
     z = np.linalg.lstsq(Am @ N, b[3:] - Am @ f_p, rcond=None)[0]
     out = np.zeros((N_LEGS, 3))
