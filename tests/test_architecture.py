@@ -40,8 +40,9 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
               "plugins": 3, "estimator": 4, "finetune": 5, "training": 5},
     # export: the tables, then one writer per target
     "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
-    # planning: the models and guards, the problem, its execution, the jump that uses both
-    "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "execute": 2, "jump": 3},
+    # planning: the models and guards, the problem, its real-time re-planning, its execution, the
+    # jump that uses them
+    "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "replan": 2, "execute": 3, "jump": 4},
     # simulation by job: the engines; the hardware-like variant, on any engine; the controllers and
     # motions; what runs them (generation) and what reads its data (diagnostics)
     "sim": {"engines": 0, "proxy": 1, "controllers": 2, "generation": 3, "diagnostics": 3},

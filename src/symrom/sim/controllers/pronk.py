@@ -71,7 +71,7 @@ from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
 from symrom.sim.controllers.body import GRAVITY, LegGravity, body_model
 from symrom.sim.controllers.compiled import pronk_stance_torque as stance_torque
-from symrom.sim.controllers.motion import PlainMotion
+from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.controllers.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
 from symrom.sim.engines.world import RobotState, World
 from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
@@ -245,18 +245,6 @@ class PushTiming:
     vx: float
     vz: float
     flight_time: float
-
-
-@dataclass(frozen=True)
-class PushCommand:
-    """A ``PushPolicy``'s command for one tick of the push: force (3,) N, the summed ground force
-    on the feet, and moment (3,) N m, its moment about the CoM, both world; the legs' torques
-    stand for them (``PronkController.push_torque``). timing: the push's new ``PushTiming``
-    when the policy re-planned it, else None (the last one holds)."""
-
-    force: np.ndarray
-    moment: np.ndarray
-    timing: PushTiming | None = None
 
 
 @runtime_checkable
