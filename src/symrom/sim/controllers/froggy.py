@@ -35,6 +35,7 @@ from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim.controllers import compiled
+from symrom.sim.controllers.actuators import Compensation, stance_acceleration
 from symrom.sim.controllers.flight import longest_run
 from symrom.sim.controllers.motion import PlainMotion
 from symrom.sim.engines.world import RobotState, World
@@ -234,6 +235,10 @@ class FroggyController:
         self.params = params
         self.kin = leg_kinematics(robot)
         self.limit = np.asarray(get_robot(robot).torque_limit, dtype=float)  # (12,) N m
+        # the description's actuator effects, fed forward (sim/controllers/actuators.py): the
+        # legs' torques are then fitted into the limits with the losses, not before
+        self.compensation = Compensation(robot)
+        self._fit_at = np.full(self.limit.shape, np.inf) if self.compensation.active else self.limit
         self.feet0 = nominal_feet(robot) * [1.0, 1.0, 0.0]  # (4, 3) level-frame xy of each foot
         self.mass = 12.0  # kg, replaced by the world's true mass in reset
         self.phase = "settle"
@@ -291,10 +296,25 @@ class FroggyController:
         if self.phase in ("push_all", "push_rear") and self._p0 is None:
             self._p0 = (s.foot_pos.copy(), s.q[12:15].copy())
         feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
-        return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
-                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
-                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                      self.limit, *self._chains)
+        tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
+                                     float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
+                                     s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
+                                     self._fit_at, *self._chains)
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
+        return tau
+
+    def _planned_acceleration(self, s: RobotState) -> np.ndarray | None:
+        """The joint accelerations (12,) rad/s^2 the push plans for its stance legs, zero for
+        the others (``stance_acceleration``: their feet leave the base at ``push_speed`` along the
+        take-off line, so the joints speed up as the legs straighten); None outside the push or
+        for a robot without armature."""
+        if self.phase not in ("push_all", "push_rear") or not any(self.compensation.effects.armature):
+            return None
+        p = self.params
+        v_feet = np.tile(-p.push_speed * np.array([np.sin(p.angle), 0.0, np.cos(p.angle)]), (N_LEGS, 1))
+        legs = range(N_LEGS) if self.phase == "push_all" else REAR
+        return stance_acceleration(self.kin, s.q[JOINTS], v_feet, legs)
 
     def torque_numpy(self, s: RobotState) -> np.ndarray:
         """``torque`` in NumPy, the reference of the compiled arithmetic (the same stages)."""
@@ -379,6 +399,8 @@ class FroggyController:
         axis = np.array([xy, xy, 1.0])
         f = (kp[:, None] * axis) * (p_d - pos) + (kd[:, None] * axis) * (v_d - vel) + f_ff
         tau = np.einsum("kji,kj->ki", J, f)  # J^T f per leg
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau.reshape(-1), dqj, self.limit, self._planned_acceleration(s))
         # Scale each leg's torques together into the limits: clipping joints one by one
         # would turn the foot force (e.g. a push down becomes a push backwards).
         over = np.max(np.abs(tau) / self.limit.reshape(N_LEGS, 3), axis=1, keepdims=True)
