@@ -207,7 +207,7 @@ def test_jump_cli_end_to_end(tmp_path):
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output
     d = json.loads((out / "landing.json").read_text())
-    assert d["format_version"] == 1 and d["planner"] == "learned"
+    assert d["format_version"] == 2 and d["planner"] == "learned"
     assert d["error_x"] == pytest.approx(d["landing_x"] - 0.3)
     assert abs(d["error_x"]) < 0.06  # Go1-like gains land near the target
     assert 0.38 < d["apex_z"] < 0.5 and 0 < d["solve_time_s"] < 1.0

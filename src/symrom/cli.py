@@ -961,7 +961,8 @@ def jump_cmd(
     model_path: Annotated[Optional[Path], typer.Argument(
         help="The planner's model: model.json (learned) or an aSLIP params.json (aslip, from symrom aslip); "
              "point-mass needs none.")] = None,
-    robot: Annotated[str, typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml.")] = "go1",
+    robot: Annotated[Optional[str], typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml "
+                                                 "(default: the learned model's robot, else go1).")] = None,
     target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the pronk's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
     guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown at the take-off height) "
@@ -997,12 +998,16 @@ def jump_cmd(
         model = load_model(model_path)
     elif planner == "aslip":
         aslip = read_aslip_params(model_path)
+    robot = robot or (model.info.get("robot") if model is not None else None) or "go1"
     with console.status(f"building the {planner} planner"):
         built = make_planner(planner, robot, model=model, aslip=aslip, guards=guards)
     with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
         result = jump(built, target_x, target_z, engine=engine)
     write_landing(out, result, trajectory=trajectory, force=force)
     ex = result.execution
+    if result.apex_rule == "aimed at nominal":
+        console.print(f"warning: no plan holds the apex at the pronk's nominal {built.nominal_apex:.3f} m within the "
+                      f"torque limits; it was aimed at instead (give --target-z for another)", highlight=False)
     if not result.reachable:
         console.print(f"warning: x = {target_x} m is out of the {planner} model's reach under the force, friction "
                       f"and stance bounds; the closest plan lands at {ex.plan.landing_x:.3f} m", highlight=False)

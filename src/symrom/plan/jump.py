@@ -34,9 +34,16 @@ from symrom.sim.controllers.pronk import PronkParams, scales
 from symrom.sim.engines.world import RobotState
 
 PLANNERS = ("learned", "point-mass", "aslip")
+# How far the robot a jump is for may be from the one a learned model was trained on: its
+# mass and leg length, as fractions of the model's robot's; its knees must bend the same way.
+MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 1
+LANDING_FORMAT = 2  # 2: apex_rule
+INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
+# how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
+# nominal apex, or aimed at it where the model cannot reach it within the torque limits
+APEX_RULES = ("target", "at least nominal", "aimed at nominal")
 
 
 @dataclass
@@ -95,7 +102,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
             raise ValueError("the learned planner needs a model (model.json)")
         trained_on = model.info.get("robot")
         if trained_on is not None and robot_key(trained_on) != robot_key(robot):
-            raise ValueError(f"the model was trained on {trained_on!r}, the jump is for {robot!r}")
+            check_model_robot(trained_on, robot)
         dyn: PlanDynamics = LearnedDynamics(model, force_input_map(model, robot, q_crouch))
     elif kind == "point-mass":
         dyn = PointMass(mass)
@@ -111,6 +118,32 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     limits = torque_map(robot, [q_crouch, start_pose(robot, params.takeoff_height)], desc.torque_limit)
     return RobotPlanner(kind, robot, guards, JumpPlanner(dyn, mass, cfg, rule, limits), params.crouch_height, params.takeoff_height,
                         params.apex_height)
+
+
+def check_model_robot(trained_on: str, robot: str) -> None:
+    """Refuse, in one line, to plan for ``robot`` with a model trained on another robot
+    ``trained_on`` unless both are the same build: knees bending the same way on every leg
+    and mass and leg length within ``MODEL_ROBOT_TOL`` of the model's robot's (another model of
+    the same robot, e.g. a Menagerie Go1 for a model of symrom's Go1). The jump is planned
+    with the model's dynamics and the executing robot's description (its legs map the force
+    to the model's input; it is the robot simulated)."""
+    from symrom.robots.description import RobotDescriptionError
+    from symrom.robots.stance import leg_length
+
+    head = f"the model was trained on {trained_on!r}, the jump is for {robot!r}"
+    try:
+        a, b = get_robot(trained_on), get_robot(robot)
+    except (RobotDescriptionError, OSError) as e:
+        raise ValueError(f"{head}, and the model's robot cannot be read to compare them ({e})") from None
+    bend_a, bend_b = np.sign(np.mean(a.knee_range, axis=0)), np.sign(np.mean(b.knee_range, axis=0))
+    if not np.array_equal(bend_a, bend_b):
+        raise ValueError(f"{head}: their knees bend different ways (knee ranges {a.knee_range.T.round(2).tolist()} "
+                         f"and {b.knee_range.T.round(2).tolist()} rad, FR FL RR RL)")
+    for what, x, y, unit in (("mass", a.mass, b.mass, "kg"),
+                             ("leg length", leg_length(trained_on), leg_length(robot), "m")):
+        if abs(y / x - 1.0) > MODEL_ROBOT_TOL[what]:
+            raise ValueError(f"{head}: its {what} {y:.3g} {unit} is {100 * (y / x - 1):+.0f} % of the model's robot's "
+                             f"{x:.3g} {unit} (at most {100 * MODEL_ROBOT_TOL[what]:.0f} %)")
 
 
 def read_aslip_params(path: str | os.PathLike) -> ASlipParams:
@@ -139,6 +172,7 @@ class JumpResult:
     target_x: float
     target_z: float | None
     execution: Execution
+    apex_rule: str = "target"
 
     @property
     def error_x(self) -> float:
@@ -155,6 +189,7 @@ class JumpResult:
         ex, plan = self.execution, self.execution.plan
         return {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
                 "robot": self.robot, "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
+                "apex_rule": self.apex_rule,
                 "landing_x": ex.landing_x, "error_x": self.error_x,
                 "planned_landing_x": plan.landing_x, "target_reachable": self.reachable, "apex_z": ex.apex_z,
                 "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
@@ -166,17 +201,35 @@ class JumpResult:
                 "plan": plan.to_dict()}
 
 
+def plan_jump(planner: RobotPlanner, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
+              warm: bool = True) -> tuple[Plan, str]:
+    """The plan from configuration q (18,) and velocity dq (18,) to ``target_x`` m, with apex
+    ``target_z`` m if given, else at or above the nominal apex, and the rule it was planned by
+    (``APEX_RULES``): where no plan holds the nominal apex within the torque limits (IPOPT finds
+    the problem infeasible: a robot whose motors are weak for its size, whose own pronks peak
+    below it), the nominal apex is aimed at instead, as a target apex."""
+    if target_z is not None:
+        return planner.plan(q, dq, target_x, target_z, warm=warm), "target"
+    plan = planner.plan(q, dq, target_x, None, warm=warm)
+    if plan.success or plan.status != INFEASIBLE:
+        return plan, "at least nominal"
+    return planner.plan(q, dq, target_x, planner.nominal_apex, warm=warm), "aimed at nominal"
+
+
 def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, engine: str = "pybullet",
          warm: bool = True) -> JumpResult:
-    """Plan (from the measured crouch) and execute one jump ``target_x`` m forward, with apex
-    ``target_z`` m if given; raise ``PlanError`` if the plan fails."""
+    """Plan (from the measured crouch: ``plan_jump``) and execute one jump ``target_x`` m forward,
+    with apex ``target_z`` m if given, else at or above the pronk's nominal apex (or aimed at
+    it: ``JumpResult.apex_rule``); raise ``PlanError`` if the plan fails."""
     if not (np.isfinite(target_x) and target_x >= 0):
         raise ValueError(f"--target-x must be a non-negative distance in m, got {target_x}")
     if target_z is not None and not (np.isfinite(target_z) and target_z > planner.liftoff_height):
         raise ValueError(f"--target-z must be above the lift-off height {planner.liftoff_height:.3f} m, got {target_z}")
 
+    rule = ["target"]
+
     def plan_fn(state: RobotState) -> Plan:
-        plan = planner.plan(state.q, state.dq, target_x, target_z, warm=warm)
+        plan, rule[0] = plan_jump(planner, state.q, state.dq, target_x, target_z, warm=warm)
         if not plan.success:
             raise PlanError(f"the {planner.kind} plan to x = {target_x} m did not converge (IPOPT: {plan.status})")
         return plan
@@ -184,7 +237,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     params = pronk_params(planner.robot)
     params.distance = target_x
     ex = execute(planner.robot, plan_fn, engine, params)
-    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex)
+    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex, rule[0])
 
 
 def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool = True, force: bool = False) -> None:
@@ -200,5 +253,6 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
             (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
 
 
-__all__ = ["JumpResult", "PLANNERS", "RobotPlanner", "jump", "make_planner", "pronk_params", "read_aslip_params",
+__all__ = ["APEX_RULES", "JumpResult", "MODEL_ROBOT_TOL", "PLANNERS", "RobotPlanner", "check_model_robot", "jump",
+           "make_planner", "plan_jump", "pronk_params", "read_aslip_params",
            "write_landing"]
