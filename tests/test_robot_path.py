@@ -1,8 +1,8 @@
 """The whole path on a robot symrom has never seen: `robot init` on a Menagerie-style model, then
 generate, train, evaluate and `symrom jump` from the description it wrote, with no code change;
 a model planning for another robot of its build (a Menagerie Go1 for a model of symrom's Go1)
-and refused for a robot of another build, in one line; the nominal apex aimed at where no plan
-holds it within the torque limits."""
+and refused for a robot of another build, in one line; a nominal apex no plan holds within the
+torque limits gives way to what the model reaches."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from symrom.cli import app
 from symrom.model.persistence import save_model
 from symrom.plan.dynamics import GRAVITY
 from symrom.plan.inputs import force_input_map
-from symrom.plan.jump import make_planner, plan_jump, pronk_params
+from symrom.plan.jump import REACH_SHARE, make_planner, plan_jump, pronk_params
 from symrom.robots import get_robot
 from symrom.robots.init import init_robot
 from symrom.robots.stance import start_pose
@@ -40,19 +40,23 @@ def _weak(gain_z: float):
     return planted_model([{"nu1": 0.07, "dxi1": -0.8}, {"nu2": gain_z, "1": -9.7}], [{}, {"1": -GRAVITY}])
 
 
-def test_a_nominal_apex_out_of_reach_is_aimed_at():
+def test_a_nominal_apex_out_of_reach_gives_way_to_what_the_model_reaches():
     q = start_pose("go1", pronk_params("go1").crouch_height)
     strong = make_planner("learned", "go1", model=_weak(0.025))
-    plan, rule = plan_jump(strong, q, np.zeros(18), 0.3, warm=False)
-    assert rule == "at least nominal" and plan.success and plan.apex_z >= strong.nominal_apex - 1e-6
+    plan, rule, floor = plan_jump(strong, q, np.zeros(18), 0.3, warm=False)
+    assert rule == "at least nominal" and floor == strong.nominal_apex
+    assert plan.success and plan.apex_z >= strong.nominal_apex - 1e-6
     weak = make_planner("learned", "go1", model=_weak(0.02))
     held = weak.plan(q, np.zeros(18), 0.3, warm=False)
     assert not held.success and held.status == "Infeasible_Problem_Detected"
-    plan, rule = plan_jump(weak, q, np.zeros(18), 0.3, warm=False)
-    assert rule == "aimed at nominal" and plan.success
-    assert plan.apex_z < weak.nominal_apex - 0.02 and abs(plan.landing_x - 0.3) < 0.01  # as high as it can
-    plan, rule = plan_jump(weak, q, np.zeros(18), 0.3, target_z=0.38, warm=False)
-    assert rule == "target" and plan.success and abs(plan.apex_z - 0.38) < 1e-3
+    top = weak.plan(q, np.zeros(18), 0.3, weak.nominal_apex, warm=False)  # as high as it goes
+    plan, rule, floor = plan_jump(weak, q, np.zeros(18), 0.3, warm=False)
+    assert rule == "at least reachable" and plan.success
+    assert floor == pytest.approx(weak.liftoff_height + REACH_SHARE * (top.apex_z - weak.liftoff_height))
+    assert top.apex_z < weak.nominal_apex - 0.02 and plan.apex_z >= floor - 1e-6
+    assert abs(plan.landing_x - 0.3) < 1e-3  # the target met, the apex given way
+    plan, rule, floor = plan_jump(weak, q, np.zeros(18), 0.3, target_z=0.38, warm=False)
+    assert rule == "target" and floor is None and plan.success and abs(plan.apex_z - 0.38) < 1e-3
 
 
 def test_a_model_plans_for_another_robot_of_its_build(written, tmp_path):

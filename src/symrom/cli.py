@@ -1005,9 +1005,10 @@ def jump_cmd(
         result = jump(built, target_x, target_z, engine=engine)
     write_landing(out, result, trajectory=trajectory, force=force)
     ex = result.execution
-    if result.apex_rule == "aimed at nominal":
+    if result.apex_rule == "at least reachable" and result.apex_floor is not None:
         console.print(f"warning: no plan holds the apex at the pronk's nominal {built.nominal_apex:.3f} m within the "
-                      f"torque limits; it was aimed at instead (give --target-z for another)", highlight=False)
+                      f"torque limits; held at or above {result.apex_floor:.3f} m instead (--target-z sets it)",
+                      highlight=False)
     if not result.reachable:
         console.print(f"warning: x = {target_x} m is out of the {planner} model's reach under the force, friction "
                       f"and stance bounds; the closest plan lands at {ex.plan.landing_x:.3f} m", highlight=False)

@@ -39,11 +39,13 @@ PLANNERS = ("learned", "point-mass", "aslip")
 MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 2  # 2: apex_rule
+LANDING_FORMAT = 2  # 2: apex_rule, apex_floor
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
-# nominal apex, or aimed at it where the model cannot reach it within the torque limits
-APEX_RULES = ("target", "at least nominal", "aimed at nominal")
+# nominal apex, or, where no plan reaches that within the torque limits, held at or above
+# REACH_SHARE of the highest apex gain over the lift-off height the model reaches
+APEX_RULES = ("target", "at least nominal", "at least reachable")
+REACH_SHARE = 0.8
 
 
 @dataclass
@@ -64,15 +66,16 @@ class RobotPlanner:
         return self.nlp.dyn
 
     def plan(self, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
-             warm: bool = True) -> Plan:
+             warm: bool = True, min_apex: float | None = None) -> Plan:
         """Plan from the robot's configuration q (18,) and velocity dq (18,) at the start of the
         push; for point-mass and aSLIP the state's x is measured from the start (their laws do
-        not depend on where the jump is)."""
+        not depend on where the jump is). Without ``target_z`` the apex is held at or above
+        ``min_apex`` m (default: the nominal apex)."""
         s0 = self.dyn.initial_state(q, dq)
         if self.kind != "learned":
             s0[0] = 0.0
         return self.nlp.solve(s0, target_x, self.liftoff_height, apex=target_z,
-                              min_apex=None if target_z is not None else self.nominal_apex, warm=warm)
+                              min_apex=None if target_z is not None else (min_apex or self.nominal_apex), warm=warm)
 
 
 def pronk_params(robot: str) -> PronkParams:
@@ -173,6 +176,7 @@ class JumpResult:
     target_z: float | None
     execution: Execution
     apex_rule: str = "target"
+    apex_floor: float | None = None
 
     @property
     def error_x(self) -> float:
@@ -189,7 +193,7 @@ class JumpResult:
         ex, plan = self.execution, self.execution.plan
         return {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
                 "robot": self.robot, "engine": self.engine, "target_x": self.target_x, "target_z": self.target_z,
-                "apex_rule": self.apex_rule,
+                "apex_rule": self.apex_rule, "apex_floor": self.apex_floor,
                 "landing_x": ex.landing_x, "error_x": self.error_x,
                 "planned_landing_x": plan.landing_x, "target_reachable": self.reachable, "apex_z": ex.apex_z,
                 "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
@@ -202,34 +206,41 @@ class JumpResult:
 
 
 def plan_jump(planner: RobotPlanner, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
-              warm: bool = True) -> tuple[Plan, str]:
-    """The plan from configuration q (18,) and velocity dq (18,) to ``target_x`` m, with apex
-    ``target_z`` m if given, else at or above the nominal apex, and the rule it was planned by
-    (``APEX_RULES``): where no plan holds the nominal apex within the torque limits (IPOPT finds
-    the problem infeasible: a robot whose motors are weak for its size, whose own pronks peak
-    below it), the nominal apex is aimed at instead, as a target apex."""
+              warm: bool = True) -> tuple[Plan, str, float | None]:
+    """The plan from configuration q (18,) and velocity dq (18,) to ``target_x`` m, the rule its
+    apex was planned by (``APEX_RULES``) and the least apex it held (m; None for a target):
+    ``target_z`` m if given, else at or above the nominal apex; where no plan holds that within
+    the torque limits (IPOPT finds the problem infeasible: a robot whose motors are weak for its
+    size, whose own pronks peak below it), at or above ``REACH_SHARE`` of the highest apex gain
+    over the lift-off height the model reaches (a plan aimed at the nominal apex finds it),
+    which leaves the push some torque to spare."""
     if target_z is not None:
-        return planner.plan(q, dq, target_x, target_z, warm=warm), "target"
+        return planner.plan(q, dq, target_x, target_z, warm=warm), "target", None
     plan = planner.plan(q, dq, target_x, None, warm=warm)
     if plan.success or plan.status != INFEASIBLE:
-        return plan, "at least nominal"
-    return planner.plan(q, dq, target_x, planner.nominal_apex, warm=warm), "aimed at nominal"
+        return plan, "at least nominal", planner.nominal_apex
+    top = planner.plan(q, dq, target_x, planner.nominal_apex, warm=warm)
+    if not top.success:
+        return top, "at least reachable", None
+    floor = planner.liftoff_height + REACH_SHARE * (top.apex_z - planner.liftoff_height)
+    return planner.plan(q, dq, target_x, None, warm=warm, min_apex=floor), "at least reachable", floor
 
 
 def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, engine: str = "pybullet",
          warm: bool = True) -> JumpResult:
     """Plan (from the measured crouch: ``plan_jump``) and execute one jump ``target_x`` m forward,
-    with apex ``target_z`` m if given, else at or above the pronk's nominal apex (or aimed at
-    it: ``JumpResult.apex_rule``); raise ``PlanError`` if the plan fails."""
+    with apex ``target_z`` m if given, else at or above the pronk's nominal apex, or what the
+    model reaches of it (``JumpResult.apex_rule``, ``apex_floor``); raise ``PlanError`` if the
+    plan fails."""
     if not (np.isfinite(target_x) and target_x >= 0):
         raise ValueError(f"--target-x must be a non-negative distance in m, got {target_x}")
     if target_z is not None and not (np.isfinite(target_z) and target_z > planner.liftoff_height):
         raise ValueError(f"--target-z must be above the lift-off height {planner.liftoff_height:.3f} m, got {target_z}")
 
-    rule = ["target"]
+    rule: list = ["target", None]
 
     def plan_fn(state: RobotState) -> Plan:
-        plan, rule[0] = plan_jump(planner, state.q, state.dq, target_x, target_z, warm=warm)
+        plan, rule[0], rule[1] = plan_jump(planner, state.q, state.dq, target_x, target_z, warm=warm)
         if not plan.success:
             raise PlanError(f"the {planner.kind} plan to x = {target_x} m did not converge (IPOPT: {plan.status})")
         return plan
@@ -237,7 +248,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     params = pronk_params(planner.robot)
     params.distance = target_x
     ex = execute(planner.robot, plan_fn, engine, params)
-    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex, rule[0])
+    return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex, *rule)
 
 
 def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool = True, force: bool = False) -> None:
@@ -253,6 +264,6 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
             (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
 
 
-__all__ = ["APEX_RULES", "JumpResult", "MODEL_ROBOT_TOL", "PLANNERS", "RobotPlanner", "check_model_robot", "jump",
+__all__ = ["APEX_RULES", "JumpResult", "MODEL_ROBOT_TOL", "PLANNERS", "REACH_SHARE", "RobotPlanner", "check_model_robot", "jump",
            "make_planner", "plan_jump", "pronk_params", "read_aslip_params",
            "write_landing"]
