@@ -40,6 +40,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
 LANDING_FORMAT = 2  # 2: apex_rule, apex_floor
+TRAJECTORY_FORMAT = 1
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
 # nominal apex, or, where no plan reaches that within the torque limits, held at or above
@@ -258,7 +259,7 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
         (tmp / "landing.json").write_text(json.dumps(result.landing(), indent=1, allow_nan=False) + "\n")
         if trajectory:
             tr = result.execution.trajectory
-            doc = {"format_version": LANDING_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
+            doc = {"format_version": TRAJECTORY_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
                    "units": "s, m, rad", "t": np.asarray(tr["t"]).tolist(), "base": np.asarray(tr["base"]).tolist(),
                    "contact": np.asarray(tr["contact"]).tolist(), "phase": list(tr["phase"])}
             (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
