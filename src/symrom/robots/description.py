@@ -89,8 +89,8 @@ class ActuatorEffects:
 
     def losses(self, dq: np.ndarray, ddq: np.ndarray | None = None) -> np.ndarray:
         """The torques (..., 12) N m the effects take from the motors at joint speeds dq (..., 12)
-        rad/s and, if given, accelerations ddq (..., 12) rad/s^2 (symrom's signs; the effects
-        are even in the sign): damping x dq + friction_loss x s(dq) + armature x ddq, where the
+        rad/s and, if given, accelerations ddq (..., 12) rad/s^2 (in symrom's signs or the
+        model's alike: a loss turns with its joint): damping x dq + friction_loss x s(dq) + armature x ddq, where the
         friction's sign s ramps linearly through zero over +-``FRICTION_SPEED`` (the engines'
         friction loss is a regularised constraint, not a jump at rest). A motor's torque less
         these is what reaches the joint."""

@@ -22,7 +22,10 @@ The hip abduction (hx) joints are held at their standing angle by the world
 errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
 Cartesian PD like the other joints. The parameters were tuned on the A1; for
 another robot they are scaled by its mass and leg length (``scaled``), as pronk
-scales its own.
+scales its own. A robot whose description states actuator effects gets the legs' torques
+plus what those take (damping and friction loss at the measured joint speeds, armature at the
+push's planned joint accelerations), fitted into the limits leg by leg
+(``symrom.sim.controllers.actuators``).
 """
 
 from __future__ import annotations

@@ -32,7 +32,9 @@ robot they are scaled by its mass and leg length relative to the Go1's
 (``scales``, ``PronkGains.scaled``): heights and distances with leg length,
 forces with mass, joint stiffness and damping with mass x length, Cartesian
 stiffness with mass / length, times of the landing reference with the square
-root of length. For the Go1 both ratios are exactly 1.
+root of length. For the Go1 both ratios are exactly 1. A robot whose description states
+actuator effects (joint damping, friction loss, armature) gets every torque plus what they take
+at the measured joint speeds, within the limits (``symrom.sim.controllers.actuators``).
 
 A push policy. ``PronkController(..., push=policy)`` hands the push to a
 ``PushPolicy`` in place of the MPC: called once when the push is due and then at
