@@ -48,9 +48,9 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     "sim": {"engines": 0, "proxy": 1, "controllers": 2, "generation": 3, "diagnostics": 3},
     # the engines: what they share and their compiled reads, then each engine and the registry
     "sim.engines": {"world": 0, "compiled": 0, "bullet": 1, "mujoco": 1, "registry": 1},
-    # the controllers: their compiled arithmetic, flights, the body model; its URDF source, the
-    # MPC, the protocols; the motions
-    "sim.controllers": {"compiled": 0, "flight": 0, "body": 0, "urdf_body": 1, "mpc": 1, "motion": 1,
+    # the controllers: their compiled arithmetic, flights, the body model, the actuator
+    # compensation; its URDF source, the MPC, the protocols; the motions
+    "sim.controllers": {"compiled": 0, "flight": 0, "body": 0, "actuators": 0, "urdf_body": 1, "mpc": 1, "motion": 1,
                         "pronk": 2, "froggy": 2},
     # generation: the checks, parts, the episode loop and the warm start; the configuration; one
     # checked jump; the whole file

@@ -19,7 +19,8 @@ def jump_cmd(
     model_path: Annotated[Optional[Path], typer.Argument(
         help="The planner's model: model.json (learned) or an aSLIP params.json (aslip, from symrom aslip); "
              "point-mass needs none.")] = None,
-    robot: Annotated[str, typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml.")] = "go1",
+    robot: Annotated[Optional[str], typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml "
+                                                 "(default: the learned model's robot, else go1).")] = None,
     target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the motion's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
     guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown heights) "
@@ -53,6 +54,9 @@ def jump_cmd(
         except OutOfReach as e:
             raise ValueError(f"{e}; --closest plans the closest reachable jump") from None
     ex = result.execution
+    if result.apex_rule == "at least reachable" and result.apex_floor is not None:
+        warn(f"no plan holds the apex at the motion's nominal height within the torque limits; held at or above "
+             f"{result.apex_floor:.3f} m instead (--target-z sets it)")
     if not result.reachable:
         warn(f"the target is out of the {planner} planner's reach; planned the closest reachable jump, "
              f"x = {ex.plan.landing_x:.3f} m, apex {ex.plan.apex_z:.3f} m")

@@ -52,10 +52,20 @@ from symrom.sim.engines.world import RobotState
 from symrom.sim.proxy import Disturbances
 
 PLANNERS = ("learned", "point-mass", "aslip")
+# How far the robot a jump is for may be from the one a learned model was trained on: its
+# mass and leg length, as fractions of the model's robot's; its knees must bend the same way.
+MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 2
+LANDING_FORMAT = 2  # 2: apex_rule, apex_floor
+TRAJECTORY_FORMAT = 2
+INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
+# how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
+# nominal apex, or, where no plan reaches that within the torque limits, held at or above
+# REACH_SHARE of the highest apex gain over the lift-off height the model reaches
+APEX_RULES = ("target", "at least nominal", "at least reachable")
+REACH_SHARE = 0.8
 REPLAN_HZ = 100.0  # Hz: the closed loop's re-planning rate
 
 # The A1's froggy jump as its data show it (``symrom generate --robot a1 --motion froggy``, 27
@@ -200,13 +210,14 @@ class RobotPlanner:
         return s
 
     def plan(self, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
-             warm: bool = True, remember: bool = True) -> Plan:
+             warm: bool = True, remember: bool = True, min_apex: float | None = None) -> Plan:
         """Plan from the robot's configuration q (18,) and velocity dq (18,) at the start of the
         push; for point-mass and aSLIP the state's x is measured from the start. ``warm``,
-        ``remember``: as ``JumpPlanner.solve``'s."""
+        ``remember``: as ``JumpPlanner.solve``'s. Without ``target_z`` the apex is held at or above
+        ``min_apex`` m (default: the nominal apex)."""
         s0 = self.state(q, dq, float(q[BASE_POS][0]))
         return self.nlp.solve(s0, target_x, self.liftoff_height, apex=target_z,
-                              min_apex=None if target_z is not None else self.nominal_apex, warm=warm,
+                              min_apex=None if target_z is not None else (min_apex or self.nominal_apex), warm=warm,
                               z_touchdown=self.touchdown_height, remember=remember)
 
     def reach(self, target_z: float | None = None) -> JumpReach:
@@ -223,6 +234,12 @@ class RobotPlanner:
         lo_x = 0.0
         full = self.nlp.reach(s0, z_lo, self.nominal_apex if target_z is None else z_lo, z_touchdown=z_td,
                               x_range=(lo_x, np.inf))
+        apex_floor = self.nominal_apex
+        if full is None and target_z is None:  # weak motors: the apex rule of ``plan_jump``
+            low = self.nlp.reach(s0, z_lo, z_lo, z_touchdown=z_td, x_range=(lo_x, np.inf))
+            if low is not None:
+                apex_floor = z_lo + REACH_SHARE * (low.z_max - z_lo)
+                full = self.nlp.reach(s0, z_lo, apex_floor, z_touchdown=z_td, x_range=(lo_x, np.inf))
         if full is None:
             raise PlanModelError(f"the {self.kind} model cannot plan a {self._motion_name()} from the crouch: no jump "
                                  "meets its force, friction, torque and stance bounds and its guards")
@@ -234,8 +251,8 @@ class RobotPlanner:
             if at is not None:
                 x_min, x_max = max(at.x_min, 0.0), at.x_max
         model = (x_min, x_max, z_min, z_max)
-        if target_z is None:  # the apex is held at the nominal one or above
-            z_min = max(z_min, self.nominal_apex)
+        if target_z is None:  # the apex is held at the nominal one (or the weak motors' floor) or above
+            z_min = max(z_min, apex_floor)
         if data is not None:
             x_min, x_max = max(x_min, data[0]), min(x_max, data[1])
             z_min, z_max = max(z_min, data[2]), min(z_max, data[3])
@@ -282,7 +299,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
             raise ValueError("the learned planner needs a model (model.json)")
         trained_on = model.provenance.data.robot
         if trained_on is not None and robot_key(trained_on) != robot_key(robot):
-            raise ValueError(f"the model was trained on {trained_on!r}, the jump is for {robot!r}")
+            check_model_robot(trained_on, robot)
         B = {st.phase: force_input_map(model, robot, q_crouch, legs[st.phase]) for st in mp.stances}
         dyn: PlanDynamics = LearnedDynamics(model, B if motion != "pronk" else B[STANCE_PHASE])
         envelope = model.provenance.data.envelope
@@ -305,7 +322,36 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
                   for st in mp.stances}
     nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None)
     crouch = float(q_crouch[BASE_POS][2]) if motion != "pronk" else mp.params.crouch_height
-    return RobotPlanner(kind, robot, guards, nlp, crouch, mp.liftoff_height, mp.nominal_apex, mp, envelope)
+    # without a target apex the jump rises at least to the motion's nominal apex, or to the highest
+    # apex of the training jumps where that is lower: a model knows the motion only where its data went
+    nominal = mp.nominal_apex if envelope is None else min(mp.nominal_apex, float(envelope["apex_z_m"][1]))
+    return RobotPlanner(kind, robot, guards, nlp, crouch, mp.liftoff_height, nominal, mp, envelope)
+
+
+def check_model_robot(trained_on: str, robot: str) -> None:
+    """Refuse, in one line, to plan for ``robot`` with a model trained on another robot
+    ``trained_on`` unless both are the same build: knees bending the same way on every leg
+    and mass and leg length within ``MODEL_ROBOT_TOL`` of the model's robot's (another model of
+    the same robot, e.g. a Menagerie Go1 for a model of symrom's Go1). The jump is planned
+    with the model's dynamics and the executing robot's description (its legs map the force
+    to the model's input; it is the robot simulated)."""
+    from symrom.robots.description import RobotDescriptionError
+    from symrom.robots.stance import leg_length
+
+    head = f"the model was trained on {trained_on!r}, the jump is for {robot!r}"
+    try:
+        a, b = get_robot(trained_on), get_robot(robot)
+    except (RobotDescriptionError, OSError) as e:
+        raise ValueError(f"{head}, and the model's robot cannot be read to compare them ({e})") from None
+    bend_a, bend_b = np.sign(np.mean(a.knee_range, axis=0)), np.sign(np.mean(b.knee_range, axis=0))
+    if not np.array_equal(bend_a, bend_b):
+        raise ValueError(f"{head}: their knees bend different ways (knee ranges {a.knee_range.T.round(2).tolist()} "
+                         f"and {b.knee_range.T.round(2).tolist()} rad, FR FL RR RL)")
+    for what, x, y, unit in (("mass", a.mass, b.mass, "kg"),
+                             ("leg length", leg_length(trained_on), leg_length(robot), "m")):
+        if abs(y / x - 1.0) > MODEL_ROBOT_TOL[what]:
+            raise ValueError(f"{head}: its {what} {y:.3g} {unit} is {100 * (y / x - 1):+.0f} % of the model's robot's "
+                             f"{x:.3g} {unit} (at most {100 * MODEL_ROBOT_TOL[what]:.0f} %)")
 
 
 def read_aslip_params(path: str | os.PathLike) -> ASlipParams:
@@ -362,6 +408,8 @@ class JumpResult:
     target_x: float
     target_z: float | None
     execution: Execution
+    apex_rule: str = "target"
+    apex_floor: float | None = None
     control: str = "plan"
     planned_target_x: float | None = None
     planned_target_z: float | None = None
@@ -388,6 +436,7 @@ class JumpResult:
         d = {"format_version": LANDING_FORMAT, "planner": self.planner, "guards": self.guards,
              "robot": self.robot, "engine": self.engine, "motion": ex.motion, "control": self.control,
              "disturbances": ex.disturbances.to_dict(), "target_x": self.target_x, "target_z": self.target_z,
+                "apex_rule": self.apex_rule, "apex_floor": self.apex_floor,
              "planned_target_x": self.target_x if self.planned_target_x is None else self.planned_target_x,
              "planned_target_z": self.target_z if self.planned_target_x is None else self.planned_target_z,
              "landing_x": ex.landing_x, "error_x": self.error_x, "error_z": self.error_z,
@@ -438,7 +487,7 @@ def aim(planner: RobotPlanner, target_x: float, target_z: float | None = None,
         z = None if z is None else float(np.clip(z, reach.z_min, reach.z_max))
     # both together: the plan from the crouch at rest must reach them
     q = planner.motion.q_crouch
-    trial = planner.plan(q, np.zeros(18), x, z, warm=False, remember=False)
+    trial, _, _ = plan_jump(planner, q, np.zeros(18), x, z, warm=False, remember=False)
     misses = (not trial.success or abs(trial.landing_x - x) > REACH_TOL
               or (z is not None and abs(trial.apex_z - z) > REACH_TOL))
     if misses:
@@ -451,6 +500,28 @@ def aim(planner: RobotPlanner, target_x: float, target_z: float | None = None,
             x, z = float(trial.landing_x), (None if z is None else float(trial.apex_z))
         inside = False
     return x, z, reach, inside
+
+
+def plan_jump(planner: RobotPlanner, q: np.ndarray, dq: np.ndarray, target_x: float, target_z: float | None = None,
+              warm: bool = True, remember: bool = True) -> tuple[Plan, str, float | None]:
+    """The plan from configuration q (18,) and velocity dq (18,) to ``target_x`` m, the rule its
+    apex was planned by (``APEX_RULES``) and the least apex it held (m; None for a target):
+    ``target_z`` m if given, else at or above the nominal apex; where no plan holds that within
+    the torque limits (IPOPT finds the problem infeasible: a robot whose motors are weak for its
+    size, whose own pronks peak below it), at or above ``REACH_SHARE`` of the highest apex gain
+    over the lift-off height the model reaches (a plan aimed at the nominal apex finds it),
+    which leaves the push some torque to spare. ``warm``, ``remember``: as ``RobotPlanner.plan``'s."""
+    if target_z is not None:
+        return planner.plan(q, dq, target_x, target_z, warm=warm, remember=remember), "target", None
+    plan = planner.plan(q, dq, target_x, None, warm=warm, remember=remember)
+    if plan.success or plan.status != INFEASIBLE:
+        return plan, "at least nominal", planner.nominal_apex
+    top = planner.plan(q, dq, target_x, planner.nominal_apex, warm=warm, remember=remember)
+    if not top.success:
+        return top, "at least reachable", None
+    floor = planner.liftoff_height + REACH_SHARE * (top.apex_z - planner.liftoff_height)
+    return (planner.plan(q, dq, target_x, None, warm=warm, min_apex=floor, remember=remember),
+            "at least reachable", floor)
 
 
 def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, engine: str = "pybullet",
@@ -471,8 +542,10 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     if check_reach:
         x, z, reach, in_reach = aim(planner, target_x, target_z, closest)
 
+    rule: list = ["target", None]
+
     def plan_fn(state: RobotState) -> Plan:
-        plan = planner.plan(state.q, state.dq, x, z, warm=warm)
+        plan, rule[0], rule[1] = plan_jump(planner, state.q, state.dq, x, z, warm=warm)
         if not plan.success:
             raise PlanError(f"the {planner.kind} plan to x = {x:g} m did not converge (IPOPT: {plan.status})")
         return plan
@@ -488,7 +561,8 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     ex = execute(planner.robot, plan_fn, engine, params, motion=mp.motion, feedback=feedback,
                  disturbances=disturbances)
     return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex,
-                      control, float(x), z, reach, in_reach)
+                      apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
+                      planned_target_z=z, reach=reach, in_reach=in_reach)
 
 
 @dataclass(frozen=True)
@@ -502,7 +576,7 @@ class JumpRequest:
 
     target_x: float
     target_z: float | None = None
-    robot: str = "go1"
+    robot: str | None = None
     planner: str = "learned"
     model_path: Path | None = None
     guards: str = "height"
@@ -543,7 +617,8 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
         model = load_model(req.model_path)
     elif req.planner == "aslip":
         aslip = read_aslip_params(req.model_path)
-    built = make_planner(req.planner, req.robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)
+    robot = req.robot or (model.provenance.data.robot if model is not None else None) or "go1"
+    built = make_planner(req.planner, robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)
     result = jump(built, req.target_x, req.target_z, engine=req.engine, control=req.control,
                   disturbances=disturbances, closest=req.closest)
     write_landing(out, result, trajectory=trajectory, force=force)
@@ -557,15 +632,18 @@ def write_landing(out: str | os.PathLike, result: JumpResult, trajectory: bool =
         (tmp / "landing.json").write_text(json.dumps(result.landing(), indent=1, allow_nan=False) + "\n")
         if trajectory:
             tr = result.execution.trajectory
-            doc = {"format_version": LANDING_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
+            doc = {"format_version": TRAJECTORY_FORMAT, "columns": ["x", "y", "z", "roll", "pitch", "yaw"],
                    "units": "s, m, rad", "t": np.asarray(tr["t"]).tolist(), "base": np.asarray(tr["base"]).tolist(),
                    "contact": np.asarray(tr["contact"]).tolist(), "phase": list(tr["phase"])}
             (tmp / "trajectory.json").write_text(json.dumps(doc, allow_nan=False) + "\n")
 
 
 __all__ = [
+    "APEX_RULES",
     "CONTROLS",
+    "MODEL_ROBOT_TOL",
     "PLANNERS",
+    "REACH_SHARE",
     "JumpReach",
     "JumpRequest",
     "JumpResult",
@@ -574,9 +652,11 @@ __all__ = [
     "OutOfReach",
     "RobotPlanner",
     "aim",
+    "check_model_robot",
     "jump",
     "make_planner",
     "motion_plan",
+    "plan_jump",
     "pronk_params",
     "read_aslip_params",
     "run_jump",

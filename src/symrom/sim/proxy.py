@@ -247,7 +247,9 @@ def for_engine(cfg: ProxyConfig, engine: str) -> ProxyConfig:
 
 def apply_to_world(world, cfg: ProxyConfig) -> None:
     """Scale the robot's link masses and inertias, set the ground friction and contact and the
-    joints' damping, armature and friction loss, in place.
+    joints' damping, armature and friction loss, in place: the proxy's on top of those the
+    robot's description states (hardware the controllers do not know of; the built-in robots
+    state none).
 
     world: any engine's world (``symrom.sim.engines.world.World``); an engine without armature
     refuses a non-zero one (``for_engine`` first).
@@ -257,7 +259,7 @@ def apply_to_world(world, cfg: ProxyConfig) -> None:
     if cfg.contact_stiffness is not None:
         world.set_ground_contact(cfg.contact_stiffness, cfg.contact_damping)
     if not cfg.effects.ideal:
-        world.set_actuator_effects(cfg.effects)
+        world.set_actuator_effects(world.spec.actuators + cfg.effects)
 
 
 class TorqueChannel:

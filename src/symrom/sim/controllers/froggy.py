@@ -22,9 +22,12 @@ The hip abduction (hx) joints are held at their standing angle by the world
 errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
 Cartesian PD like the other joints. The parameters were tuned on the A1; for
 another robot they are scaled by its mass and leg length (``scaled``), as pronk
-scales its own.
+scales its own. A robot whose description states actuator effects gets the legs' torques
 
 A push policy. ``FroggyController(..., push=policy)`` hands the push (four feet, then the
+plus what those take (damping and friction loss at the measured joint speeds, armature at the
+push's planned joint accelerations), fitted into the limits leg by leg
+(``symrom.sim.controllers.actuators``).
 rear feet alone) to a ``FroggyPushPolicy``, as the pronk hands its own: called once when the
 push is due (``start``: how long each part lasts, ``FroggyPushTiming``) and then at every
 tick of the push with the measured state (``command``: the summed ground force of the feet
@@ -48,6 +51,7 @@ from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim.controllers import compiled
+from symrom.sim.controllers.actuators import Compensation, stance_acceleration
 from symrom.sim.controllers.flight import longest_run
 from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.engines.world import RobotState, World
@@ -316,6 +320,10 @@ class FroggyController:
         self.push = push
         self.kin = leg_kinematics(robot)
         self.limit = np.asarray(get_robot(robot).torque_limit, dtype=float)  # (12,) N m
+        # the description's actuator effects, fed forward (sim/controllers/actuators.py): the
+        # legs' torques are then fitted into the limits with the losses, not before
+        self.compensation = Compensation(robot)
+        self._fit_at = np.full(self.limit.shape, np.inf) if self.compensation.active else self.limit
         self.feet0 = nominal_feet(robot) * [1.0, 1.0, 0.0]  # (4, 3) level-frame xy of each foot
         self.mass = 12.0  # kg, replaced by the world's true mass in reset
         self.phase = "settle"
@@ -416,10 +424,25 @@ class FroggyController:
                 self._set_timing(cmd.timing)
             return self.push_torque(s, cmd.force, cmd.moment)
         feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
-        return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
-                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
-                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                      self.limit, *self._chains)
+        tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
+                                     float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
+                                     s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
+                                     self._fit_at, *self._chains)
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
+        return tau
+
+    def _planned_acceleration(self, s: RobotState) -> np.ndarray | None:
+        """The joint accelerations (12,) rad/s^2 the push plans for its stance legs, zero for
+        the others (``stance_acceleration``: their feet leave the base at ``push_speed`` along the
+        take-off line, so the joints speed up as the legs straighten); None outside the push or
+        for a robot without armature."""
+        if self.phase not in ("push_all", "push_rear") or not any(self.compensation.effects.armature):
+            return None
+        p = self.params
+        v_feet = np.tile(-p.push_speed * np.array([np.sin(p.angle), 0.0, np.cos(p.angle)]), (N_LEGS, 1))
+        legs = range(N_LEGS) if self.phase == "push_all" else REAR
+        return stance_acceleration(self.kin, s.q[JOINTS], v_feet, legs)
 
     def _set_timing(self, timing: FroggyPushTiming) -> None:
         """A policy's timing: the push's parts end ``four`` and ``four + rear`` s after it began."""
@@ -543,6 +566,8 @@ class FroggyController:
         axis = np.array([xy, xy, 1.0])
         f = (kp[:, None] * axis) * (p_d - pos) + (kd[:, None] * axis) * (v_d - vel) + f_ff
         tau = np.einsum("kji,kj->ki", J, f)  # J^T f per leg
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau.reshape(-1), dqj, self.limit, self._planned_acceleration(s))
         # Scale each leg's torques together into the limits: clipping joints one by one
         # would turn the foot force (e.g. a push down becomes a push backwards).
         over = np.max(np.abs(tau) / self.limit.reshape(N_LEGS, 3), axis=1, keepdims=True)
