@@ -26,8 +26,9 @@ def jump_cmd(
     guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown heights) "
                                         "or learned (the model's own contact switches; learned planner).")] = "height",
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    control: Annotated[str, typer.Option("--control", help="plan (the push planned once, open loop) or mpc "
-                                         "(re-planned from the measured state at 100 Hz).")] = "plan",
+    control: Annotated[Optional[str], typer.Option(
+        "--control", help="plan (the push planned once, open loop) or mpc (re-planned from the measured state at "
+                          "100 Hz); default: plan on the model's own robot, mpc on another robot of its build.")] = None,
     motion: Annotated[Optional[str], typer.Option("--motion", help="pronk or froggy (default: the model's; point-mass and aslip: pronk).")] = None,
     payload: Annotated[float, typer.Option("--payload", help="A load fixed to the base, kg (a disturbance).")] = 0.0,
     friction: Annotated[Optional[float], typer.Option("--friction", help="The ground's friction coefficient (a disturbance; default the engine's).")] = None,
@@ -48,7 +49,7 @@ def jump_cmd(
     check_output_file(out, force, inputs=() if model_path is None else (model_path,))
     req = JumpRequest(target_x, target_z, robot, planner, model_path, guards, engine, control, motion, payload,
                       friction, motor_scale, closest)
-    with console.status(f"planning and simulating a jump to x = {target_x} m ({engine}, {control})"):
+    with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
         try:
             result = run_jump(req, out, trajectory=trajectory, force=force)
         except OutOfReach as e:
@@ -64,6 +65,6 @@ def jump_cmd(
     if ex.replans is not None and ex.replans.solve_time_s:
         times = sorted(ex.replans.solve_time_s)
         loop = f", {len(times)} re-plans ({1e3 * times[len(times) // 2]:.2f} ms median)"
-    say(f"{planner} {control} ({1e3 * ex.plan.solve_time_s:.1f} ms plan{loop}): landed at x = {ex.landing_x:.3f} m "
+    say(f"{planner} {result.control} ({1e3 * ex.plan.solve_time_s:.1f} ms plan{loop}): landed at x = {ex.landing_x:.3f} m "
         f"for a target of {target_x:.3f} m (error {100 * result.error_x:+.1f} cm), apex {ex.apex_z:.3f} m; "
         f"{out / 'landing.json'}")

@@ -570,7 +570,8 @@ class JumpRequest:
     """One jump asked for (``run_jump``): the target (m; ``target_z`` the apex, or None), the
     robot, the planner (``PLANNERS``) and its model file (model.json for ``learned``, an aSLIP
     params.json for ``aslip``, none for ``point-mass``), the guards (``GUARDS``), the engine,
-    the control (``CONTROLS``), the motion (None: the model's, else the pronk), the world's
+    the control (``CONTROLS``; None: ``plan`` on the model's own robot, ``mpc`` on another robot
+    of its build, where the model's forces do not carry over open loop), the motion (None: the model's, else the pronk), the world's
     disturbances (payload kg, ground friction or None, motor scale) and whether an
     out-of-reach target gets the closest reachable jump (else it is refused)."""
 
@@ -581,7 +582,7 @@ class JumpRequest:
     model_path: Path | None = None
     guards: str = "height"
     engine: str = "pybullet"
-    control: str = "plan"
+    control: str | None = None
     motion: str | None = None
     payload: float = 0.0
     friction: float | None = None
@@ -600,7 +601,7 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
         raise ValueError(f"the planner must be one of {', '.join(PLANNERS)}, got {req.planner!r}")
     if req.guards not in GUARDS or (req.guards == "learned" and req.planner != "learned"):
         raise ValueError(f"the guards must be height or (with the learned planner) learned, got {req.guards!r}")
-    if req.control not in CONTROLS:
+    if req.control is not None and req.control not in CONTROLS:
         raise ValueError(f"the control must be one of {', '.join(CONTROLS)}, got {req.control!r}")
     check_engine(req.engine)
     if req.planner == "point-mass" and req.model_path is not None:
@@ -617,9 +618,11 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
         model = load_model(req.model_path)
     elif req.planner == "aslip":
         aslip = read_aslip_params(req.model_path)
-    robot = req.robot or (model.provenance.data.robot if model is not None else None) or "go1"
+    trained_on = model.provenance.data.robot if model is not None else None
+    robot = req.robot or trained_on or "go1"
+    control = req.control or ("mpc" if trained_on is not None and robot_key(trained_on) != robot_key(robot) else "plan")
     built = make_planner(req.planner, robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)
-    result = jump(built, req.target_x, req.target_z, engine=req.engine, control=req.control,
+    result = jump(built, req.target_x, req.target_z, engine=req.engine, control=control,
                   disturbances=disturbances, closest=req.closest)
     write_landing(out, result, trajectory=trajectory, force=force)
     return result
