@@ -58,14 +58,20 @@ from symrom.testing import make_planted_dataset
 runs = int(sys.argv[1])
 ds, _ = make_planted_dataset(120, 800, embedding="block", noise=1e-4, seed=0)
 model = train(ds, TrainConfig(latent_dim=3, poly_order=1))
+if sys.argv[2:] == ["fill"]:  # a build of the model's generated code at hand, as a user's earlier runs leave it
+    rollout(model, ds, None, RolloutOptions("rk4", backend="generated"))
 opts = RolloutOptions("rk4")
 a, b = ds.jump_bounds()[0]
-times = {"rollout": [], "predict_path": []}
+times = {"rollout": [], "predict_path": [], "rollout_cpu": [], "predict_path_cpu": []}
 for i in range(runs):
-    t = time.perf_counter(); rollout(model, ds, None, opts); times["rollout"].append(time.perf_counter() - t)
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
+    rollout(model, ds, None, opts)
+    times["rollout"].append(time.perf_counter() - t)
+    times["rollout_cpu"].append(time.process_time() - c)
+    t, c = time.perf_counter(), time.process_time()
     model.predict_path(ds.q[a], ds.dq[a], ds.u[a:b], ds.dt, phases=model.phase_index(ds)[a:b])
     times["predict_path"].append(time.perf_counter() - t)
+    times["predict_path_cpu"].append(time.process_time() - c)
 print(json.dumps({"samples": int(ds.n_samples), "times": times}))
 """
 
@@ -105,6 +111,16 @@ class Side:
         self.name = name
         self.root = root
         self.src = root / "src" if (root / "src" / "symrom").is_dir() else root
+
+
+class Items(dict):
+    """The items measured so far; ``on_set()`` runs after each one is stored (the record is saved)."""
+
+    on_set = staticmethod(lambda: None)
+
+    def __setitem__(self, key, value) -> None:
+        super().__setitem__(key, value)
+        self.on_set()
 
 
 def item_runs(name: str, sides: list[Side], n: int, work: Path, make, timeout: float, after_run=None) -> dict:
@@ -154,8 +170,9 @@ def summarise(items: dict) -> dict:
             med[side] = {"wall_s": statistics.median(r["wall_s"] for r in ok) if ok else None,
                          "cpu_s": statistics.median(r["cpu_s"] for r in ok) if ok else None,
                          "failed": len(runs) - len(ok)}
-            for extra in ("samples_per_s", "first_rollout_s", "later_rollout_s", "first_predict_path_s",
-                          "later_predict_path_s"):
+            for extra in ("samples_per_s", "samples_per_cpu_s", "first_rollout_s", "later_rollout_s",
+                          "first_rollout_cpu_s", "later_rollout_cpu_s", "first_predict_path_s",
+                          "later_predict_path_s", "first_predict_path_cpu_s", "later_predict_path_cpu_s"):
                 vals = [r[extra] for r in ok if extra in r]
                 if vals:
                     med[side][extra] = statistics.median(vals)
@@ -221,10 +238,18 @@ def main() -> None:
     w = str(args.workers)
     wanted = set(args.only.split(",")) if args.only else None
     T = args.timeout
-    items: dict = {}
+    items = Items()
 
     def want(name: str) -> bool:
         return wanted is None or name in wanted
+
+    def save() -> None:  # after every item, so that an interrupted run keeps what it measured
+        record = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node()},
+                  "sides": {s.name: str(s.src) for s in sides}, "runs": args.runs, "items": summarise(items)}
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(record, indent=1) + "\n")
+
+    items.on_set = save
 
     def plain(*cli):
         return lambda side, folder: (symrom(*cli), folder, fresh(folder))
@@ -288,13 +313,17 @@ def main() -> None:
                 return {}
             t = out["times"]
             later_r, later_p = statistics.median(t["rollout"][1:]), statistics.median(t["predict_path"][1:])
-            return {"samples_per_s": out["samples"] / later_r, "first_rollout_s": t["rollout"][0],
-                    "later_rollout_s": later_r, "first_predict_path_s": t["predict_path"][0],
-                    "later_predict_path_s": later_p}
+            cpu_r = statistics.median(t["rollout_cpu"][1:])
+            return {"samples_per_s": out["samples"] / later_r, "samples_per_cpu_s": out["samples"] / cpu_r,
+                    "first_rollout_s": t["rollout"][0], "later_rollout_s": later_r,
+                    "first_rollout_cpu_s": t["rollout_cpu"][0], "later_rollout_cpu_s": cpu_r,
+                    "first_predict_path_s": t["predict_path"][0], "later_predict_path_s": later_p,
+                    "first_predict_path_cpu_s": t["predict_path_cpu"][0],
+                    "later_predict_path_cpu_s": statistics.median(t["predict_path_cpu"][1:])}
 
         filled = {s.name: work / f"rollout-filled-{s.name}" for s in sides}
         for s in sides:  # fill the caches: the generated code built, the kernels compiled (not timed)
-            run([sys.executable, "-c", ROLLOUT, "2"], s.src, work, fresh(filled[s.name]), T)
+            run([sys.executable, "-c", ROLLOUT, "2", "fill"], s.src, work, fresh(filled[s.name]), T)
         items["rollout"] = item_runs("rollout", sides, args.runs, work, lambda side, folder: (
             [sys.executable, "-c", ROLLOUT, str(args.rollout_runs)], folder, filled[side.name] / "caches"), T,
             after_run=rollout_stats)
@@ -311,10 +340,7 @@ def main() -> None:
                 items[name] = item_runs(name, sides, args.runs, work, lambda side, folder, x=extra: (
                     symrom("reproduce", "--out", str(folder / "run"), "--workers", w, *x), folder, fresh(folder)), T)
 
-    record = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node()},
-              "sides": {s.name: str(s.src) for s in sides}, "runs": args.runs, "items": summarise(items)}
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(record, indent=1) + "\n")
+    save()
     print(markdown(items))
     if not args.work:
         shutil.rmtree(work, ignore_errors=True)

@@ -49,24 +49,27 @@ def warm(kind: str, name: str) -> None:
         controllers.warm_up((name,))
 
 
-def prepare(motion: str, engine: str, helper: bool = True) -> None:
+def prepare(motion: str, engine: str, helper: bool = True, load: bool = True) -> None:
     """Make the routines a jump of ``motion`` in ``engine`` calls ready in this process (see the
     module docstring). ``helper``: on a cold cache, compile the engine's in a second process
-    while this one compiles the motion's (with more than one core)."""
+    while this one compiles the motion's (with more than one core). ``load=False``: only make
+    sure the disk cache holds them (for worker processes that load them themselves): groups
+    already there are not loaded here."""
     groups = [("motion", motion), ("engine", engine)]
     cold = [g for g in groups if routines(*g) and not all(in_disk_cache(d) for d in routines(*g))]
     proc = None
     if helper and len(cold) == 2 and (os.cpu_count() or 1) > 1:
         proc = _start_helper(*cold[1])
     for g in groups:
-        if proc is None or g != cold[1]:
+        if (proc is None or g != cold[1]) and (load or g in cold):
             warm(*g)
     if proc is not None:
         try:
             proc.wait(timeout=HELPER_TIMEOUT)
         except subprocess.TimeoutExpired:
             pass
-        warm(*cold[1])  # from the disk cache the helper filled (or compiled here if it failed)
+        if load or not all(in_disk_cache(d) for d in routines(*cold[1])):
+            warm(*cold[1])  # from the disk cache the helper filled (or compiled here if it failed)
 
 
 def _start_helper(kind: str, name: str) -> subprocess.Popen | None:
