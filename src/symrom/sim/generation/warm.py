@@ -55,8 +55,8 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True) ->
     while this one compiles the motion's (with more than one core). ``load=False``: only make
     sure the disk cache holds them (for worker processes that load them themselves): groups
     already there are not loaded here."""
-    groups = [("motion", motion), ("engine", engine)]
-    cold = [g for g in groups if routines(*g) and not all(in_disk_cache(d) for d in routines(*g))]
+    groups = [g for g in (("motion", motion), ("engine", engine)) if routines(*g)]  # a plug-in's: none
+    cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
     proc = None
     if helper and len(cold) == 2 and (os.cpu_count() or 1) > 1:
         proc = _start_helper(*cold[1])
