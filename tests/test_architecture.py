@@ -34,10 +34,10 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # the fitted model: its terms, the expressions, the guards, then the model, its file
     "model": {"autoencoder": 0, "library": 0, "provenance": 0, "expressions": 1, "guards": 1,
               "hybrid": 2, "path": 2, "persistence": 3},
-    # learning: the shooting and guard fitting, the problem and its regressors, the encoders, the
-    # estimator, then what drives it
-    "learn": {"compiled": 0, "audit": 0, "calibrate": 0, "guards": 0, "shooting": 0, "regressors": 1, "adam": 2, "encoders": 2,
-              "plugins": 3, "estimator": 4, "finetune": 5, "training": 5},
+    # learning: the guards' compiled losses, the shooting and guard fitting, the problem and its
+    # regressors, the encoders, the estimator, then what drives it
+    "learn": {"compiled": 0, "audit": 0, "calibrate": 0, "guards": 0, "shooting": 0, "regressors": 1, "adam": 2,
+              "encoders": 2, "plugins": 3, "estimator": 4, "finetune": 5, "training": 5},
     # export: the tables, then one writer per target
     "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
     # planning: the models and guards, the problem, its real-time re-planning, its execution, the

@@ -202,3 +202,6 @@ def test_cli_train_select_resume(planted_block, tmp_path):
     assert table["version"] == 3 and table["execution"]["backend"] == "local"
     assert table["execution"]["cells_run"] == len(SelectionConfig(latent_dims=(2,)).cells())
     assert table["execution"]["cells_reused"] == 0
+    refused = table["refusals"]
+    assert (f"refused for use: {refused['physics']} candidate(s) on physics, {refused['integrator']} by the "
+            f"integrator, {refused['free']} in free prediction") in " ".join(r.output.split())

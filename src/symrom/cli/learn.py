@@ -132,6 +132,11 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
         raise
     say(f"training rows: {sel.model.training_rows()}")
     say(sel.summary() + f"\nmodel: {out / 'model.json'}  table: {out / 'selection.json'}")
+    refused = sel.refusals()
+    say(f"refused for use: {refused['physics']} candidate(s) on physics, {refused['integrator']} by the integrator, "
+        f"{refused['free']} in free prediction (each row's 'refused' in selection.json says why)")
+    for note in sel.notes:
+        say(note)
     warn_all(sel.model.warnings())
 
 

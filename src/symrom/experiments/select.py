@@ -129,7 +129,8 @@ CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", 
 REFINED_SETTINGS = CELL_SETTINGS[1:] + ("max_terms", "compact_terms", "polish")
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
 # The soft term budget of the default selection: equations one can read, as the paper's (17 terms
-# on Go1); a model pruned to it is chosen when it is as accurate on val (docs/results.md).
+# on Go1); a model pruned to it is chosen when it is as accurate on val (under a hard budget of 60,
+# SIM A1 meets Table 2 as without one: docs/results.md).
 COMPACT_TERMS = 60
 SWITCH_TOLERANCE = 0.02  # s: a free prediction's median switching error per transition, at most
 CHECKS = ("physics", "integrator", "free")  # what a refusal names; the last two are set aside in reverse order

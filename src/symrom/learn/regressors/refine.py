@@ -48,9 +48,11 @@ still drops. ``acceleration_weight`` keeps the acceleration fit: each training
 row's latent acceleration error (per latent, over its spread) counts that many
 times its rise from the start, which is the least-squares fit
 (``acceleration_prior``; half the squared rise, with exact derivatives, beside
-the rollout residuals). At 1 (the default) the refined models keep their
-flight's fall and their phases' mean accelerations on val where the rollouts
-alone lose them, at the same rollout error (docs/results.md).
+the rollout residuals); 1 by default, 0 for the rollouts alone (a model file
+without the field reads as 0, as it was fitted). ``momentum_weight`` (0 by
+default) adds the rise of each phase's mean acceleration error over its rows:
+the momentum balance of the phase as a whole. The validation selection checks
+both on every candidate whatever the weights (``symrom.evaluate.usability``).
 
 ``backend`` says what rolls the windows out (``symrom.learn.shooting.simulate``):
 ``table``, the compiled kernel, several times faster per rollout but compiled
@@ -80,7 +82,7 @@ from symrom.learn.shooting import Parameters, Windows, cut_windows, simulate
 # way to lower the cost, and finite, so the solver can go on.
 DIVERGED_FACTOR = 2.0
 # Training window samples x active coefficients from which the compiled kernel's speed pays for its
-# compilation (about 10-20 s of one core) over a refinement's rollouts (docs/benchmarks.md).
+# compilation on a cold cache over a refinement's rollouts.
 KERNEL_PAYS = 1_000_000
 
 
