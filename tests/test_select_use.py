@@ -81,6 +81,12 @@ def test_a_stiff_model_is_refused_at_the_planners_step(fitted):
     assert "integrator" in {x["check"] for x in hard["refused"]}
     assert "integrator" not in {x["check"] for x in plain["refused"]}
     assert any("cannot carry mode -3" in x["reason"] for x in hard["refused"])
+    # a selection whose checks leave out the integrator keeps its numbers and refuses nothing by it
+    loose = assess(stiff, ds, replace(cfg, checks=("physics",)), yard, steps)
+    assert not [x for x in loose["refused"] if x["check"] != "physics"]
+    assert loose["integrator"] == hard["integrator"]
+    with pytest.raises(ValueError, match="checks: unknown"):
+        SelectionConfig(checks=("gravity",))
     # refused by the integrator alone, a better and sparser candidate is not chosen while another stands
     a = {**plain, "active_terms": 10, "score": 0.5, "refused": []}
     b = {**hard, "active_terms": 4, "score": 0.1, "refused": [x for x in hard["refused"] if x["check"] == "integrator"]}

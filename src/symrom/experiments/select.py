@@ -124,9 +124,9 @@ CELL_VERSION = 2
 REFINED_VERSION = 1
 # The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
 CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
-                 "contact_phase", "substeps", "reference", "switch_tolerance")
+                 "contact_phase", "substeps", "reference", "switch_tolerance", "checks")
 # ... and those of a refinement, besides its candidate's settings.
-REFINED_SETTINGS = CELL_SETTINGS[1:] + ("max_terms", "compact_terms", "polish")
+REFINED_SETTINGS = CELL_SETTINGS[1:] + ("max_terms", "compact_terms", "polish", "acceleration_weight")
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
 # The soft term budget of the default selection: equations one can read, as the paper's (17 terms
 # on Go1); a model pruned to it is chosen when it is as accurate on val (under a hard budget of 60,
@@ -201,7 +201,10 @@ class SelectionConfig:
     swing-leg accelerations the latent state does not hold). ``max_terms``: the
     hard term budget (None: none); ``compact_terms``: the soft one, used without
     ``max_terms`` (None: none); ``switch_tolerance``: s, the largest median
-    switching error of a free prediction."""
+    switching error of a free prediction; ``acceleration_weight``: the refinements'
+    (``Refine.acceleration_weight``: the acceleration fit kept beside the rollouts); ``checks``:
+    those of ``CHECKS`` that refuse a candidate (each row holds every check's numbers whatever
+    they are; fewer only for data too small to judge a model by, as the tests' three-jump files)."""
 
     encoders: tuple[str, ...] = tuple(ENCODERS)
     latent_dims: tuple[int, ...] = (2, 3, 4)
@@ -222,6 +225,8 @@ class SelectionConfig:
     compact_terms: int | None = COMPACT_TERMS
     polish: tuple[str, ...] = (FLIGHT_PHASE,)
     switch_tolerance: float = SWITCH_TOLERANCE
+    acceleration_weight: float = 1.0
+    checks: tuple[str, ...] = CHECKS
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]
@@ -242,6 +247,12 @@ class SelectionConfig:
         for key in ("max_terms", "compact_terms"):
             if getattr(self, key) is not None and getattr(self, key) < 1:
                 raise ValueError(f"{key}={getattr(self, key)}: must be a positive number of terms")
+        bad = [c for c in self.checks if c not in CHECKS]
+        if bad:
+            raise ValueError(f"checks: unknown {bad}; choose from {list(CHECKS)}")
+        self.checks = tuple(self.checks)
+        if not self.acceleration_weight >= 0:
+            raise ValueError(f"acceleration_weight must be >= 0, got {self.acceleration_weight}")
         if not self.switch_tolerance > 0:
             raise ValueError(f"switch_tolerance must be > 0 s, got {self.switch_tolerance}")
         if self.reference is not None:
@@ -398,7 +409,7 @@ def assess(model: HybridModel, ds: Dataset, cfg: SelectionConfig, yardstick: dic
     refused += [{"check": "integrator", "reason": c.text()} for c in steps_checked if not c.carried]
     if not out[FREE]["follows"]:
         refused.append({"check": "free", "reason": _free_reason(out[FREE], cfg.switch_tolerance)})
-    out["refused"] = refused
+    out["refused"] = [r for r in refused if r["check"] in cfg.checks]
     return out
 
 
@@ -493,7 +504,9 @@ def run_refinement(ds: Dataset, cfg: SelectionConfig, steps: dict, encoder: str,
     the pruning (the refinement without a budget, bit for bit)."""
     t0 = time.perf_counter()
     tc = cfg.train_config(encoder, l, library, threshold, refine=True, max_terms=cfg.budget if prune else None)
-    model, unpruned = tc.estimator().fit_pruned(ds)
+    est = tc.estimator()
+    est.regressor = replace(est.regressor, acceleration_weight=cfg.acceleration_weight)
+    model, unpruned = est.fit_pruned(ds)
     seconds = time.perf_counter() - t0
     yardstick = cfg.yardstick(ds)
     out = []
@@ -592,6 +605,9 @@ def selection_rule(cfg: SelectionConfig) -> str:
               "val jump's first state, follow the motion (free: no divergence, every transition once, median "
               f"switching error within {1e3 * cfg.switch_tolerance:.0f} ms); if none passes, free and then "
               "integrator are set aside")
+    if tuple(cfg.checks) != CHECKS:
+        checks += (f" (only {', '.join(cfg.checks)} refusing here)" if cfg.checks else
+                   " (none refusing here: each row holds their numbers)")
     if cfg.reference is None:
         return ("score = mean over horizons (full, 0.1 s) of mean_c val RMSE_c / spread_c; candidates with "
                 f"a diverged val jump rejected; {tol} chosen" + budget + checks)

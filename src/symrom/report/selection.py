@@ -58,7 +58,8 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
         rows, chosen = table["rows"], table.get("chosen")
         blocks.append(Para(f"{len(rows)} candidate models in {table.get('seconds', 0):.0f} s. Rule: {table.get('rule', '')}."))
         if chosen is None:
-            blocks.append(Para("No candidate survived: every one diverged on a validation jump.", note=True))
+            blocks.append(Para("No candidate survived: every one diverged on a validation jump or broke the data's momentum "
+                                 "balance.", note=True))
         path = figures.selection_figure(rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
                                         title=f"{e.of or e.name}: validation score vs active terms")
         blocks.append(Figure(path, f"{e.of or e.name}: every candidate of the selection (lower is better)"))

@@ -27,7 +27,7 @@ def selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig, 
         f"{exp.name}: selection {done}/{total} ({what})", transient=True), backend=cfg.execution(),
                             cells_dir=d / "selection" / "cells")
     if sel.model is None:
-        raise RuntimeError(f"{exp.name}: every selection candidate diverged on a validation jump")
+        raise RuntimeError(f"{exp.name}: no selection candidate could be chosen ({sel.notes[0]})")
     write_selection(sel, d / "selection")
     write_model_files(sel.model, d)
     say(f"{exp.name}: selection done: {len(sel.rows)} candidate models in {sel.seconds:.0f} s")

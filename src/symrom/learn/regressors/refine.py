@@ -48,8 +48,9 @@ still drops. ``acceleration_weight`` keeps the acceleration fit: each training
 row's latent acceleration error (per latent, over its spread) counts that many
 times its rise from the start, which is the least-squares fit
 (``acceleration_prior``; half the squared rise, with exact derivatives, beside
-the rollout residuals); 1 by default, 0 for the rollouts alone (a model file
-without the field reads as 0, as it was fitted). ``momentum_weight`` (0 by
+the rollout residuals); 0 by default (the rollouts alone; recorded only when
+set, so a model file without it reads as it was fitted), 1 in the validation
+selection's refinements (``SelectionConfig.acceleration_weight``). ``momentum_weight`` (0 by
 default) adds the rise of each phase's mean acceleration error over its rows:
 the momentum balance of the phase as a whole. The validation selection checks
 both on every candidate whatever the weights (``symrom.evaluate.usability``).
@@ -118,7 +119,7 @@ class Refine(Regressor):
     polish_windows: tuple[float | None, ...] = (0.1, None)
     polish_weight: float = 100.0
     backend: str = "auto"
-    acceleration_weight: float = 1.0
+    acceleration_weight: float = 0.0
     momentum_weight: float = 0.0
 
     needs_trajectories = True
@@ -165,7 +166,8 @@ class Refine(Regressor):
                 **({"polish": list(self.polish), "polish_windows": list(self.polish_windows),
                     "polish_weight": self.polish_weight} if self.polish else {}),
                 **({"backend": self.backend} if self.backend != "auto" else {}),
-                "acceleration_weight": self.acceleration_weight, "momentum_weight": self.momentum_weight}
+                **({"acceleration_weight": self.acceleration_weight} if self.acceleration_weight else {}),
+                **({"momentum_weight": self.momentum_weight} if self.momentum_weight else {})}
 
     def _reduce(self, problem: RegressionProblem, allowed: np.ndarray,
                 init: Coefficients | None) -> Coefficients:
