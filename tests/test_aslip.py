@@ -111,6 +111,21 @@ def test_reset_restarts_from_the_truth(slip, method):
     assert not np.allclose(ro.q_pred[0][1:every], b_true[1:every], atol=1e-6)
 
 
+@pytest.mark.parametrize("reset", [None, 0.1])
+@pytest.mark.parametrize("k_scale", [0.7, 1e6])
+def test_the_compiled_rk4_is_the_numpy_rk4_bit_for_bit(slip, reset, k_scale):
+    """The aSLIP's compiled integrator (the default) against the NumPy RK4 of any model: the same
+    paths, the same divergence samples (a spring a million times too stiff diverges)."""
+    ds, truth = slip
+    model = ASlip(replace(truth, k_s=k_scale * truth.k_s))
+    opts = RolloutOptions("rk4", reset=reset, substeps=2)
+    fast, slow = rollout(model, ds, options=opts), rollout(model, ds, options=replace(opts, backend="numpy"))
+    assert np.array_equal(fast.diverged_at, slow.diverged_at)
+    assert fast.diverged.any() == (k_scale > 1)
+    for a, b in zip(fast.q_pred, slow.q_pred):
+        assert np.array_equal(a, b, equal_nan=True)
+
+
 @pytest.mark.parametrize("method", ["lsoda", "rk4"])
 def test_absurd_model_is_flagged(slip, method):
     ds, truth = slip
