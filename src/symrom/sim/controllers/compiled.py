@@ -267,8 +267,8 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
 def warm_up(froggy: bool = True) -> None:
     """Compile (or load from the disk cache) the routines here now, as the first tick of a
     simulation would: the one-configuration leg kinematics, the pronk controller's and the
-    MPC's (quick), and with ``froggy`` the froggy controller's (the slowest to compile, about
-    10 s the first time)."""
+    MPC's, and with ``froggy`` the froggy controller's (the slowest to compile; its first
+    compilation is timed in docs/benchmarks.md)."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
