@@ -13,6 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from symrom.names import GRAVITY
 from symrom.robots.compiled import legs_one
 
 njit = numba.njit(cache=True)
@@ -185,7 +186,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     to_base = np.eye(3)
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
         to_base = R.T @ Y
-    weight = mass * 9.81
+    weight = mass * GRAVITY
     shift = 0.0
     kp, kd = np.full(4, prm[_KP_ST]), np.full(4, prm[_KD_ST])
     grf = np.zeros((4, 3))

@@ -45,6 +45,7 @@ import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
+from symrom.names import GRAVITY
 from symrom.sim.controllers.compiled import clip_forces, condensed_qp
 
 N_X = 13  # state size
@@ -473,6 +474,6 @@ class ConvexMPC:
 
 
 def srb_state(rpy: np.ndarray, p_com: np.ndarray, omega: np.ndarray, v_com: np.ndarray,
-              gravity: float = 9.81) -> np.ndarray:
+              gravity: float = GRAVITY) -> np.ndarray:
     """Pack the MPC state (13,) from rpy (3,) rad, CoM p (3,) m, omega (3,) rad/s, v (3,) m/s."""
     return np.concatenate([rpy, p_com, omega, v_com, [gravity]])
