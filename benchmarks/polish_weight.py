@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.atomic import write_text_atomic
 from symrom.data.io import read_dataset
@@ -87,7 +88,7 @@ def main() -> None:
     out = {"version": VERSION, "candidate": candidate, "max_terms": chosen["max_terms"],
            "default_polish_weight": Refine().polish_weight, "val": rows,
            "seconds": round(time.perf_counter() - t0, 1)}
-    write_text_atomic(args.out, json.dumps(out, indent=1))
+    write_text_atomic(args.out, json.dumps({**provenance(), **out}, indent=1))
     print(f"record: {args.out} ({out['seconds']:.0f} s)")
 
 

@@ -22,6 +22,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from provenance import provenance
+
 from symrom.atomic import write_text_atomic
 from symrom.evaluate.paper import implied_rmse, paper_row
 from symrom.experiments.reproduce import ReproduceConfig, ensure_dataset, run_learned
@@ -79,7 +81,7 @@ def main() -> None:
             f"{h}: {len(v['at_or_below_paper'] or [])}/12 at or below the paper, {v['diverged_jumps']} diverged"
             for h, v in line["horizons"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(args.out, json.dumps(out, indent=1, allow_nan=False) + "\n")
+    write_text_atomic(args.out, json.dumps({**out, **provenance()}, indent=1, allow_nan=False) + "\n")
 
 
 if __name__ == "__main__":
