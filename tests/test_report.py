@@ -533,3 +533,21 @@ def test_horizon_figure_draws_the_papers_rmse(built, tmp_path, monkeypatch):
     assert seen == 6
     fig = _figure_of(monkeypatch, figures.horizon_figure, rmse, None, tmp_path / "h2.png")
     assert not [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label().startswith("paper")]
+
+
+def test_selection_figure_names_the_yardstick_its_score_divides_by(tmp_path, monkeypatch):
+    from symrom.evaluate.records import SELECTION
+    from symrom.report.run import Run
+    from symrom.report.selection import selection_blocks
+
+    row = {"encoder": "base_position", "latent_dim": 2, "library": "poly1", "threshold": 0.01, "refine": False,
+           "active_terms": 5, "score": 0.5, "horizons": {h: {"score": 0.5, "worst": 0.8, "diverged_jumps": 0}
+                                                         for h in ("full", "0.1")}}
+    for reference, want in ((None, "spread"), ({"full": {"x": 0.01}}, "paper's RMSE")):
+        (tmp_path / "s").mkdir(exist_ok=True)
+        (tmp_path / "s" / "selection.json").write_text(json.dumps(
+            {"config": {"reference": reference}, "rows": [row], "chosen": 0, "rule": "r", "seconds": 1}))
+        entry = ManifestEntry("go1_sim/selection", SELECTION, files={"table": "s/selection.json"}, of="go1_sim")
+        run = Run(tmp_path, {}, [entry])
+        fig = _figure_of(monkeypatch, selection_blocks, run, [entry], Context(run, tmp_path))
+        assert fig.axes[0].get_ylabel() == f"validation score (mean RMSE / {want})"

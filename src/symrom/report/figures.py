@@ -241,11 +241,13 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
     return _save(fig, path)
 
 
-def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLike, title: str = "") -> Path:
+def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLike, title: str = "",
+                     yardstick: str = "spread") -> Path:
     """Validation score (lower is better) vs active terms of every candidate row of a
     selection table (``selection.json``): a colour per encoder, open markers for the
     refined ones, rejected candidates (a diverged validation jump) at the top with
-    their 0.1 s score, the chosen one starred."""
+    their 0.1 s score, the chosen one starred; ``yardstick`` names what the score divides each
+    component's RMSE by (the y label: the spread, or the paper's implied RMSE)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.2))
     encoders = list(dict.fromkeys(r["encoder"] for r in rows))
@@ -268,7 +270,7 @@ def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLi
         ax.axhline(top, color="0.6", ls=":", lw=1)
         ax.text(ax.get_xlim()[1], top, " rejected (diverged)", va="bottom", ha="right", fontsize=8, color="0.4")
     ax.set_xlabel("active terms (all phases)")
-    ax.set_ylabel("validation score (mean RMSE / spread)")
+    ax.set_ylabel(f"validation score (mean RMSE / {yardstick})")
     ax.set_xscale("log")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, ncol=2, frameon=False)
