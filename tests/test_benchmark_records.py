@@ -30,7 +30,7 @@ def _cli_options(words: list[str]) -> set[str] | None:
     from symrom.cli import app
 
     cmd = typer.main.get_command(app)
-    for i, w in enumerate(words):
+    for w in words:
         subs = getattr(cmd, "commands", None)
         if not subs:
             break
