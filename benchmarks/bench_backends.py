@@ -49,6 +49,7 @@ os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 import numpy as np  # noqa: E402
+from provenance import provenance  # noqa: E402
 
 CLI = "import sys; from symrom.cli import main; sys.argv[0] = 'symrom'; main()"
 MACHINES = (1, 2, 4, 8, 16, 32)
@@ -223,7 +224,7 @@ def main() -> None:
         "projection": rows,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    args.out.write_text(json.dumps({**provenance(), **result}, indent=1) + "\n")
     print(f"| back end | wall time, median of {args.repeats} (s) | fastest (s) | runs (s) |\n|---|---|---|---|")
     for k in ("local", "ray"):
         print(f"| {k} | {med[k]:.2f} | {min(walls[k]):.2f} | {', '.join(f'{x:.2f}' for x in walls[k])} |")

@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.model.persistence import load_model
 from symrom.plan.jump import jump, make_planner, read_aslip_params
@@ -248,7 +249,7 @@ def main() -> None:
     print(f"wall time {res['wall_time_s']:.1f} s")
     if a.out:
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(json.dumps(res, indent=1, default=float) + "\n")
+        a.out.write_text(json.dumps({**provenance(), **res}, indent=1, default=float) + "\n")
 
 
 if __name__ == "__main__":

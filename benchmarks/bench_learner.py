@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import AdamConfig, TrainConfig, train
@@ -100,7 +101,7 @@ def main() -> None:
               f"rk4 batch is {res['rollout_full']['speedup']:.0f}x faster than lsoda (full horizon)")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=1))
+        args.out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 if __name__ == "__main__":

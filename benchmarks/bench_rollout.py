@@ -54,6 +54,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-bench-numba-"))
 
 import numpy as np
+from provenance import provenance
 
 from symrom import compiled
 from symrom.export import export
@@ -403,7 +404,7 @@ def main() -> None:
           f"kernel once per installation (its first call above). Wall time {res['wall_time_s']:.0f} s.")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=1))
+        args.out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 if __name__ == "__main__":

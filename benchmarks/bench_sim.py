@@ -47,6 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.sim.generation.generate import GenerateConfig, generate, motion_available
 
@@ -205,7 +206,7 @@ def write(out: Path | None, res: dict) -> None:
     """The results JSON, if asked for."""
     if out:
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(res, indent=1))
+        out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 def main() -> None:

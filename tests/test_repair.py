@@ -12,12 +12,12 @@ from typer.testing import CliRunner
 from _logs import jump, on_clock, proxy_go1, sim_a1_froggy, sim_go1, write_plain, write_ros2
 from conftest import one_line_error
 from symrom.cli import app
-from symrom.data.consistency import G
 from symrom.data.importers import import_logs, read_log
 from symrom.data.io import read_dataset
 from symrom.data.repair import REPAIR_VERSION, RepairError, RepairLimits, repair_log
 from symrom.data.repair_body import body_state
 from symrom.data.repair_clock import flight_fall, flight_runs
+from symrom.names import GRAVITY as G
 
 runner = CliRunner()
 REPAIR = RepairLimits()

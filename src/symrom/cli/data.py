@@ -56,7 +56,7 @@ def generate_cmd(
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     mpc_solver: Annotated[Optional[str], typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
-                                                      "to 1e-3) or daqp (active set, exact, a third of the time); "
+                                                      "to 1e-3) or daqp (active set, exact, faster); "
                                                       "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
     split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) "
                                                  "of the jumps; default: the motion's paper split, scaled.")] = None,

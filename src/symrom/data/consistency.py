@@ -47,9 +47,7 @@ import numpy as np
 from scipy.integrate import trapezoid
 from scipy.interpolate import Akima1DInterpolator
 
-from symrom.names import BASE_POS, JOINTS
-
-G = 9.81  # m/s^2
+from symrom.names import BASE_POS, GRAVITY, JOINTS
 
 # Groups of the time-scale check: (name, q columns, unit).
 SCALE_GROUPS = (("joint angles", JOINTS, "rad"), ("base position", BASE_POS, "m"))
@@ -223,7 +221,7 @@ def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: n
     m = get_robot(robot).mass
     fz = ground_reaction_forces(robot, q, tau, contact)[:, :, 2].sum(axis=1)  # (n,) N
     span = float(t[-1] - t[0])
-    need = m * G * span + m * float(dq[-1, 14] - dq[0, 14])
+    need = m * GRAVITY * span + m * float(dq[-1, 14] - dq[0, 14])
     got = float(trapezoid(fz, t))
     if need <= 0:
         return []
@@ -242,7 +240,7 @@ def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: n
     return [{"check": "vertical impulse", "value": r, "low": lo, "high": hi,
              "message": (f"{where}, {_rows(0, t.size)}: the feet push up with {got / span:.4g} N on average "
                          f"(mean over the jump; {float(fz[stance].mean()):.4g} N over its {int(stance.sum())} rows "
-                         f"with a foot down), the robot's weight {m * G:.4g} N and its change of vertical "
+                         f"with a foot down), the robot's weight {m * GRAVITY:.4g} N and its change of vertical "
                          f"momentum need {need / span:.4g} N: ratio {r:.3g}, the limit is {lo:g}..{hi:g}; {hint}")}]
 
 

@@ -50,9 +50,10 @@ import numpy as np
 from scipy.integrate import trapezoid
 from scipy.interpolate import BSpline
 
-from symrom.data.consistency import G, window_ratios
+from symrom.data.consistency import window_ratios
 from symrom.data.rawlog import LogError
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
+from symrom.names import GRAVITY as G
 
 # Velocity groups, each with its own gain: (name, q columns).
 VELOCITY_GROUPS = (("joints", JOINTS), ("base position", BASE_POS), ("base angles", BASE_RPY))

@@ -14,7 +14,7 @@ and 0.1 s resets). The grid spans
 - the sparsity: thresholds of the ``explained`` measure, from dense to sparse
   (a term explaining less than 0.1 % ... 3 % of its latent acceleration's spread goes);
 - the rollout-aware refinement, tried on ``refine_top`` candidates of the
-  exact grid (it costs a thousand times more than an exact fit): the best by
+  exact grid (it rolls the model out many times; an exact fit solves once): the best by
   score, those diverging at the full horizon ranked by their 0.1 s score; with
   a reference, first the sparsest that meet it with 0.1 s resets (the
   refinement is what may make them meet it over the full jump too);

@@ -47,8 +47,8 @@ have, so that the jump leaves the ground with the speed the data show. The
 record holds the calibration (the refinement's start) and the refinement's
 (``regressor``, ``phases_rolled_out``). Without non-flight rows it is
 ``calibrate``. It is the default: on both sim-to-real targets' val jumps it
-scores better than ``calibrate`` from every source (docs/results.md), in
-seconds more (about 20 s for 12 Go1 jumps with the val check).
+scores better than ``calibrate`` from every source (docs/results.md), at the cost of
+the rollouts of its refinement.
 """
 
 from __future__ import annotations

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from symrom.names import STANCE_PHASE
-from symrom.plan.dynamics import GRAVITY, PlanDynamics
+from symrom.names import GRAVITY, STANCE_PHASE
+from symrom.plan.dynamics import PlanDynamics
 from symrom.plan.guards import Guards, HeightGuards
 
 

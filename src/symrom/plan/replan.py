@@ -29,7 +29,7 @@ import casadi as ca
 import daqp
 import numpy as np
 
-from symrom.plan.dynamics import GRAVITY
+from symrom.names import GRAVITY
 from symrom.plan.problem import JumpPlanner, Plan, _rk4
 
 

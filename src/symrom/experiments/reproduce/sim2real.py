@@ -40,6 +40,7 @@ DEFAULT_METHOD = FineTuneConfig().method
 # The sim-to-real targets checked on each target's test jumps (docs/results.md)
 SOURCE_Z_MAX = 0.15  # m: the source as it is, full-horizon base-height RMSE
 FINETUNED_Z_MAX = 0.05  # m: fine-tuned
+CHOICE_VERSION = 2  # finetune_choice.json
 GRAVITY_TOLERANCE = 0.05  # fine-tuned flight acceleration within 5 % of -g
 SCRATCH_RATIO_MAX = 1.25  # fine-tuned at most this many times the target-alone model's RMSE
 
@@ -173,7 +174,7 @@ def run_target(run: Path, name: str, target: Path, sources: dict[str, HybridMode
         if k is None:  # every candidate diverged on val: keep the first source as trained
             k = 0
         model = models[k]
-        choice = {"version": 2, "rows": rows, "chosen": k, "split": "val",
+        choice = {"version": CHOICE_VERSION, "rows": rows, "chosen": k, "split": "val",
                   "rule": selection_rule(proxy_selection(cfg))}
         write_model_files(model, d)
         write_text_atomic(cpath, json.dumps(choice, indent=1, allow_nan=False))

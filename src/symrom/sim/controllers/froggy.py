@@ -47,7 +47,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from symrom.names import JOINTS, N_LEGS
+from symrom.names import GRAVITY, JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim.controllers import compiled
@@ -493,7 +493,7 @@ class FroggyController:
         # Stance targets are body-fixed (their offsets give the body its attitude stiffness);
         # in flight they are level (yaw-only frame), so the legs hang plumb for landing.
         to_base = s.R.T @ yaw_matrix(s.q[17]) if self.phase == "flight" else np.eye(3)
-        weight = self.mass * 9.81
+        weight = self.mass * GRAVITY
         height = p.stand_height
         shift = 0.0
         kp = np.full(N_LEGS, p.kp_stance)

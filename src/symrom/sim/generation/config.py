@@ -28,7 +28,7 @@ GENERATOR_VERSION = 5
 
 # The MPC's QP solver when a config names none, per engine. PyBullet keeps OSQP: every PyBullet
 # dataset behind the documented results was made with it, and stays reproducible bit for bit.
-# MuJoCo takes DAQP, exact and a third of OSQP's time per solve (docs/engines.md, "Speed").
+# MuJoCo takes DAQP: exact, and cheaper per solve (timed in docs/engines.md, "Speed").
 MPC_SOLVER = {"pybullet": "osqp", "mujoco": "daqp"}
 
 
