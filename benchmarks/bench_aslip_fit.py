@@ -18,6 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 import symrom.baselines.aslip as aslip
 from symrom.atomic import write_text_atomic
@@ -51,7 +52,7 @@ def main() -> None:
     finally:
         aslip.ASlip.rollout_system = compiled
     same = fast.params == slow.params and fast.stages == slow.stages
-    record = {"data": str(args.data), "train_jumps": int(jumps.size), "first_call_s": first,
+    record = {**provenance(), "data": str(args.data), "train_jumps": int(jumps.size), "first_call_s": first,
               "compiled_s": times, "compiled_median_s": statistics.median(times), "numpy_s": numpy_s,
               "ratio": numpy_s / statistics.median(times), "same_parameters": bool(same),
               "k_s": fast.params.k_s, "l_0": fast.params.l_0, "evaluations": int(np.sum(
