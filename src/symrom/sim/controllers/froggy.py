@@ -119,6 +119,8 @@ REFERENCE_ROBOT = "a1"  # the robot the parameters were tuned on
 # How each parameter scales with the robot (``scaled``): m mass ratio, l leg-length ratio.
 _LENGTHS = ("stand_height", "crouch_height", "crouch_shift", "push_rise")
 _TIMES = ("t_settle", "t_crouch", "t_hold", "t_push_all", "t_push_rear", "t_after_land", "max_time", "raibert")
+_PUSH = ("t_push_all", "t_push_rear")  # the push: longer on legs weak for their size
+WEAK = 0.6  # legs with less than this share of the A1's torque capacity push longer (``scaled``)
 _STIFF = ("kp_stance", "kp_push", "kp_swing", "kp_land")  # N/m
 _DAMP = ("kd_stance", "kd_push", "kd_swing", "kd_land")  # N s/m
 
@@ -145,14 +147,20 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
     Mini Cheetah then lands nose-down past the tilt check). A robot whose legs are weaker for its size
     than the A1's (``torque_capacity``, ratio c < 1) gets its thrust times sqrt(c): the
     push then stays within what its motors give for longer (the controller scales each
-    leg's torques into the limits). The A1's are returned unchanged."""
+    leg's torques into the limits). Below 0.6 of the A1's (``WEAK``: Menagerie's Barkour vB,
+    ANYmal B and C) both parts of the push also last 1 / sqrt(c) times as long, so the push's
+    impulse stays: with the A1's timing those leave the ground at half the speed the flight
+    needs. Stronger legs keep it (the Mini Cheetah's landing is tuned on it). The A1's are
+    returned unchanged."""
     m, l = scales(robot)
     if (m, l) == (1.0, 1.0):
         return params
     root = float(np.sqrt(l))
-    m_thrust = m * float(np.sqrt(min(1.0, torque_capacity(robot) / torque_capacity(REFERENCE_ROBOT))))
+    c = min(1.0, torque_capacity(robot) / torque_capacity(REFERENCE_ROBOT))
+    m_thrust = m * float(np.sqrt(c))
+    stretch = 1.0 / float(np.sqrt(c)) if c < WEAK else 1.0
     f = {n: getattr(params, n) * l for n in _LENGTHS}
-    f |= {n: getattr(params, n) * root for n in _TIMES}
+    f |= {n: getattr(params, n) * root * (stretch if n in _PUSH else 1.0) for n in _TIMES}
     f |= {n: getattr(params, n) * m / l for n in _STIFF}
     f |= {n: getattr(params, n) * m / root for n in _DAMP}
     f |= {"push_speed": params.push_speed * root, "force_all": params.force_all * m_thrust,
