@@ -353,7 +353,7 @@ def main() -> None:
                             "drift_dxi": drift([y[:, model.latent_dim:] for y in Y], ref[1][:k])}
             print(f"  peer ({k} jumps): {secs:.3g} s", file=sys.stderr, flush=True)
         base = {n: rows[n]["integration"]["cpu_median_s"] for n in ("lsoda_numpy", "rk4_numpy")}
-        for name, row in rows.items():  # ratios of CPU time, per jump
+        for row in rows.values():  # ratios of CPU time, per jump
             per_jump = row["integration"]["cpu_median_s"] * len(lens) / row.get("jumps", len(lens))
             row["speedup_vs_lsoda"] = base["lsoda_numpy"] / per_jump
             row["speedup_vs_numpy_rk4"] = base["rk4_numpy"] / per_jump

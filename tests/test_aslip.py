@@ -7,19 +7,27 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlip, ASlipParams, aslip_acceleration,
-                                    fit_aslip, fit_aslip_rollout, stance_pivots)
+from symrom.baselines.aslip import (
+    GRAVITY,
+    PAPER_PARAMS,
+    ASlip,
+    ASlipParams,
+    aslip_acceleration,
+    fit_aslip,
+    fit_aslip_rollout,
+    stance_pivots,
+)
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.evaluate.metrics import evaluate_model, rollout_errors
 from symrom.evaluate.tables import table2
 from symrom.names import BASE_POS
-from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.robots import total_mass
+from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.testing import make_slip_dataset
-from conftest import one_line_error
 
 runner = CliRunner()
 

@@ -8,10 +8,10 @@ import json
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import flight_segment, proxy_go1, sim_go1, write_hardware
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate_model

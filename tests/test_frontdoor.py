@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 import symrom
@@ -19,7 +20,6 @@ from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.model.persistence import load_model
 from symrom.testing import make_planted_dataset
-from conftest import one_line_error
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,16 +8,15 @@ import sys
 import h5py
 import numpy as np
 import pytest
-
 from _simdata import N_JUMPS, SEED, config, reference_file, tmp_path
+
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
+from symrom.sim.controllers.froggy import MOTION as FROGGY
 from symrom.sim.generation import generate as gen
 from symrom.sim.generation.checks import JumpChecks, check_jump
-from symrom.sim.controllers.froggy import MOTION as FROGGY
 from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
 from symrom.sim.generation.parts import read_part, write_part
-
 
 
 def _same_file(a, b) -> None:

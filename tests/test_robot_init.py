@@ -16,10 +16,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _menagerie import COPIES, FOLDER, init_copies, model_path
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.description import RobotDescriptionError, load_description, pybullet_data_path

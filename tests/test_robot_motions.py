@@ -9,18 +9,18 @@ top of the description's, uncompensated."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
-
 from _menagerie import COPIES, init_copies
+
 from symrom.names import JOINTS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.description import FRICTION_SPEED, ActuatorEffects
 from symrom.robots.init import init_robot
 from symrom.robots.stance import start_pose
 from symrom.sim.controllers.actuators import Compensation, stance_acceleration
-from pathlib import Path
 
 MODELS = Path(__file__).parent / "robots"
 NAMES = ("go1", "go2", "a1", "anymal_c")
@@ -165,8 +165,8 @@ def test_froggy_adds_the_losses_and_the_pushs_armature(written, phase_time):
 
 
 def test_the_proxy_adds_hidden_effects_the_controllers_do_not_compensate(written):
-    from symrom.sim.proxy import ProxyConfig, apply_to_world
     from symrom.sim.engines.registry import make_world
+    from symrom.sim.proxy import ProxyConfig, apply_to_world
 
     robot = written["go1"]
     w = make_world("mujoco", robot)

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _menagerie import model_path
 from conftest import one_line_error
+from test_plan import planted_model
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.model.persistence import load_model, save_model
 from symrom.plan.dynamics import GRAVITY
@@ -24,7 +25,6 @@ from symrom.plan.jump import REACH_SHARE, make_planner, plan_jump, pronk_params
 from symrom.robots import get_robot
 from symrom.robots.init import init_robot
 from symrom.robots.stance import start_pose
-from test_plan import planted_model
 
 MODELS = Path(__file__).parent / "robots"
 

@@ -29,8 +29,16 @@ from typing import ClassVar
 import numpy as np
 from scipy.optimize import least_squares
 
-from symrom.baselines.com import (COMPONENTS, GRAVITY, PARAMS_VERSION, com_system, flight_rows,
-                                  input_acceleration, robot_mass, stance_pivots)
+from symrom.baselines.com import (
+    COMPONENTS,
+    GRAVITY,
+    PARAMS_VERSION,
+    com_system,
+    flight_rows,
+    input_acceleration,
+    robot_mass,
+    stance_pivots,
+)
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS
 from symrom.rollout.fitting import RolloutFit, fit_to_rollouts

@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import sys
 
+from symrom.cli import data, evaluate, learn, plan, robot, run  # noqa: F401,E402 - registers the commands
 from symrom.cli.common import app, console  # noqa: F401 - the entry point (pyproject: symrom.cli:app)
-from symrom.cli import data, learn, evaluate, run, plan, robot  # noqa: F401,E402 - registers the commands
 
 __all__ = ["app", "console", "main"]
 

@@ -4,11 +4,11 @@ and ``robot show`` (a description as symrom reads it)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from symrom.cli.common import Command, Force, Group, app, out_console, guarded, say
+from symrom.cli.common import Command, Force, Group, app, guarded, out_console, say
 
 robot_app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True,
                         help="Robot descriptions: write one from a robot model, show one as symrom reads it.")
@@ -37,8 +37,8 @@ def parse_sets(items: list[str] | None) -> dict:
 def robot_init_cmd(
     model: Annotated[Path, typer.Argument(help="Robot model: an MJCF (.xml; e.g. a MuJoCo Menagerie model) or a URDF (.urdf).")],
     out: Annotated[Path, typer.Option("--out", help="Robot description to write (.toml).")],
-    name: Annotated[Optional[str], typer.Option("--name", help="The robot's name (default: the model's).")] = None,
-    sets: Annotated[Optional[list[str]], typer.Option(
+    name: Annotated[str | None, typer.Option("--name", help="The robot's name (default: the model's).")] = None,
+    sets: Annotated[list[str] | None, typer.Option(
         "--set", help="KEY=VALUE: a description key the model cannot give (stance.knee, stance.height, "
                       "stance.joints, limits.torque, actuators.*, name), VALUE in TOML; repeatable.")] = None,
     force: Force = False,

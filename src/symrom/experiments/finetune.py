@@ -187,7 +187,7 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     score0, div0 = val_score(before, spread)
     attempts = []
     weight = check.config.prior_weight
-    for k in range(check.max_raises + 1):
+    for _k in range(check.max_raises + 1):
         say(f"fine-tuning (prior weight {weight:g})")
         tuned = finetune(model, ds, config=replace(check.config, prior_weight=weight))
         after, _ = evaluate_model(tuned, ds, "val", HORIZONS, options)

@@ -59,6 +59,7 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.learn.adam import Adam
+from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.learn.estimator import data_hash, phase_data, trajectories
 from symrom.learn.plugins import PluginConfigError, regressor_from_dict
 from symrom.learn.regressors.base import Coefficients, RegressionProblem
@@ -66,11 +67,9 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
 from symrom.model.provenance import FineTuneRecord, freeze
 from symrom.names import FLIGHT_PHASE
-
 
 FINETUNE_METHODS = ("calibrate", "acceleration", "rollout", "calibrate_rollout")
 ROLLOUT_METHODS = ("rollout", "calibrate_rollout")  # the methods that refine on rollouts (``Refine``)

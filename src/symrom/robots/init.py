@@ -41,11 +41,27 @@ import numpy as np
 
 from symrom.atomic import atomic_path, check_output_file
 from symrom.names import LEG_JOINTS, LEGS, N_LEGS
-from symrom.robots.description import (PYBULLET_DATA, RobotDescription, RobotDescriptionError, load_description,
-                                       pybullet_data_path)
+from symrom.robots.description import (
+    PYBULLET_DATA,
+    RobotDescription,
+    RobotDescriptionError,
+    load_description,
+    pybullet_data_path,
+)
 from symrom.robots.kinematics import LegKinematics
-from symrom.robots.mjcf import (BaseFrame, Feet, RobotModelError, actuated, colliding, compile_model, foot_frames,
-                                name_of, subtree, torque_bound, zero_pose)
+from symrom.robots.mjcf import (
+    BaseFrame,
+    Feet,
+    RobotModelError,
+    actuated,
+    colliding,
+    compile_model,
+    foot_frames,
+    name_of,
+    subtree,
+    torque_bound,
+    zero_pose,
+)
 
 AXIS_COS = math.cos(math.radians(10.0))  # a joint axis within 10 degrees of the base's x or y plays that role
 MIN_FOOT = 0.05  # m: a foot is at least this far from its knee axis
@@ -286,7 +302,7 @@ def _foot(m, path: Path, data, bf: BaseFrame, leg: _Leg, label: str, urdf: bool)
     P = cands[int(np.argmax(dist))][0]
     at = [c for c in cands if np.linalg.norm(c[0] - P) < 1e-6]
     foot = {}
-    for p, kind, name, body, local in at:
+    for _p, kind, name, body, local in at:
         if name and kind not in foot:
             foot[kind] = (name, name_of(m, "body", body), local)
         if kind != "body" and name_of(m, "body", body) and "body+point" not in foot:

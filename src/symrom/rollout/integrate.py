@@ -251,7 +251,8 @@ def _integrate(sysm: RolloutSystem, options: RolloutOptions, dt: float,
                                               state[None, d:])
                         return np.concatenate([state[d:], a[0]])
 
-                    args = (lambda k: (k,))
+                    def args(k):
+                        return (k,)
                 X, V, d = integrate_lsoda(rhs, args, x, v, resets, limit[i],
                                           dt, options.max_steps, options.rtol, options.atol)
             Xs.append(X)

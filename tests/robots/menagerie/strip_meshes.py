@@ -30,9 +30,9 @@ import shutil
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
+from pathlib import Path
 from xml.parsers import expat
 from xml.sax.saxutils import quoteattr
-from pathlib import Path
 
 import mujoco
 import numpy as np

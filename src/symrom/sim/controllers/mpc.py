@@ -39,8 +39,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-import numpy as np
 import daqp
+import numpy as np
 import osqp
 import scipy.linalg
 import scipy.sparse as sp

@@ -32,8 +32,13 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.engines.compiled import base_state
-from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
-                                      standing_configuration)
+from symrom.sim.engines.world import (
+    RobotState,
+    WorldConfig,
+    check_ground_contact,
+    euler_rate_matrix,
+    standing_configuration,
+)
 
 
 def _import_quietly():
