@@ -216,7 +216,8 @@ def main() -> None:
         "overhead_ratio_inside_generate": round(statistics.median(inner["ray"]) / statistics.median(inner["local"]), 3),
         "datasets_identical": True,
         "task_s": {"median": round(float(np.median(task_s)), 3), "min": round(min(task_s), 3),
-                   "max": round(max(task_s), 3), "sum": round(sum(task_s), 2), "per_jump": [round(t, 3) for t in task_s]},
+                   "max": round(max(task_s), 3), "sum": round(sum(task_s), 2),
+                   "per_jump": [round(t, 3) for t in task_s]},
         "dispatch_s_per_task": {k: round(v, 5) for k, v in dispatch.items()},
         "driver": {k: (round(v, 5) if isinstance(v, float) else v) for k, v in driver.items()},
         "fixed_s": round(fixed, 2),
@@ -234,7 +235,8 @@ def main() -> None:
     print(f"\n| jumps | machines ({args.workers} cores each) | projected wall (s) | speed-up | efficiency |")
     print("|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['jumps']} | {r['machines']} | {r['projected_s']:.1f} | {r['speedup']:.2f} | {r['efficiency']:.2f} |")
+        print(f"| {r['jumps']} | {r['machines']} | {r['projected_s']:.1f} | {r['speedup']:.2f} "
+              f"| {r['efficiency']:.2f} |")
     print(f"\nresults: {args.out}")
 
 

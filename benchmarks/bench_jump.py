@@ -170,7 +170,8 @@ def replan_table(res: dict) -> str:
 
 
 def froggy_table(fr: dict) -> str:
-    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled |", "|---|---|---|---|---|---|---|"]
+    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled |",
+             "|---|---|---|---|---|---|---|"]
     for r in fr["results"].values():
         e = r["abs_error_x_m"]
         settled = sum(bool(j.get("settled")) for j in r["jumps"] if "failed" not in j)
@@ -205,7 +206,8 @@ def verdicts(res: dict, fr: dict | None) -> list[str]:
         if f"point-mass/plan/{w}" in R:
             ratio = med(f"point-mass/plan/{w}") / m
             out.append(f"{w}: learned mpc {ratio:.1f}x closer than point-mass plan")
-    times = [R[f"learned/mpc/{w}"]["replan_solve_cpu_s"]["median"] for w in ws if "replan_solve_cpu_s" in R[f"learned/mpc/{w}"]]
+    times = [R[f"learned/mpc/{w}"]["replan_solve_cpu_s"]["median"] for w in ws
+             if "replan_solve_cpu_s" in R[f"learned/mpc/{w}"]]
     if times:
         t = max(times)
         out.append(f"re-plan <= 2 ms median on one core: {'met' if t <= 2e-3 else 'NOT met'} "

@@ -91,8 +91,10 @@ def main() -> None:
                      f"{args.adam_runs}", f"{res['train_adam_s']['test_worst_nmae']['full']:.2%}"))
     for key in ("full", "0.1"):
         r = res[f"rollout_{key}"]
-        rows.append((f"rollout {key}, lsoda ({args.jumps} jumps)", f"{r['lsoda_median_s']:.2f} s", f"{args.rollout_runs}", ""))
-        rows.append((f"rollout {key}, rk4 batch ({args.jumps} jumps)", f"{r['rk4_median_s']:.3f} s", f"{args.rollout_runs}", ""))
+        rows.append((f"rollout {key}, lsoda ({args.jumps} jumps)", f"{r['lsoda_median_s']:.2f} s",
+                     f"{args.rollout_runs}", ""))
+        rows.append((f"rollout {key}, rk4 batch ({args.jumps} jumps)", f"{r['rk4_median_s']:.3f} s",
+                     f"{args.rollout_runs}", ""))
     print("\n| task | median time | runs | worst test nMAE (full horizon) |\n|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(r) + " |")

@@ -269,7 +269,8 @@ def test_format_2_keys_are_checked(written, tmp_path):
         (text.replace('body = "{leg}_calf"', 'geom = "{leg}_calf"'), "feet.point", "only with feet.body"),
         (text.replace('body = "{leg}_calf"', 'link = "{leg}_calf"'), "feet.link", "no URDF"),
         (text.replace('body = "{leg}_calf"', 'body = "{leg}_shin"'), "feet.body", "no body 'FR_shin'"),
-        (text.replace('hy = "{leg}_thigh_joint"', 'hy = "{leg}_upper_joint"'), "joints.hy", "no joint 'FR_upper_joint'"),
+        (text.replace('hy = "{leg}_thigh_joint"', 'hy = "{leg}_upper_joint"'), "joints.hy",
+         "no joint 'FR_upper_joint'"),
         (text.replace("format = 2", "format = 1"), "urdf", "format = 2"),
         (text.replace("knee = [-2.69653, -0.916298]", "knee = [[-2.7, -0.9], [-2.7, -0.9]]"), "stance.knee",
          "4 of them"),
@@ -546,8 +547,8 @@ def test_strip_meshes_keeps_all_but_the_meshes(tmp_path):
     (src / "toy.xml").write_text(xml)
     out = _strip().strip(src / "toy.xml", tmp_path / "copy")
     text = out.read_text()
-    assert (tmp_path / "copy" / "LICENSE").read_text() == "a licence\n" and sorted(p.name for p in out.parent.iterdir()) == [
-        "LICENSE", "toy.xml"]
+    assert ((tmp_path / "copy" / "LICENSE").read_text() == "a licence\n"
+            and sorted(p.name for p in out.parent.iterdir()) == ["LICENSE", "toy.xml"])
     kept = [line for line in xml.splitlines() if not re.search(r"mesh|skin|paint", line)]
     copy_lines = text.splitlines()
     assert all(line in copy_lines for line in kept)  # every other line as published

@@ -226,7 +226,8 @@ def test_without_the_longer_push_weak_legs_do_not_froggy(menagerie, monkeypatch)
     from symrom.sim.controllers import froggy
     from symrom.sim.generation.runner import GenerationError
 
-    assert froggy.scaled(froggy.FroggyParams(), menagerie["barkour_vb"]).t_push_all > 1.4 * froggy.FroggyParams().t_push_all
+    assert (froggy.scaled(froggy.FroggyParams(), menagerie["barkour_vb"]).t_push_all
+            > 1.4 * froggy.FroggyParams().t_push_all)
     monkeypatch.setattr(froggy, "_PUSH", ())
     with pytest.raises(GenerationError, match="no valid jump in 3 attempts"):
         _attempts(menagerie["barkour_vb"], "froggy", 1, seed=1, max_attempts=3)

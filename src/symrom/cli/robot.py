@@ -35,7 +35,8 @@ def parse_sets(items: list[str] | None) -> dict:
 @robot_app.command("init", cls=Command)
 @guarded
 def robot_init_cmd(
-    model: Annotated[Path, typer.Argument(help="Robot model: an MJCF (.xml; e.g. a MuJoCo Menagerie model) or a URDF (.urdf).")],
+    model: Annotated[Path, typer.Argument(
+        help="Robot model: an MJCF (.xml; e.g. a MuJoCo Menagerie model) or a URDF (.urdf).")],
     out: Annotated[Path, typer.Option("--out", help="Robot description to write (.toml).")],
     name: Annotated[str | None, typer.Option("--name", help="The robot's name (default: the model's).")] = None,
     sets: Annotated[list[str] | None, typer.Option(
@@ -54,13 +55,15 @@ def robot_init_cmd(
         raise RobotInitError(f"{e} (--set {e.key}=VALUE)", e.key) from None
     d = r.description
     say(f"wrote {r.path}: {d.name}, {d.mass:.3f} kg, feet {d.feet.kind if d.feet else 'link'}, "
-        f"kinematics within {r.kinematics_error:.1e} m of MuJoCo's" + (f"; given: {', '.join(r.given)}" if r.given else ""))
+        f"kinematics within {r.kinematics_error:.1e} m of MuJoCo's"
+        + (f"; given: {', '.join(r.given)}" if r.given else ""))
 
 
 @robot_app.command("show", cls=Command)
 @guarded
 def robot_show_cmd(
-    robot: Annotated[str, typer.Argument(help="A built-in robot (go1, a1, laikago) or a robot description file (.toml).")],
+    robot: Annotated[str, typer.Argument(
+        help="A built-in robot (go1, a1, laikago) or a robot description file (.toml).")],
 ) -> None:
     """Print a robot description as symrom reads it: legs, joints, feet, masses, limits, stance."""
     from rich.table import Table

@@ -255,7 +255,8 @@ def foot_frames(model, feet: Feet) -> list[FootFrame]:
     its colliding geoms centred at that point (a link: all of them, as a URDF foot link holds
     its sphere alone); geom: that geom; site: the site's body at the site, with the body's
     geoms centred there. The radius: a sphere's centred there, else how far the foot's geoms
-    reach beyond the point (``reach``: a capsule's end, a mesh). ``RobotModelError`` (key ``feet.<kind>``) naming a missing element."""
+    reach beyond the point (``reach``: a capsule's end, a mesh). ``RobotModelError`` (key
+    ``feet.<kind>``) naming a missing element."""
     key = f"feet.{feet.kind}"
     out = []
     for k, name in enumerate(feet.names):
@@ -396,7 +397,8 @@ def urdf_text(model, base: str, joint_names: tuple[str, ...], feet: Feet, name: 
         c = bf.point(data.xipos[b]) - origin[b]
         I = model.body_inertia[b]
         inertial = (f'<inertial><origin xyz="{_v(c)}" rpy="{_v(matrix_to_rpy(R))}"/>'
-                    f'<mass value="{_f(model.body_mass[b])}"/><inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
+                    f'<mass value="{_f(model.body_mass[b])}"/>'
+                    f'<inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
         if b == b0:
             # PyBullet takes a base's principal axes for its frame (its inverse dynamics then read gravity
             # in them): the base link holds no mass; its body's inertia hangs on a fixed child.
