@@ -71,7 +71,6 @@ def generate_cmd(
     import json
 
     from symrom.atomic import check_writable
-    from symrom.data.importers import split_counts
     from symrom.data.io import check_dataset_path
     from symrom.execution import check_workers
     from symrom.robots import get_robot
@@ -82,10 +81,15 @@ def generate_cmd(
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
     check_writable(out)
     check_workers(workers)
+    splits = None
+    if split is not None and jumps >= 1:
+        from symrom.data.importers import split_counts  # the import's modules only for --split
+
+        splits = split_counts(split, jumps)
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy, randomize=randomize,
                                          noise=NoiseConfig() if noise else None, engine=engine,
                                          mpc_solver=mpc_solver,
-                                         splits=split_counts(split, jumps) if jumps >= 1 else None))
+                                         splits=splits))
     runner = start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion} ({engine})"
     with progress_bar(label, total=jumps) as bar:

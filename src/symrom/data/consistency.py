@@ -44,8 +44,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.integrate import trapezoid
-from scipy.interpolate import Akima1DInterpolator
 
 from symrom.names import BASE_POS, GRAVITY, JOINTS
 
@@ -91,6 +89,8 @@ def window_ratios(t: np.ndarray, x: np.ndarray, v: np.ndarray, window: float,
     left out. Returns per window kept its first and last row (k, 2), its ratio (k,) (the
     least-squares factor of the change of x over the trapezoidal integral of v) and its
     integral's sum of squares (k,)."""
+    from scipy.integrate import trapezoid  # here: scipy.integrate is slow to import
+
     n = t.size
     rows, ratios, power = [], [], []
     if n < 3:
@@ -191,6 +191,8 @@ def retime_stale(t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) 
     """Replace the stale rows of one jump (in place) by the modified Akima interpolation
     between its fresh rows, per group; rows after the last fresh one keep its value.
     Returns the rows replaced per group."""
+    from scipy.interpolate import Akima1DInterpolator
+
     done = {}
     for g, m in stale_mask(q, dq, tau).items():
         fresh = np.flatnonzero(~m)
@@ -213,6 +215,8 @@ def retime_stale(t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) 
 def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
                      tau: np.ndarray, contact: np.ndarray, limits: ConsistencyLimits) -> list[dict]:
     """The vertical momentum balance of one jump (module docstring); none without a contact row."""
+    from scipy.integrate import trapezoid
+
     from symrom.data.preprocess import ground_reaction_forces
     from symrom.robots import get_robot
 

@@ -38,15 +38,18 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import daqp
 import numpy as np
-import osqp
 import scipy.linalg
 import scipy.sparse as sp
 
 from symrom.names import GRAVITY
 from symrom.sim.controllers.compiled import clip_forces, condensed_qp
+
+if TYPE_CHECKING:
+    import osqp
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
@@ -387,6 +390,8 @@ class ConvexMPC:
         q = np.zeros(self._nx + self._nu)
         np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
         if self._solver is None:
+            import osqp  # here: only the osqp solver needs it
+
             self._solver = osqp.OSQP()
             M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
                               shape=self._M_template.shape)
