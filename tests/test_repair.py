@@ -377,6 +377,47 @@ def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_
     assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
 
 
+def _without_time(path):
+    """The plain log at ``path`` with its time column removed (a logger that writes none)."""
+    lines = path.read_text().splitlines()
+    col = lines[0].split(",").index("t")
+    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")) if i != col) for line in lines) + "\n")
+    return path
+
+
+def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_and_retimed(tmp_path):
+    """A1 froggy logs with no time column, by a loop 3 % slower than its 2 ms and drifting +-5 %
+    within each jump: refused without a period (one line naming the time column and period);
+    read 2 ms apart, each jump's rows are warped back to their true times by the flight."""
+    ds = sim_a1_froggy()
+    logs = []
+    for j in range(ds.n_jumps):
+        m = jump(ds, j)
+        t_end = m["t"][-1]
+        logs.append(on_clock(m, lambda t: 1.03 + 0.05 * np.sin(2 * np.pi * t / t_end + j)))
+    path = _without_time(write_plain(tmp_path / "a1_untimed.csv", logs, accelerations=False))
+    one_line_error(runner.invoke(app, ["import", str(path), "--robot", "a1", "--motion", "froggy", "--out",
+                                       str(tmp_path / "x.h5"), "--repair"]),
+                   "a1_untimed.csv", "without a time column ('t')", "--period", "--repair")
+    lg = read_log(path, period=0.002)
+    assert lg.period == 0.002 and lg.n_jumps == ds.n_jumps
+    for j, (a, b) in enumerate(lg.bounds()):
+        np.testing.assert_array_equal(lg.t[a:b], np.arange(b - a) * 0.002)
+    recs = repair_log(lg, "a1", REPAIR)
+    for j, rec in enumerate(recs):
+        a, b = lg.bounds()[j]
+        assert rec.clock.finding == "clock" and rec.clock.warp, rec.line()
+        _times_within(lg.t[a:b], logs[j]["t_true"], logs[j]["t"])
+    out = tmp_path / "a1.h5"
+    r = runner.invoke(app, ["import", str(path), "--robot", "a1", "--motion", "froggy", "--out", str(out),
+                            "--repair", "--period", "0.002"])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
+    got = read_dataset(out)
+    assert got.generator["files"][0]["time"] == {"column": False, "period": 0.002}
+    assert got.generator["files"][0]["consistency"] == []
+    assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
+
+
 def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
     """Hardware-like jumps (sensor noise, estimator drift, soft feet, their own torque
     sensor): the planted Go1 faults are found on top of what each jump shows clean."""

@@ -81,7 +81,7 @@ FLAGS: dict[str, str] = {
     "encoder_base_latents": "--encoder-base-latents", "epochs": "--epochs", "seed": "--seed",
     "prior_weight": "--prior-weight", "tolerance": "--tolerance", "calibration_terms": "--calibration-terms",
     "mpc_solver": "--mpc-solver", "motion": "--motion", "robot": "--robot", "jump": "--jump", "frames": "--frames",
-    "seeds": "--seeds", "lam": "--lambda",
+    "seeds": "--seeds", "lam": "--lambda", "period": "--period", "repair": "--repair", "log_faults": "--log-faults",
 }
 _PARAMETER = re.compile(r"(?<![\w./-])([a-z][a-z0-9_]*)=(?:(True|False|None)|'([\w.,/+-]+)')?")
 
