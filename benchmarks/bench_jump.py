@@ -1,22 +1,27 @@
-"""Benchmark of jumps to a target (not a test): landing accuracy and solve time per planner.
+"""Benchmark of jumps to a target (not a test): landing accuracy under disturbances, open and closed
+loop, per planner; re-planning time; froggy jumps.
 
-Seeded targets (``--targets`` of them, uniform in [0.1, 0.5] m forward, seed
-``--seed``) are planned by each planner (learned model, point mass on the
-description's mass, fitted aSLIP; all with the height guards, and the learned
-model also with its own learned guards when it has them) and executed the same
-way in each engine (``symrom.plan``). Per planner and engine: the landing-x error |landing_x -
-target_x| (median, p95, max), the signed mean, the apex, and each plan's solve
-time (median, p95; one IPOPT solve, warm-started from the previous target's
-solution, on one core); the executed over the planned lift-off speeds (median);
-the ratio of each baseline's median error to the
-learned planner's, measured in the same run. Prints a Markdown table; with
-``--out``, writes JSON.
+Pronk (``--model``, a learned Go1 model; ``--aslip``, fitted aSLIP parameters): seeded
+targets (``--targets`` of them, seed ``--seed``) drawn uniformly over the learned planner's
+reach (``RobotPlanner.reach``: its bounds within its training jumps' envelope), each planned
+by every planner (learned, point mass on the description's mass, aSLIP; height guards) and
+executed in ``--engine`` (MuJoCo by default) with each control (``plan``: open loop;
+``mpc``: re-planned at 100 Hz) in each world (``none``; ``payload``: 20 % of the robot's mass
+fixed to the base; ``friction``: ground friction 0.5; ``motors``: every motor delivers 85 %
+of its command). A jump that never lands (the loaded or weakened robot that cannot leave the
+ground) counts as failed, and as an infinite error in the median. Per planner, control and
+world: |landing x - target x| (median, p95, max), failures; for the closed loop each
+re-plan's solve time (wall and CPU, median and p95, one core). Ratios in the same run: the
+learned planner's open-loop median over its closed-loop one, and each baseline's closed-loop
+median over the learned one, per world.
 
-    python benchmarks/bench_jump.py --model MODEL.json --aslip ASLIP/params.json \\
-        [--engines pybullet,mujoco] [--targets 20] [--seed 0] [--out benchmarks/results/jump.json]
+Froggy (``--froggy-model``, a learned A1 froggy model): ``--froggy-targets`` targets over its
+reach, learned ``plan`` and ``mpc``, no disturbance, in each of ``--froggy-engines``.
 
-The settings of the planning problem and of the execution were chosen on
-targets of another seed (``--seed 1``); ``--seed 0`` is the reported set.
+Prints Markdown tables and the targets' verdicts; with ``--out``, writes JSON.
+
+    OMP_NUM_THREADS=1 python benchmarks/bench_jump.py --model MODEL.json --aslip ASLIP/params.json \\
+        [--engine mujoco] [--targets 20] [--seed 0] [--froggy-model A1.json] [--out benchmarks/results/jump.json]
 """
 
 from __future__ import annotations
@@ -30,99 +35,220 @@ from pathlib import Path
 import numpy as np
 
 from symrom.model.persistence import load_model
-from symrom.plan.jump import PLANNERS, jump, make_planner, read_aslip_params
+from symrom.plan.jump import jump, make_planner, read_aslip_params
+from symrom.robots import get_robot
+from symrom.sim.proxy import Disturbances
+
+WORLDS = ("none", "payload", "friction", "motors")
+CONTROLS = ("plan", "mpc")
+PLANNERS = ("learned", "point-mass", "aslip")
 
 
-def targets(n: int, seed: int) -> np.ndarray:
-    """``n`` forward targets (m), uniform in [0.1, 0.5], from ``seed``."""
-    return np.random.default_rng(seed).uniform(0.1, 0.5, n)
+def worlds(robot: str) -> dict[str, Disturbances]:
+    """The benchmark's worlds (module docstring) for ``robot``."""
+    return {"none": Disturbances(), "payload": Disturbances(payload=0.2 * get_robot(robot).mass),
+            "friction": Disturbances(friction=0.5), "motors": Disturbances(motor_scale=0.85)}
 
 
-def _stats(v: np.ndarray) -> dict:
+def targets(reach, n: int, seed: int) -> np.ndarray:
+    """``n`` forward targets (m), uniform over the reach's x range (shrunk by 5 mm at each end), from ``seed``."""
+    return np.random.default_rng(seed).uniform(reach.x_min + 0.005, reach.x_max - 0.005, n)
+
+
+def _stats(v) -> dict:
     v = np.asarray(v, float)
-    return {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "max": float(v.max()),
-            "mean": float(v.mean())}
+    if v.size == 0:
+        return {"median": None, "p95": None, "max": None}
+    return {"median": float(np.median(v)), "p95": float(np.percentile(v, 95)), "max": float(v.max())}
 
 
-def run(model_path: Path, aslip_path: Path, engines: list[str], n: int, seed: int, robot: str = "go1") -> dict:
-    model, aslip = load_model(model_path), read_aslip_params(aslip_path)
-    tx = targets(n, seed)
-    # (label, planner, guards): every planner with the height guards; the learned one also with
-    # its own learned guards when the model has them
-    setups = [("learned", "learned", "height")]
-    if getattr(model, "guards", None):
-        setups.append(("learned, learned guards", "learned", "learned"))
-    setups += [(k, k, "height") for k in PLANNERS if k != "learned"]
-    out = {"robot": robot, "targets": tx.tolist(), "seed": seed, "model": str(model_path),
-           "aslip": str(aslip_path), "machine": platform.platform(), "results": {}}
-    for engine in engines:
-        for label, kind, guards in setups:
-            planner = make_planner(kind, robot, model=model, aslip=aslip, guards=guards)
-            rows, t0 = [], time.perf_counter()
-            for x in tx:
-                try:
-                    r = jump(planner, float(x), engine=engine)
-                    ex = r.execution
-                    rows.append({"target_x": float(x), "landing_x": ex.landing_x, "error_x": r.error_x,
-                                 "apex_z": ex.apex_z, "planned_apex_z": ex.plan.apex_z,
-                                 "t_stance_s": ex.plan.t_stance, "solve_time_s": ex.plan.solve_time_s,
-                                 "solve_cpu_s": ex.plan.solve_cpu_s,
-                                 "iterations": ex.plan.iterations, "rest_x": ex.rest_x,
-                                 "liftoff_v": ex.liftoff[2:].tolist(), "planned_liftoff_v": ex.plan.liftoff.tolist()})
-                except Exception as e:  # a failed jump is a result, recorded with its reason
-                    rows.append({"target_x": float(x), "failed": f"{type(e).__name__}: {e}"})
-            ok = [r for r in rows if "failed" not in r]
-            err = np.abs([r["error_x"] for r in ok]) if ok else np.array([np.nan])
-            out["results"][f"{engine}/{label}"] = {
-                "engine": engine, "planner": label, "guards": guards, "jumps": rows, "failed": len(rows) - len(ok),
-                "abs_error_x_m": _stats(err), "signed_error_x_mean_m": float(np.mean([r["error_x"] for r in ok])) if ok else None,
-                "solve_time_s": _stats([r["solve_time_s"] for r in ok]) if ok else None,
-                "solve_cpu_s": _stats([r["solve_cpu_s"] for r in ok]) if ok else None,
-                "apex_z_m": _stats([r["apex_z"] for r in ok]) if ok else None,
-                # executed over planned lift-off speed: how far the model's stance gain is off
-                "liftoff_speed_ratio": {
-                    ax: float(np.median([r["liftoff_v"][i] / r["planned_liftoff_v"][i] for r in ok])) if ok else None
-                    for i, ax in enumerate(("vx", "vz"))},
-                "wall_s": time.perf_counter() - t0}
-    for engine in engines:
-        ref = out["results"][f"{engine}/learned"]["abs_error_x_m"]["median"]
-        for label, _, _ in setups:
-            r = out["results"][f"{engine}/{label}"]
-            r["median_error_vs_learned"] = r["abs_error_x_m"]["median"] / ref
+def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturbances) -> dict:
+    rows, t0 = [], time.perf_counter()
+    for x in tx:
+        try:
+            r = jump(planner, float(x), engine=engine, control=control, disturbances=dist)
+        except Exception as e:  # noqa: BLE001 - a failed jump is a result, recorded with its reason
+            rows.append({"target_x": float(x), "failed": f"{type(e).__name__}: {e}"})
+            continue
+        ex = r.execution
+        row = {"target_x": float(x), "landing_x": ex.landing_x, "error_x": r.error_x, "apex_z": ex.apex_z,
+               "plan_solve_time_s": ex.plan.solve_time_s, "push_s": ex.push_s, "settled": ex.finished,
+               "rest_pitch": float(ex.trajectory["base"][-1, 4])}
+        if ex.replans is not None:
+            st = ex.replans
+            row.update(replans=len(st.t), replan_solve_time_s=st.solve_time_s, replan_solve_cpu_s=st.solve_cpu_s,
+                       replan_not_ok=int(sum(s != "ok" for s in st.status)),
+                       predicted_landing_x=st.landing_x[-1] if st.landing_x else None)
+        rows.append(row)
+    ok = [r for r in rows if "failed" not in r]
+    err = np.abs([r["error_x"] for r in ok])
+    # failures count as infinite errors in the median
+    with_failed = np.concatenate([err, np.full(len(rows) - len(ok), np.inf)])
+    out = {"jumps": rows, "failed": len(rows) - len(ok), "abs_error_x_m": _stats(err),
+           "median_with_failures_m": float(np.median(with_failed)) if rows else None,
+           "signed_error_x_mean_m": float(np.mean([r["error_x"] for r in ok])) if ok else None,
+           "wall_s": time.perf_counter() - t0}
+    if control == "mpc" and ok:
+        times = np.concatenate([r["replan_solve_time_s"] for r in ok])
+        cpu = np.concatenate([r["replan_solve_cpu_s"] for r in ok])
+        out.update(replan_solve_time_s=_stats(times), replan_solve_cpu_s=_stats(cpu),
+                   replans_per_jump=float(np.mean([r["replans"] for r in ok])),
+                   replans_not_ok=int(sum(r["replan_not_ok"] for r in ok)))
     return out
 
 
+def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: int, robot: str = "go1",
+        planners=PLANNERS, controls=CONTROLS, world_names=WORLDS, progress=print) -> dict:
+    model = load_model(model_path)
+    aslip = read_aslip_params(aslip_path) if aslip_path else None
+    built = {k: make_planner(k, robot, model=model, aslip=aslip) for k in planners if k != "aslip" or aslip}
+    reach = built["learned"].reach()
+    tx = targets(reach, n, seed)
+    res = {"robot": robot, "engine": engine, "targets": tx.tolist(), "seed": seed, "model": str(model_path),
+           "aslip": str(aslip_path) if aslip_path else None, "reach": reach.to_dict(), "results": {}}
+    all_worlds = worlds(robot)
+    for w in world_names:
+        for kind, planner in built.items():
+            for c in controls:
+                r = run_setup(planner, tx, engine, c, all_worlds[w])
+                r.update(world=w, planner=kind, control=c, disturbances=all_worlds[w].to_dict())
+                res["results"][f"{kind}/{c}/{w}"] = r
+                progress(f"{kind:10s} {c:4s} {w:8s} median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
+                         f"({r['wall_s']:.0f} s)")
+    return res
+
+
+def run_froggy(model_path: Path, engines: list[str], n: int, seed: int, robot: str = "a1", progress=print) -> dict:
+    model = load_model(model_path)
+    planner = make_planner("learned", robot, model=model)
+    reach = planner.reach()
+    tx = targets(reach, n, seed)
+    out = {"robot": robot, "model": str(model_path), "targets": tx.tolist(), "reach": reach.to_dict(), "results": {}}
+    for engine in engines:
+        for c in CONTROLS:
+            r = run_setup(planner, tx, engine, c, Disturbances())
+            r.update(engine=engine, control=c)
+            out["results"][f"{engine}/{c}"] = r
+            progress(f"froggy {engine} {c}: median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
+                     f"({r['wall_s']:.0f} s)")
+    return out
+
+
+def _cm(v) -> str:
+    return "-" if v is None else ("inf" if not np.isfinite(v) else f"{100 * v:.1f} cm")
+
+
 def table(res: dict) -> str:
-    lines = ["| engine | planner | \\|error x\\| median | p95 | max | signed mean | vs learned | apex median | "
-             "lift-off vx, vz executed / planned | solve median | solve p95 | failed |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for r in res["results"].values():
-        e, s, a = r["abs_error_x_m"], r["solve_time_s"] or {}, r["apex_z_m"] or {}
-        lines.append(f"| {r['engine']} | {r['planner']} | {100 * e['median']:.1f} cm | {100 * e['p95']:.1f} cm | "
-                     f"{100 * e['max']:.1f} cm | {100 * (r['signed_error_x_mean_m'] or np.nan):+.1f} cm | "
-                     f"{r['median_error_vs_learned']:.2f}x | {a.get('median', np.nan):.3f} m | "
-                     f"{r['liftoff_speed_ratio']['vx']:.2f}, {r['liftoff_speed_ratio']['vz']:.2f} | "
-                     f"{1e3 * s.get('median', np.nan):.1f} ms | {1e3 * s.get('p95', np.nan):.1f} ms | {r['failed']} |")
+    ws = [w for w in WORLDS if any(k.endswith("/" + w) for k in res["results"])]
+    lines = ["| planner | control | " + " | ".join(f"{w}: median (p95), failed" for w in ws) + " |",
+             "|---|---|" + "---|" * len(ws)]
+    for kind in PLANNERS:
+        for c in CONTROLS:
+            cells = []
+            for w in ws:
+                r = res["results"].get(f"{kind}/{c}/{w}")
+                if r is None:
+                    break
+                cells.append(f"{_cm(r['median_with_failures_m'])} ({_cm(r['abs_error_x_m']['p95'])}), {r['failed']}")
+            if len(cells) == len(ws):
+                lines.append(f"| {kind} | {c} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def replan_table(res: dict) -> str:
+    lines = ["| planner | world | re-plans per jump | solve median (wall) | p95 | CPU median | p95 | not ok |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in res["results"].values():
+        if "replan_solve_time_s" not in r:
+            continue
+        s, c = r["replan_solve_time_s"], r["replan_solve_cpu_s"]
+        lines.append(f"| {r['planner']} | {r['world']} | {r['replans_per_jump']:.1f} | {1e3 * s['median']:.2f} ms | "
+                     f"{1e3 * s['p95']:.2f} ms | {1e3 * c['median']:.2f} ms | {1e3 * c['p95']:.2f} ms | "
+                     f"{r['replans_not_ok']} |")
+    return "\n".join(lines)
+
+
+def froggy_table(fr: dict) -> str:
+    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled |", "|---|---|---|---|---|---|---|"]
+    for r in fr["results"].values():
+        e = r["abs_error_x_m"]
+        settled = sum(bool(j.get("settled")) for j in r["jumps"] if "failed" not in j)
+        lines.append(f"| {r['engine']} | {r['control']} | {_cm(r['median_with_failures_m'])} | {_cm(e['p95'])} | "
+                     f"{_cm(e['max'])} | {r['failed']} | {settled} |")
+    return "\n".join(lines)
+
+
+def verdicts(res: dict, fr: dict | None) -> list[str]:
+    """The issue's targets, each met or not, with the numbers."""
+    R = res["results"]
+    out = []
+
+    def med(key):
+        r = R.get(key)
+        return None if r is None else r["median_with_failures_m"]
+
+    ws = [w for w in WORLDS if f"learned/mpc/{w}" in R]
+    worst = max(med(f"learned/mpc/{w}") for w in ws)
+    out.append(f"learned mpc within 1.5 cm median in every world: {'met' if worst <= 0.015 else 'NOT met'} "
+               f"(worst {_cm(worst)})")
+    for w in ws:
+        m = med(f"learned/mpc/{w}")
+        if w != "none" and f"learned/plan/{w}" in R:
+            ratio = med(f"learned/plan/{w}") / m
+            out.append(f"{w}: learned mpc {ratio:.1f}x closer than learned plan (target 3x): "
+                       f"{'met' if ratio >= 3 else 'NOT met'}")
+        if f"point-mass/mpc/{w}" in R:
+            ratio = med(f"point-mass/mpc/{w}") / m
+            out.append(f"{w}: learned mpc {ratio:.1f}x closer than point-mass mpc (target 4x): "
+                       f"{'met' if ratio >= 4 else 'NOT met'}")
+        if f"point-mass/plan/{w}" in R:
+            ratio = med(f"point-mass/plan/{w}") / m
+            out.append(f"{w}: learned mpc {ratio:.1f}x closer than point-mass plan")
+    times = [R[f"learned/mpc/{w}"]["replan_solve_cpu_s"]["median"] for w in ws if "replan_solve_cpu_s" in R[f"learned/mpc/{w}"]]
+    if times:
+        t = max(times)
+        out.append(f"re-plan <= 2 ms median on one core: {'met' if t <= 2e-3 else 'NOT met'} "
+                   f"(worst world's CPU median {1e3 * t:.2f} ms)")
+    if fr is not None:
+        worst = max(r["median_with_failures_m"] for r in fr["results"].values())
+        out.append(f"froggy within 3 cm median: {'met' if worst <= 0.03 else 'NOT met'} (worst {_cm(worst)})")
+    return out
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--model", type=Path, required=True)
-    ap.add_argument("--aslip", type=Path, required=True)
-    ap.add_argument("--engines", default="pybullet")
+    ap.add_argument("--aslip", type=Path)
+    ap.add_argument("--engine", default="mujoco")
     ap.add_argument("--targets", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--worlds", default=",".join(WORLDS))
+    ap.add_argument("--planners", default=",".join(PLANNERS))
+    ap.add_argument("--froggy-model", type=Path)
+    ap.add_argument("--froggy-engines", default="pybullet,mujoco")
+    ap.add_argument("--froggy-targets", type=int, default=20)
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
     t0 = time.perf_counter()
-    res = run(a.model, a.aslip, a.engines.split(","), a.targets, a.seed)
+    res = run(a.model, a.aslip, a.engine, a.targets, a.seed, planners=a.planners.split(","),
+              world_names=a.worlds.split(","))
+    fr = run_froggy(a.froggy_model, a.froggy_engines.split(","), a.froggy_targets, a.seed) if a.froggy_model else None
+    res["froggy"] = fr
     res["wall_time_s"] = time.perf_counter() - t0
+    res["machine"] = platform.platform()
     print(table(res))
+    print()
+    print(replan_table(res))
+    if fr is not None:
+        print()
+        print(froggy_table(fr))
+    print()
+    res["verdicts"] = verdicts(res, fr)
+    print("\n".join(f"- {v}" for v in res["verdicts"]))
     print(f"wall time {res['wall_time_s']:.1f} s")
     if a.out:
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(json.dumps(res, indent=1) + "\n")
+        a.out.write_text(json.dumps(res, indent=1, default=float) + "\n")
 
 
 if __name__ == "__main__":

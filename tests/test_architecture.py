@@ -40,16 +40,17 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
               "plugins": 3, "estimator": 4, "finetune": 5, "training": 5},
     # export: the tables, then one writer per target
     "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
-    # planning: the models and guards, the problem, its execution, the jump that uses both
-    "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "execute": 2, "jump": 3},
+    # planning: the models and guards, the problem, its real-time re-planning, its execution, the
+    # jump that uses them
+    "plan": {"dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "replan": 2, "execute": 3, "jump": 4},
     # simulation by job: the engines; the hardware-like variant, on any engine; the controllers and
     # motions; what runs them (generation) and what reads its data (diagnostics)
     "sim": {"engines": 0, "proxy": 1, "controllers": 2, "generation": 3, "diagnostics": 3},
     # the engines: what they share and their compiled reads, then each engine and the registry
     "sim.engines": {"world": 0, "compiled": 0, "bullet": 1, "mujoco": 1, "registry": 1},
-    # the controllers: their compiled arithmetic, flights, the body model; its URDF source, the
-    # MPC, the protocols; the motions
-    "sim.controllers": {"compiled": 0, "flight": 0, "body": 0, "urdf_body": 1, "mpc": 1, "motion": 1,
+    # the controllers: their compiled arithmetic, flights, the body model, the actuator
+    # compensation; its URDF source, the MPC, the protocols; the motions
+    "sim.controllers": {"compiled": 0, "flight": 0, "body": 0, "actuators": 0, "urdf_body": 1, "mpc": 1, "motion": 1,
                         "pronk": 2, "froggy": 2},
     # generation: the checks, parts, the episode loop and the warm start; the configuration; one
     # checked jump; the whole file

@@ -24,7 +24,8 @@ def models(planted_block):
     latent, whose flight phase has no term at all (its dynamics read neither s nor nu)."""
     ds, _ = planted_block
     full = train(ds, TrainConfig(latent_dim=2, poly_order=2))
-    full = replace(full, info={**full.info, "robot": "go1"})
+    prov = full.provenance
+    full = replace(full, provenance=replace(prov, data=replace(prov.data, robot="go1")))
     bare = train(ds, TrainConfig(latent_dim=1))
     flight = bare.phase_names.index("flight")
     Xi, mask = bare.Xi.copy(), bare.mask.copy()

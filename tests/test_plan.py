@@ -22,19 +22,24 @@ X, Z = 12, 14  # base x and z in q
 
 
 def planted_model(contact: list[dict[str, float]], flight: list[dict[str, float]],
-                  phases=("contact", "flight")) -> HybridModel:
-    """l = 2 latents reading the base's x and z exactly; equations by feature name."""
+                  phases=("contact", "flight"), third: list[dict[str, float]] | None = None,
+                  info: dict | None = None) -> HybridModel:
+    """l = 2 latents reading the base's x and z exactly; equations by feature name, per phase in
+    ``phases``' order: ``contact``, then ``third`` (a middle phase, e.g. ``partial``) if given,
+    then ``flight``."""
     lib = Library.standard(2, poly_order=1, trig=False, inputs=True)
     W_e = np.zeros((2, 18))
     W_e[0, X] = W_e[1, Z] = 1.0
     ae = LinearAutoencoder(W_e, np.zeros(2), W_e.T.copy(), np.zeros(18))
     names = lib.feature_names
-    Xi = np.zeros((2, lib.n_features, 2))
-    for k, rows in enumerate((contact, flight)):
+    eqs = (contact, third, flight) if third is not None else (contact, flight)
+    Xi = np.zeros((len(eqs), lib.n_features, 2))
+    for k, rows in enumerate(eqs):
         for j, eq in enumerate(rows):
             for feat, c in eq.items():
                 Xi[k, names.index(feat), j] = c
-    return HybridModel(ae, lib, list(phases), Xi, Xi != 0, np.ones(4), provenance=Provenance(DataRecord(robot="go1")))
+    data = DataRecord(**{"robot": "go1", **(info or {})})  # info: DataRecord's fields (robot, motion, envelope)
+    return HybridModel(ae, lib, list(phases), Xi, Xi != 0, np.ones(4), provenance=Provenance(data))
 
 
 # a linear planted law: forward damping and gains other than 1/m, so no closed form plans it
@@ -208,7 +213,7 @@ def test_jump_cli_end_to_end(tmp_path):
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output
     d = json.loads((out / "landing.json").read_text())
-    assert d["format_version"] == 1 and d["planner"] == "learned"
+    assert d["format_version"] == 2 and d["planner"] == "learned"
     assert d["error_x"] == pytest.approx(d["landing_x"] - 0.3)
     assert abs(d["error_x"]) < 0.06  # Go1-like gains land near the target
     assert 0.38 < d["apex_z"] < 0.5 and 0 < d["solve_time_s"] < 1.0

@@ -37,7 +37,7 @@ def _copy(m: dict) -> dict:
 
 def _repaired(tmp_path, robot: str, logged: dict, name: str = "log.csv", **kw):
     """Import one planted jump with the repair; the dataset and its jump's record."""
-    ds = import_logs([write_plain(tmp_path / name, [logged], accelerations=False)], robot=robot,
+    ds, _ = import_logs([write_plain(tmp_path / name, [logged], accelerations=False)], robot=robot,
                      motion=_sim(robot)[1], repair=REPAIR, **kw)
     (record,) = ds.generator["repairs"]["jumps"]
     return ds, record
@@ -97,8 +97,8 @@ def test_in_flight_the_centre_of_mass_falls_at_g_and_the_feet_carry_the_weight(r
 def test_a_clean_log_is_left_bit_for_bit_unchanged(tmp_path, robot):
     ds, motion = _sim(robot)
     log = write_plain(tmp_path / "clean.csv", [jump(ds, j) for j in range(ds.n_jumps)])
-    plain = import_logs([log], robot=robot, motion=motion)
-    fixed = import_logs([log], robot=robot, motion=motion, repair=REPAIR)
+    plain, _ = import_logs([log], robot=robot, motion=motion)
+    fixed, _ = import_logs([log], robot=robot, motion=motion, repair=REPAIR)
     for key in ARRAYS:
         np.testing.assert_array_equal(getattr(fixed, key), getattr(plain, key), err_msg=key)
     rec = fixed.generator["repairs"]
@@ -266,8 +266,8 @@ def test_rebased_segments_get_their_height_back_as_without_the_repair(tmp_path):
     whole = _copy(jump(ds, 0))
     whole["q"][:, 12:15] -= whole["q"][0, 12:15]
     log = write_plain(tmp_path / "rebased.csv", [whole] + [flight_segment(ds, j) for j in (1, 2)])
-    plain = import_logs([log], robot="go1")
-    fixed = import_logs([log], robot="go1", repair=REPAIR)
+    plain, _ = import_logs([log], robot="go1")
+    fixed, _ = import_logs([log], robot="go1", repair=REPAIR)
     for key in ARRAYS:
         np.testing.assert_array_equal(getattr(fixed, key), getattr(plain, key), err_msg=key)
     assert len(fixed.generator["rebased"]) == 3
@@ -304,7 +304,7 @@ def test_a_header_less_contact_topic_lands_on_the_nearest_row(tmp_path):
     assert (former != m["contact"]).sum() == 8  # 4 feet x (lift-off, touch-down)
     # a delay past half a period lands one row late by nearest too: the repair moves it back
     bag = write_ros2(tmp_path / "later", m, storage="sqlite3", contact_delay=0.0013)
-    got = import_logs([bag], robot="go1", repair=REPAIR, segment="off")
+    got, _ = import_logs([bag], robot="go1", repair=REPAIR, segment="off")
     (rec,) = got.generator["repairs"]["jumps"]
     assert rec["contacts"]["lag"] == 1
     np.testing.assert_array_equal(got.contact, m["contact"][1:])  # row 0 has no message within half a period
@@ -371,7 +371,7 @@ def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_
         _times_within(lg.t[a:b], logged["t_true"], logged["t"])
         assert abs(rec.height.offset + 0.028) < 0.002
         assert not rec.gain.applied and not any(v.applied for v in rec.velocities)
-    got = import_logs([path], robot="a1", motion="froggy", repair=REPAIR)
+    got, _ = import_logs([path], robot="a1", motion="froggy", repair=REPAIR)
     assert all(f["consistency"] == [] for f in got.generator["files"])
     # the dataset's period: the coarsest jump's, now on its true clock (2 % longer and drifting)
     assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
@@ -476,13 +476,13 @@ def test_a_ratio_without_a_flight_to_tell_clock_from_velocities_is_refused(tmp_p
                           "wrong clock cannot be told from wrong velocities")
     assert "lenient keeps it as logged" in line
     # --lenient keeps it as logged and says so; the check's problem is listed
-    got = import_logs([log], robot="go1", repair=REPAIR, lenient=True)
+    got, _ = import_logs([log], robot="go1", repair=REPAIR, lenient=True)
     (rec,) = got.generator["repairs"]["jumps"]
     assert rec["clock"]["finding"] == "undetermined" and "without a flight" in rec["kept"][0]
     assert [p["check"] for p in got.generator["files"][0]["consistency"]] == ["time scale"] * 2
     # a small ratio the check accepts as logged is kept, not refused
     logged["dq"] = logged["dq"] * 1.06 / 1.03
-    kept = import_logs([write_plain(tmp_path / "small.csv", [logged], accelerations=False)], robot="go1",
+    kept, _ = import_logs([write_plain(tmp_path / "small.csv", [logged], accelerations=False)], robot="go1",
                        repair=REPAIR)
     (rec,) = kept.generator["repairs"]["jumps"]
     assert rec["clock"]["finding"] == "undetermined" and "passes the consistency check" in rec["kept"][0]

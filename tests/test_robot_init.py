@@ -1,7 +1,8 @@
 """`symrom robot init` on robot models alone: the Menagerie-style MJCF test models (Go1, Go2, A1,
 ANYmal C) and URDFs give descriptions that load, whose kinematics are MuJoCo's, whose body model
 is MuJoCo's; models symrom cannot describe are refused in one line naming what is missing; an
-MJCF-only robot stands in the MuJoCo engine and is refused by PyBullet."""
+MJCF-only robot stands in the MuJoCo engine and is refused by PyBullet. (The motions on these
+models: tests/test_robot_motions.py.)"""
 
 from __future__ import annotations
 
@@ -348,35 +349,3 @@ def test_robot_init_on_the_command_line(tmp_path):
                                  "--set", "limits.torque"])
     one_line_error(r, "--set 'limits.torque'", "KEY=VALUE")
 
-
-# ------------------------------------------------------------------ motions
-# The Unitree models state Menagerie's joint damping (1-2 N m s/rad): at the push's 10-16 rad/s
-# knee speeds it takes 21-32 N m, as much as the push commands, and neither motion compensates it
-# (both were tuned on ideal motors, what the built-in robots state): their jumps fall short of the
-# checks (docs/simulation.md, "Your robot"). They jump here with ideal motors; ANYmal C (1 N m s/rad
-# against 80 N m) with its own.
-IDEAL = ("go1", "go2", "a1")
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("motion", ["pronk", "froggy"])
-@pytest.mark.parametrize("name", list(EXPECTED))
-def test_pronk_and_froggy_on_each_test_robot_in_mujoco(written, name, motion, tmp_path):
-    from symrom.sim.controllers.flight import longest_run
-    from symrom.sim.generation.checks import JumpChecks
-    from symrom.sim.generation.generate import GenerateConfig, generate
-
-    r = written[name]
-    path = r.path
-    if name in IDEAL:
-        path = tmp_path / f"{name}.toml"
-        path.write_text(re.sub(r"\n\[actuators\].*", "\n", r.text, flags=re.S))
-    ds = generate(GenerateConfig(str(path), motion, 1, seed=1, engine="mujoco", max_attempts=4),
-                  tmp_path / f"{name}_{motion}.h5")
-    checks = JumpChecks()
-    q, c = ds.q, ds.contact
-    a, b = longest_run(c.sum(axis=1) == 0)
-    assert (b - a) * ds.dt >= checks.min_flight
-    assert np.abs(q[:, 15:17]).max() < checks.max_tilt and q[-1, 14] > 0.6 * q[0, 14]  # landed upright
-    assert q[-1, 12] - q[0, 12] >= checks.min_travel
-    assert np.all(np.abs(ds.tau) <= np.asarray(r.description.torque_limit) + 1e-9)

@@ -1,6 +1,7 @@
 """The one episode loop (its order of reading, stopping, pushing, stepping and logging, on a
-scripted world) and the pronk's push-policy seam (a policy called every tick of the push that
-re-plans its end; the commanded wrench as the torques' derived force)."""
+scripted world) and the pronk's and the froggy's push-policy seams (a policy called every tick of
+the push that re-plans its end; the commanded wrench as the torques' derived force; the events
+the controllers record with or without a policy)."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ import pytest
 
 from symrom.data.preprocess import input_from_torques
 from symrom.names import BASE_POS, JOINTS, N_Q
+from symrom.robots import leg_kinematics
+from symrom.sim.controllers.froggy import FroggyController, FroggyParams, FroggyPushPolicy, FroggyPushTiming
+from symrom.sim.controllers.froggy import scaled as froggy_scaled
 from symrom.sim.controllers.pronk import PronkController, PronkParams, PushCommand, PushPolicy, PushTiming
 from symrom.sim.engines.bullet import BulletWorld
 from symrom.sim.engines.world import RobotState, WorldConfig
@@ -184,3 +188,89 @@ def test_the_commanded_wrench_is_the_torques_derived_force(force):
     assert np.all(np.abs(tau) < world.torque_limit)  # not clipped, so exact
     u = input_from_torques("go1", s.q, tau, np.ones((1, 4)))
     np.testing.assert_allclose(u[0, 12:15], F, rtol=0, atol=1e-8)
+
+
+class FroggyScript:
+    """A froggy push policy: a constant thrust for ``four`` s on four feet, then ``rear`` s on the
+    rear feet, re-timed once (the rear part lengthened to ``new_rear``) ``retime_at`` s in."""
+
+    def __init__(self, weight: float, four=0.08, rear=0.05, retime_at=0.03, new_rear=0.06):
+        self.weight, self.four, self.rear, self.retime_at, self.new_rear = weight, four, rear, retime_at, new_rear
+        self.started, self.calls, self.torques = [], [], []
+
+    def start(self, state):
+        self.started.append(state.t)
+        return FroggyPushTiming(self.four, self.rear)
+
+    def command(self, state, since):
+        self.calls.append((state.t, since))
+        timing = None
+        if since >= self.retime_at and len([c for c in self.calls if c[1] >= self.retime_at]) == 1:
+            timing = FroggyPushTiming(self.four, self.new_rear)
+        return PushCommand(np.array([0.5, 0.0, 1.6]) * self.weight, np.zeros(3), timing)
+
+
+def test_a_froggy_push_policy_drives_four_feet_then_the_rear_feet():
+    params = froggy_scaled(FroggyParams(), "a1")
+    world = BulletWorld("a1")
+    policy = FroggyScript(weight=world.mass * 9.81)
+    ctrl = FroggyController("a1", params, push=policy)
+    assert isinstance(policy, FroggyPushPolicy)
+    t_due = params.t_settle + params.t_crouch + params.t_hold
+    stages = []
+    try:
+        run_episode(world, ctrl, ctrl.reset(world), max_time=t_due + 0.4,
+                    on_sample=lambda tick, s, applied: stages.append((s.t, ctrl.phase)))
+    finally:
+        world.close()
+    dt = world.config.dt
+    t0 = policy.started[0]
+    assert policy.started == [t0] and t_due <= t0 < t_due + dt and ctrl.push_start[0] == t0
+    sinces = np.array([s for _, s in policy.calls])
+    assert sinces[0] == 0.0 and np.allclose(np.diff(sinces), dt)
+    assert t0 + 0.14 - dt < policy.calls[-1][0] < t0 + 0.14  # the re-timed end: 0.08 + 0.06 s
+    assert (ctrl.timing.four, ctrl.timing.rear) == pytest.approx((0.08, 0.06))
+    four = {p for t, p in stages if t0 <= t < t0 + 0.08 - dt}
+    rear = {p for t, p in stages if t0 + 0.08 <= t < t0 + 0.14 - dt}
+    assert four == {"push_all"} and rear == {"push_rear"}
+    assert ctrl.liftoff is not None and ctrl.airborne  # 1.6 weights of thrust throw it
+
+
+def test_the_froggy_records_its_events_without_a_policy():
+    params = froggy_scaled(FroggyParams(), "a1")
+    world, ctrl = BulletWorld("a1"), FroggyController("a1", params)
+    try:
+        run_episode(world, ctrl, ctrl.reset(world), max_time=params.max_time)
+    finally:
+        world.close()
+    t0, p0 = ctrl.push_start
+    assert t0 == pytest.approx(params.t_settle + params.t_crouch + params.t_hold, abs=1e-3)
+    pos, vel = ctrl.liftoff
+    assert vel[0] > 0.5 and pos[0] > p0[0]
+    t_td, p_td = ctrl.touchdown
+    assert ctrl.airborne and t_td > t0 + 0.2 and p_td[0] > pos[0]
+
+
+@pytest.mark.parametrize("legs", ["four", "rear"])
+def test_the_froggy_policy_wrench_is_the_torques_derived_force(legs):
+    """The froggy's push_torque, read back as a dataset reads a model's input (massless legs, the
+    feet down), gives the commanded force: on four feet with the commanded moment too, on the
+    rear feet alone the force exactly."""
+    world = BulletWorld("a1")
+    ctrl = FroggyController("a1", froggy_scaled(FroggyParams(), "a1"))
+    try:
+        world.reset(ctrl.reset(world))
+        s = world.state()
+    finally:
+        world.close()
+    ctrl.phase = "push_all" if legs == "four" else "push_rear"
+    F, M = np.array([60.0, 0.0, 150.0]), np.array([0.0, 2.0, 0.0])
+    tau = ctrl.push_torque(s, F, M)
+    contact = np.ones((1, 4)) if legs == "four" else np.array([[0.0, 0.0, 1.0, 1.0]])
+    u = input_from_torques("a1", s.q, tau, contact)
+    np.testing.assert_allclose(u[0, 12:15], F, rtol=0, atol=1e-6)
+    if legs == "four":
+        r = s.foot_pos - s.q[BASE_POS]
+        grf = -np.stack([np.linalg.solve(J.T, t) for J, t in zip(leg_kinematics("a1").one(s.q[JOINTS])[1],
+                                                                     tau.reshape(4, 3))]) @ s.R.T
+        np.testing.assert_allclose(np.cross(r, grf).sum(axis=0), M, atol=1e-6)

@@ -64,7 +64,7 @@ FLAG_VALUES: dict[str, str] = {
     "force=True": "--force", "resume=True": "--resume", "lenient=True": "--lenient",
     "resample=False": "--no-resample", "refit_decoder=False": "--keep-decoder", "physics=None": "--no-physics",
     "retime=True": "--retime-stale", "fixed=True": "--fixed", "refine=True": "--refine", "select=True": "--select",
-    "proxy=True": "--proxy", "randomize=True": "--randomize", "trig=False": "--no-trig",
+    "proxy=True": "--proxy", "randomize=True": "--randomize", "trig=False": "--no-trig", "closest=True": "--closest",
 }
 FLAGS: dict[str, str] = {
     "out": "--out", "split": "--split", "threshold": "--threshold", "max_terms": "--max-terms",
@@ -81,7 +81,8 @@ FLAGS: dict[str, str] = {
     "encoder_base_latents": "--encoder-base-latents", "epochs": "--epochs", "seed": "--seed",
     "prior_weight": "--prior-weight", "tolerance": "--tolerance", "calibration_terms": "--calibration-terms",
     "mpc_solver": "--mpc-solver", "motion": "--motion", "robot": "--robot", "jump": "--jump", "frames": "--frames",
-    "seeds": "--seeds", "lam": "--lambda", "period": "--period", "repair": "--repair", "log_faults": "--log-faults",
+    "seeds": "--seeds", "lam": "--lambda", "control": "--control", "payload": "--payload", "friction": "--friction",
+    "motor_scale": "--motor-scale", "period": "--period", "repair": "--repair", "log_faults": "--log-faults",
 }
 _PARAMETER = re.compile(r"(?<![\w./-])([a-z][a-z0-9_]*)=(?:(True|False|None)|'([\w.,/+-]+)')?")
 

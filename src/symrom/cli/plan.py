@@ -1,4 +1,5 @@
-"""Planning command: ``jump`` (a pronk to a target planned with a model, executed in simulation)."""
+"""Planning command: ``jump`` (a pronk or froggy jump to a target planned with a model, executed in simulation,
+open or closed loop, in a nominal or disturbed world)."""
 
 from __future__ import annotations
 
@@ -18,50 +19,52 @@ def jump_cmd(
     model_path: Annotated[Optional[Path], typer.Argument(
         help="The planner's model: model.json (learned) or an aSLIP params.json (aslip, from symrom aslip); "
              "point-mass needs none.")] = None,
-    robot: Annotated[str, typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml.")] = "go1",
-    target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the pronk's nominal apex).")] = None,
+    robot: Annotated[Optional[str], typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml "
+                                                 "(default: the learned model's robot, else go1).")] = None,
+    target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the motion's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
-    guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown at the take-off height) "
+    guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown heights) "
                                         "or learned (the model's own contact switches; learned planner).")] = "height",
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
+    control: Annotated[Optional[str], typer.Option(
+        "--control", help="plan (the push planned once, open loop) or mpc (re-planned from the measured state at "
+                          "100 Hz); default: plan on the model's own robot, mpc on another robot of its build.")] = None,
+    motion: Annotated[Optional[str], typer.Option("--motion", help="pronk or froggy (default: the model's; point-mass and aslip: pronk).")] = None,
+    payload: Annotated[float, typer.Option("--payload", help="A load fixed to the base, kg (a disturbance).")] = 0.0,
+    friction: Annotated[Optional[float], typer.Option("--friction", help="The ground's friction coefficient (a disturbance; default the engine's).")] = None,
+    motor_scale: Annotated[float, typer.Option("--motor-scale", help="Torque each motor delivers per unit of its command (a disturbance).")] = 1.0,
+    closest: Annotated[bool, typer.Option("--closest", help="Plan the closest reachable jump to a target out of reach (else refused).")] = False,
     trajectory: Annotated[bool, typer.Option("--trajectory/--no-trajectory", help="Also write trajectory.json.")] = True,
     force: Force = False,
 ) -> None:
-    """Plan a pronk to a target with a model (CasADi/IPOPT) and execute it in simulation."""
+    """Plan a jump to a target with a model (CasADi/IPOPT) and execute it in simulation, open or closed loop."""
     import importlib.util
 
     from symrom.atomic import check_output_file
-    from symrom.sim.engines.registry import check_engine
 
     if importlib.util.find_spec("casadi") is None:
         raise ValueError("symrom jump plans with CasADi and IPOPT, which are not installed: pip install 'symrom[export]'")
-    from symrom.plan.jump import PLANNERS, jump, make_planner, read_aslip_params, write_landing
+    from symrom.plan.jump import JumpRequest, OutOfReach, run_jump
 
-    if planner not in PLANNERS:
-        raise ValueError(f"--planner must be one of {', '.join(PLANNERS)}, got {planner!r}")
-    check_engine(engine)
-    if planner == "point-mass" and model_path is not None:
-        raise ValueError(f"the point-mass planner uses no model: leave {model_path} out (or plan with --planner "
-                         "learned or aslip)")
-    if planner != "point-mass" and model_path is None:
-        raise ValueError(f"the {planner} planner needs its model: "
-                         + ("model.json" if planner == "learned" else "an aSLIP params.json (symrom aslip)"))
     check_output_file(out, force, inputs=() if model_path is None else (model_path,))
-    model = aslip = None
-    if planner == "learned":
-        from symrom.model.persistence import load_model
-
-        model = load_model(model_path)
-    elif planner == "aslip":
-        aslip = read_aslip_params(model_path)
-    with console.status(f"building the {planner} planner"):
-        built = make_planner(planner, robot, model=model, aslip=aslip, guards=guards)
+    req = JumpRequest(target_x, target_z, robot, planner, model_path, guards, engine, control, motion, payload,
+                      friction, motor_scale, closest)
     with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
-        result = jump(built, target_x, target_z, engine=engine)
-    write_landing(out, result, trajectory=trajectory, force=force)
+        try:
+            result = run_jump(req, out, trajectory=trajectory, force=force)
+        except OutOfReach as e:
+            raise ValueError(f"{e}; --closest plans the closest reachable jump") from None
     ex = result.execution
+    if result.apex_rule == "at least reachable" and result.apex_floor is not None:
+        warn(f"no plan holds the apex at the motion's nominal height within the torque limits; held at or above "
+             f"{result.apex_floor:.3f} m instead (--target-z sets it)")
     if not result.reachable:
-        warn(f"x = {target_x} m is out of the {planner} model's reach under the force, friction and stance bounds; "
-             f"the closest plan lands at {ex.plan.landing_x:.3f} m")
-    say(f"{planner} plan ({1e3 * ex.plan.solve_time_s:.1f} ms): landed at x = {ex.landing_x:.3f} m for a target of "
-        f"{target_x:.3f} m (error {100 * result.error_x:+.1f} cm), apex {ex.apex_z:.3f} m; {out / 'landing.json'}")
+        warn(f"the target is out of the {planner} planner's reach; planned the closest reachable jump, "
+             f"x = {ex.plan.landing_x:.3f} m, apex {ex.plan.apex_z:.3f} m")
+    loop = ""
+    if ex.replans is not None and ex.replans.solve_time_s:
+        times = sorted(ex.replans.solve_time_s)
+        loop = f", {len(times)} re-plans ({1e3 * times[len(times) // 2]:.2f} ms median)"
+    say(f"{planner} {result.control} ({1e3 * ex.plan.solve_time_s:.1f} ms plan{loop}): landed at x = {ex.landing_x:.3f} m "
+        f"for a target of {target_x:.3f} m (error {100 * result.error_x:+.1f} cm), apex {ex.apex_z:.3f} m; "
+        f"{out / 'landing.json'}")

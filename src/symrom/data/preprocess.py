@@ -4,7 +4,9 @@ The ground-reaction force on foot k in contact is F_k = -(J_k^T)^-1 tau_k, with
 J_k the leg Jacobian at the logged joint angles (from the URDF), rotated from
 the base frame into the world frame. The CoM wrench is [sum F_k,
 sum (p_k - b) x F_k], with b the base position standing for the CoM, and the
-system input is u = [tau, wrench].
+system input is u = [tau, wrench]. The torques the wrench is derived from are those
+that reach the joints: the logged (motor) torques less the actuator effects the
+robot's description states (``joint_torques``; none for the built-in robots).
 """
 
 from __future__ import annotations
@@ -16,8 +18,8 @@ from scipy.signal import savgol_filter
 
 from symrom.data.dataset import Dataset, jump_bounds, validate
 from symrom.data.phases import label_phases
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
-from symrom.robots import leg_kinematics
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, leg_slice
+from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 
 DIFF_METHODS = ("savgol", "central")
@@ -102,6 +104,25 @@ def input_from_torques(robot: str, q: np.ndarray, tau: np.ndarray, contact: np.n
     return np.concatenate([tau, com_wrench(robot, q, tau, np.atleast_2d(contact), foot_pos)], axis=1)
 
 
+def joint_torques(robot: str, tau: np.ndarray, dq: np.ndarray, ddq: np.ndarray) -> np.ndarray:
+    """The torques (N, 12) N m that reach the joints of ``robot``: the motors' tau (N, 12) less
+    what the actuator effects its description states take at the joint speeds and
+    accelerations of dq, ddq (N, 18) (``ActuatorEffects.losses``: damping, friction loss,
+    armature). ``tau`` itself, the same array, for a robot that states none (the built-in
+    robots): the ground force a motor's torque gives is that of what is left of it."""
+    effects = get_robot(robot).actuators
+    if effects.ideal:
+        return tau
+    return np.asarray(tau, float) - effects.losses(np.asarray(dq)[:, JOINTS], np.asarray(ddq)[:, JOINTS])
+
+
+def _inputs(robot, q, dq, ddq, tau, contact, foot_pos) -> np.ndarray:
+    """u (N, 18) of logged motor torques: [tau, the wrench of the joints' torques]."""
+    u = input_from_torques(robot, q, joint_torques(robot, tau, dq, ddq), contact, foot_pos)
+    u[:, :N_JOINTS] = tau
+    return u
+
+
 def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.ndarray,
              q: np.ndarray, dq: np.ndarray, tau: np.ndarray, contact: np.ndarray,
              ddq: np.ndarray | None = None, foot_pos: np.ndarray | None = None,
@@ -111,7 +132,8 @@ def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.nd
     """Build and validate a dataset from raw logs (arrays as in ``Dataset``).
 
     Missing ``ddq`` is obtained by differentiating ``dq``; phases come from the
-    contact flags with the motion's rule; ``u = [tau, wrench]``. Without
+    contact flags with the motion's rule; ``u = [tau, wrench]``, the wrench from the torques
+    that reach the joints (``joint_torques``). Without
     ``split`` every jump is ``train``. ``contact_force`` (N, 4, 3) N: an engine's true
     ground forces, kept as a diagnostic (not in ``u``).
     """
@@ -128,7 +150,7 @@ def assemble(*, robot: str, motion: str, source: str, jump: np.ndarray, t: np.nd
     ds = Dataset(robot=robot, motion=motion, source=source, phase_names=phase_names,
                  jump=jump, t=np.asarray(t, float), q=np.asarray(q, float),
                  dq=np.asarray(dq, float), ddq=np.asarray(ddq, float), tau=np.asarray(tau, float),
-                 contact=contact, u=input_from_torques(robot, q, tau, contact, foot_pos), phase=phase,
+                 contact=contact, u=_inputs(robot, q, dq, ddq, tau, contact, foot_pos), phase=phase,
                  split=np.asarray(split, dtype=object), foot_pos=foot_pos, dt=float(dt),
                  generator=generator, contact_force=contact_force)
     validate(ds)

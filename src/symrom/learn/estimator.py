@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset, jump_bounds
+from symrom.data.envelope import jump_envelope
 from symrom.learn.adam import Adam
 from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
 from symrom.learn.guards import fit_guards
@@ -216,7 +217,8 @@ class SymbolicROM:
                            if r.any() else None, _median_stay(ds, rows, k)))
         data = DataRecord(robot=ds.robot, motion=ds.motion, source=ds.source, dt=ds.dt, q_names=tuple(Q_NAMES),
                           sha256=data_hash(ds), train_rows=int(rows.sum()),
-                          train_jumps=int(np.unique(ds.jump[rows]).size))
+                          train_jumps=int(np.unique(ds.jump[rows]).size),
+                          envelope=jump_envelope(ds, np.unique(ds.jump[rows])))
         training = TrainingRecord(settings=freeze(self.settings),
                                   encoder_rows=(f"the {self.contact_phase!r} phase" if has_contact
                                                 else f"all training rows (they hold no {self.contact_phase!r} row)"),

@@ -276,8 +276,10 @@ class HybridModel:
     # ------------------------------------------------------------ free prediction
     def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,
                             foot_pos: np.ndarray | None = None) -> np.ndarray:
-        """u (N, 18) from q (N, 18), torques (N, 12) N m, contact flags (N, 4) and optional feet
-        (N, 4, 3) m world, for the model's robot: ``symrom.data.preprocess.input_from_torques``."""
+        """u (N, 18) from q (N, 18), torques (N, 12) N m reaching the joints (a robot's motors' less
+        the actuator effects its description states: ``symrom.data.preprocess.joint_torques``),
+        contact flags (N, 4) and optional feet (N, 4, 3) m world, for the model's robot:
+        ``symrom.data.preprocess.input_from_torques``."""
         from symrom.data.preprocess import input_from_torques
 
         robot = self.provenance.data.robot

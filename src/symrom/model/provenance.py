@@ -73,8 +73,9 @@ class DataRecord(_Record):
     """The data a model was fitted on: robot (its key: a built-in name or a description file),
     motion, source (``sim``, ``proxy``, ``hardware`` ...), sample period ``dt`` (s), joint
     layout ``q_names``, ``sha256`` of the arrays (``symrom.learn.estimator.data_hash``), the
-    file it was read from (``path``; None when not from a file), and the training rows and
-    jumps. None: not recorded."""
+    file it was read from (``path``; None when not from a file), the training rows and
+    jumps, and what those jumps did (``envelope``: ``symrom.data.envelope.jump_envelope``, the
+    part of a planner's reach the data vouch for). None: not recorded."""
 
     robot: str | None = None
     motion: str | None = None
@@ -85,6 +86,7 @@ class DataRecord(_Record):
     path: str | None = None
     train_rows: int | None = None
     train_jumps: int | None = None
+    envelope: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)

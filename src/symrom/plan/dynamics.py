@@ -45,8 +45,9 @@ class PlanDynamics(Protocol):
     name: str
     n_state: int
 
-    def stance(self, s: ca.SX, F: ca.SX) -> ca.SX:
-        """ds/dt (n,) in stance under the summed ground force F (2,) N (x, z)."""
+    def stance(self, s: ca.SX, F: ca.SX, phase: str = STANCE_PHASE) -> ca.SX:
+        """ds/dt (n,) in the stance phase ``phase`` (``contact``, or a froggy's ``partial``)
+        under the summed ground force F (2,) N (x, z) of the feet down."""
 
     def flight(self, s: ca.SX) -> ca.SX:
         """ds/dt (n,) in flight."""
@@ -69,7 +70,7 @@ class PointMass:
     name: str = "point-mass"
     n_state: int = 4
 
-    def stance(self, s, F):
+    def stance(self, s, F, phase=STANCE_PHASE):
         return ca.vertcat(s[2], s[3], F[0] / self.m, F[1] / self.m - GRAVITY)
 
     def flight(self, s):
@@ -96,7 +97,7 @@ class ASlipDynamics(PointMass):
     pivot: tuple[float, float] = (0.0, 0.0)
     name: str = "aslip"
 
-    def stance(self, s, F):
+    def stance(self, s, F, phase=STANCE_PHASE):
         p = self.params
         leg = s[0:2] - ca.DM(self.pivot)
         r = ca.sqrt(ca.sumsqr(leg) + 1e-12)
@@ -108,26 +109,32 @@ class LearnedDynamics:
     """A ``HybridModel``'s latent dynamics with the planned force as its input (module docstring).
 
     B (l, 2): nu = B F, the model's input for a summed ground force F = (F_x, F_z) N
-    (``plan.inputs.force_input_map``)."""
+    (``plan.inputs.force_input_map``) in the ``contact`` phase, or a dict of such maps by
+    stance phase (a froggy's ``partial`` too: the rear feet's). ``stances``: the stance
+    phases the push runs through (default those of B)."""
 
     name = "learned"
 
-    def __init__(self, model: HybridModel, B: np.ndarray):
+    def __init__(self, model: HybridModel, B: np.ndarray | dict[str, np.ndarray]):
         from symrom.export import casadi_functions
 
-        for phase in (STANCE_PHASE, FLIGHT_PHASE):
+        maps = dict(B) if isinstance(B, dict) else {STANCE_PHASE: B}
+        for phase in (*maps, FLIGHT_PHASE):
             if phase not in model.trained_phases():
                 raise PlanModelError(f"the model has no trained {phase!r} phase (its phases: "
-                                     f"{', '.join(model.trained_phases())}); a jump is planned over "
-                                     f"{STANCE_PHASE!r} then {FLIGHT_PHASE!r}")
+                                     f"{', '.join(model.trained_phases())}); the jump is planned over "
+                                     f"{', '.join(repr(p) for p in (*maps, FLIGHT_PHASE))}")
         self.model, self.l = model, model.latent_dim
         self.n_state = 2 * self.l
-        B = np.asarray(B, dtype=float)
-        if B.shape != (self.l, 2):
-            raise PlanModelError(f"input map B: shape {B.shape}, expected {(self.l, 2)}")
-        self.B = B
+        self.B_of: dict[str, np.ndarray] = {}
+        for phase, b in maps.items():
+            b = np.asarray(b, dtype=float)
+            if b.shape != (self.l, 2):
+                raise PlanModelError(f"input map B of {phase!r}: shape {b.shape}, expected {(self.l, 2)}")
+            self.B_of[phase] = b
+        self.B = self.B_of[next(iter(self.B_of))]  # the first stance's (a pronk's contact)
         fns = casadi_functions(model)
-        self._acc = {p: fns[f"accel_{p}"] for p in (STANCE_PHASE, FLIGHT_PHASE)}
+        self._acc = {p: fns[f"accel_{p}"] for p in (*self.B_of, FLIGHT_PHASE)}
         ae = model.autoencoder
         rows = ae.W_d[[_X, _Z]]  # (2, l): decoded x, z per latent
         if np.linalg.matrix_rank(rows) < 2:
@@ -135,10 +142,10 @@ class LearnedDynamics:
                                  f"(decoder rows x, z: {rows.tolist()}); it cannot plan a landing point")
         self._Wd, self._Bd = ca.DM(rows), ca.DM(ae.B_d[[_X, _Z]])
 
-    def stance(self, s, F):
+    def stance(self, s, F, phase=STANCE_PHASE):
         l = self.l
-        nu = ca.mtimes(ca.DM(self.B), F)
-        return ca.vertcat(s[l:], self._acc[STANCE_PHASE](s, nu))
+        nu = ca.mtimes(ca.DM(self.B_of[phase]), F)
+        return ca.vertcat(s[l:], self._acc[phase](s, nu))
 
     def flight(self, s):
         l = self.l

@@ -1,25 +1,29 @@
 """A planned jump executed in simulation, the same way whichever model planned it.
 
-The pronk (``sim.controllers.pronk``) runs unchanged but for its push, which a push
-policy (``PlannedPush``, a ``PushPolicy``) drives:
+The motion's controller runs unchanged but for its push, which a push policy
+(``PlannedPush``) drives: the pronk (``sim.controllers.pronk``, a ``PushPolicy``) or the
+froggy (``sim.controllers.froggy``, a ``FroggyPushPolicy``: four feet, then the rear feet
+alone):
 
-1. *Crouch and hold*: the pronk's standing start and MPC crouch.
+1. *Crouch and hold*: the controller's own start and crouch.
 2. *Plan*: when the push is due, the policy's ``start`` hands the planner the measured
    state and gets a ``Plan`` (one solve; its wall time is the plan's solve time); the
-   push then lasts the planned stance duration.
+   push then lasts the planned stances' durations.
 3. *Push*: at every tick the policy commands the planned force F(t) (piecewise constant)
-   and an attitude PD's moment about the CoM (``AttitudeGains``: it keeps the trunk level
-   and does not change the sum); the pronk makes joint torques whose ground force through
-   massless legs is that wrench (``PronkController.push_torque``), as a model's input is
-   derived from torques (``data.preprocess``).
-4. *Flight and landing*: the pronk's flight joint PD (landing posture at the take-off leg
-   length) and its MPC landing, from the first touchdown.
+   and an attitude PD's moment (``AttitudeGains``: it keeps the trunk level and does not
+   change the sum); the controller makes joint torques whose ground force through massless
+   legs is that wrench (the pronk's ``push_torque``, the froggy's), as a model's input is
+   derived from torques (``data.preprocess``). Closed loop (``Feedback``): every
+   ``period`` s of the push (from its first tick) the rest of the push is re-planned from
+   the measured state (``plan.replan``) and F(t) and the push's end follow the new schedule.
+4. *Flight and landing*: the controller's own.
 
-The episode is the one loop every simulated jump runs (``sim.generation.episode``).
+The episode is the one loop every simulated jump runs (``sim.generation.episode``), on the
+engine's world with the ``Disturbances`` asked for (``sim.proxy.DisturbedWorld``).
 
 Landing point: the base's x at the first touchdown after the push (the first
 physics tick with a foot in contact once the flight has lasted 0.05 s, the
-pronk's rule), measured from the base's x at the start of the push, along the
+controllers' rule), measured from the base's x at the start of the push, along the
 heading (world x). The apex is the largest base height between the end of the
 push and that touchdown. Where the robot comes to rest is reported as well
 (``rest_x``). Units: m, s, N, N m.
@@ -29,15 +33,23 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY
 from symrom.plan.problem import Plan
-from symrom.sim.controllers.pronk import PronkController, PronkParams, PushCommand, PushTiming, heading, scales
+from symrom.plan.replan import ReplanStats, Schedule
+from symrom.sim.controllers.froggy import FroggyController, FroggyParams, FroggyPushTiming
+from symrom.sim.controllers.froggy import scaled as froggy_scaled
+from symrom.sim.controllers.motion import PushCommand
+from symrom.sim.controllers.pronk import PronkController, PronkParams, PushTiming, heading, scales
 from symrom.sim.engines.registry import make_world
 from symrom.sim.engines.world import RobotState, WorldConfig
 from symrom.sim.generation.episode import run_episode
+from symrom.sim.proxy import Disturbances, DisturbedWorld
+
+MOTIONS = ("pronk", "froggy")
 
 
 class ExecutionError(RuntimeError):
@@ -51,43 +63,89 @@ class AttitudeGains:
     length^2 for other robots (the pronk's ``scales``). Chosen so that the trunk leaves the
     ground as level as in the pronk's own jumps (pitch at lift-off -0.02..0.01 rad in the
     training data; 0.015 rad median with these gains, 0.043 with 60 and 4, on the tuning
-    targets), whatever the planner."""
+    targets), whatever the planner. A froggy push holds the pitch it began with (its crouch's
+    nose-down pitch), the roll and the yaw."""
 
     kp: float = 200.0
     kd: float = 8.0
 
 
+class Feedback(Protocol):
+    """A closed loop on a planned push: ``begin(plan, state)`` once the plan is made at the
+    push's first tick; then every ``period`` s ``replan(state, since)`` re-plans the rest of
+    the push from the measured state and returns the new ``Schedule``; ``stats`` records each
+    re-plan."""
+
+    period: float
+    stats: ReplanStats
+
+    def begin(self, plan: Plan, state: RobotState) -> Schedule:
+        """The schedule of the plan made at the push's first tick."""
+
+    def replan(self, state: RobotState, since: float) -> Schedule:
+        """The rest of the push re-planned from ``state``, ``since`` s after it began."""
+
+
 class PlannedPush:
-    """The pronk's push by a plan (a ``sim.controllers.pronk.PushPolicy``; module docstring):
-    ``plan_fn(state) -> Plan`` is called once, when the push is due; then the plan's force
-    F(t) along the heading of ``yaw`` rad, with the attitude PD (``AttitudeGains`` for the
-    Go1, scaled to ``robot``) holding the trunk level at that yaw. ``result``: the ``Plan``,
-    None until the push began."""
+    """A motion's push by a plan (module docstring): a pronk ``PushPolicy`` or a froggy
+    ``FroggyPushPolicy`` (``motion``). ``plan_fn(state) -> Plan`` is called once, when the
+    push is due; then the plan's force F(t) along the heading of ``yaw`` rad, with the
+    attitude PD (``AttitudeGains`` for the Go1, scaled to ``robot``) holding the trunk at that
+    yaw, level (the pronk) or at the pitch the push began with (the froggy). With
+    ``feedback``, F(t) and the push's end follow its re-plans. ``result``: the ``Plan``,
+    None until the push began; ``schedule``: the schedule in force (closed loop)."""
 
     def __init__(self, robot: str, yaw: float, plan_fn: Callable[[RobotState], Plan],
-                 attitude: AttitudeGains | None = None):
+                 attitude: AttitudeGains | None = None, motion: str = "pronk", feedback: Feedback | None = None):
+        if motion not in MOTIONS:
+            raise ValueError(f"unknown motion {motion!r}; choose from {', '.join(MOTIONS)}")
         mass, length = scales(robot)
         a = attitude or AttitudeGains()
         self.attitude = AttitudeGains(a.kp * mass * length ** 2, a.kd * mass * length ** 2)
-        self.plan_fn = plan_fn
+        self.plan_fn, self.motion, self.feedback = plan_fn, motion, feedback
         self.yaw = yaw
         self._e = heading(yaw)
         self.result: Plan | None = None
+        self.schedule: Schedule | None = None
+        self._last = -np.inf
+        self._pitch = 0.0
+        self._four_end: float | None = None  # s: when the froggy's four-foot part ends
 
-    def start(self, state: RobotState) -> PushTiming:
-        plan = self.result = self.plan_fn(state)
+    def _timing(self, schedule_end: float, four_end: float | None, plan: Plan):
+        if self.motion == "froggy":
+            return FroggyPushTiming(four=four_end, rear=schedule_end - four_end)
         v = plan.liftoff
-        return PushTiming(duration=plan.t_stance, vx=float(v[0]), vz=float(v[1]),
-                          flight_time=plan.t_rise + plan.t_fall)
+        return PushTiming(duration=schedule_end, vx=float(v[0]), vz=float(v[1]), flight_time=plan.t_rise + plan.t_fall)
+
+    def start(self, state: RobotState):
+        plan = self.result = self.plan_fn(state)
+        if self.motion == "froggy":
+            self._pitch = float(state.q[BASE_RPY][1])
+            self._four_end = plan.durations[0]
+        if self.feedback is not None:
+            self.schedule = self.feedback.begin(plan, state)
+        four = plan.durations[0] if self.motion == "froggy" else None
+        return self._timing(plan.t_stance, four, plan)
 
     def command(self, state: RobotState, since: float) -> PushCommand:
-        Fx, Fz = self.result.force_at(since)
+        timing = None
+        if self.feedback is not None:
+            if since - self._last >= self.feedback.period - 1e-9:
+                self._last = since
+                if since > 0:  # the plan itself was made at this tick
+                    sch = self.schedule = self.feedback.replan(state, since)
+                    if self.motion == "froggy" and sch.first == 0:
+                        self._four_end = sch.ends[0]
+                    timing = self._timing(sch.end, self._four_end, self.result)
+            Fx, Fz = self.schedule.force_at(since)
+        else:
+            Fx, Fz = self.result.force_at(since)
         e = self._e
         F = np.array([Fx * e[0], Fx * e[1], Fz])
-        err = state.q[BASE_RPY] - np.array([0.0, 0.0, self.yaw])
+        err = state.q[BASE_RPY] - np.array([0.0, self._pitch, self.yaw])
         err[2] = (err[2] + np.pi) % (2 * np.pi) - np.pi
         M = -self.attitude.kp * err - self.attitude.kd * state.omega
-        return PushCommand(F, M)
+        return PushCommand(F, M, timing)
 
 
 @dataclass
@@ -95,8 +153,9 @@ class Execution:
     """An executed jump: landing_x m (module docstring), apex_z m, rest_x m (base x at the end,
     from the push start), t_push / t_touchdown s, finished (settled before max_time), the plan,
     liftoff (4,): the base's x (from the push start), z (m), vx, vz (m/s) when the push ended,
-    and the trajectory at log_hz: t (n,) s, base (n, 6) x, y, z, roll, pitch, yaw, contact (n, 4),
-    phase (n,) names."""
+    the trajectory at log_hz: t (n,) s, base (n, 6) x, y, z, roll, pitch, yaw, contact (n, 4),
+    phase (n,) names; motion; disturbances; replans: each re-plan's record (closed loop), else
+    None; push_s: how long the executed push lasted, s."""
 
     landing_x: float
     apex_z: float
@@ -107,18 +166,34 @@ class Execution:
     plan: Plan
     liftoff: np.ndarray
     trajectory: dict = field(default_factory=dict)
+    motion: str = "pronk"
+    disturbances: Disturbances = field(default_factory=Disturbances)
+    replans: ReplanStats | None = None
+    push_s: float = float("nan")
 
 
 def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "pybullet",
-            params: PronkParams | None = None, config: WorldConfig | None = None,
-            attitude: AttitudeGains | None = None) -> Execution:
-    """Run one planned pronk on ``engine`` (module docstring); raise ``ExecutionError`` if the
-    robot never leaves the ground or never lands."""
-    params = params or PronkParams()
+            params: PronkParams | FroggyParams | None = None, config: WorldConfig | None = None,
+            attitude: AttitudeGains | None = None, motion: str = "pronk", feedback: Feedback | None = None,
+            disturbances: Disturbances | None = None) -> Execution:
+    """Run one planned jump of ``motion`` (``pronk`` or ``froggy``) on ``engine`` (module
+    docstring), in a world with ``disturbances``, closed loop with ``feedback``; raise
+    ``ExecutionError`` if the robot never leaves the ground or never lands."""
+    if motion not in MOTIONS:
+        raise ValueError(f"unknown motion {motion!r}; choose from {', '.join(MOTIONS)}")
     config = config or WorldConfig()
-    push = PlannedPush(robot, params.yaw, plan_fn, attitude)
-    ctrl = PronkController(robot, params, push=push)
+    disturbances = disturbances or Disturbances()
+    if motion == "pronk":
+        params = params or PronkParams()
+        yaw = params.yaw
+    else:
+        params = params or froggy_scaled(FroggyParams(), robot)
+        yaw = 0.0
+    push = PlannedPush(robot, yaw, plan_fn, attitude, motion, feedback)
+    ctrl = PronkController(robot, params, push=push) if motion == "pronk" else FroggyController(robot, params, push=push)
     world = make_world(engine, robot, config)
+    if not disturbances.none:
+        world = DisturbedWorld(world, disturbances)
     log = {"t": [], "base": [], "contact": [], "phase": []}
 
     def on_sample(tick: int, s: RobotState, applied: np.ndarray) -> None:
@@ -139,21 +214,25 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
         raise ExecutionError(f"no touchdown after the planned push: the robot {what}")
     t0, p0 = ctrl.push_start
     t_td, p_td = ctrl.touchdown
-    e = ctrl.heading
+    e = heading(yaw)
     base = np.asarray(log["base"], float)
     t = np.asarray(log["t"], float)
-    air = (t >= t0 + ctrl.plan.push_time) & (t <= t_td)
+    if motion == "pronk":
+        push_s = ctrl.plan.push_time
+    else:
+        tm = ctrl.timing
+        push_s = tm.four + tm.rear
+    air = (t >= t0 + push_s) & (t <= t_td)
     apex = float(base[air, 2].max()) if air.any() else float(p_td[2])
+    p_lo, v_lo = ctrl.liftoff
+    liftoff = np.array([(p_lo - p0) @ e, p_lo[2], v_lo @ e, v_lo[2]])
     return Execution(landing_x=float((p_td - p0) @ e), apex_z=apex,
                      rest_x=float((end.q[BASE_POS] - p0) @ e), t_push=float(t0), t_touchdown=float(t_td),
-                     finished=finished, plan=push.result, liftoff=_liftoff(ctrl, p0, e),
+                     finished=finished, plan=push.result, liftoff=liftoff,
                      trajectory={"t": t, "base": base, "contact": np.asarray(log["contact"], int),
-                                 "phase": log["phase"]})
+                                 "phase": log["phase"]},
+                     motion=motion, disturbances=disturbances,
+                     replans=feedback.stats if feedback is not None else None, push_s=float(push_s))
 
 
-def _liftoff(ctrl: PronkController, p0: np.ndarray, e: np.ndarray) -> np.ndarray:
-    p, v = ctrl.liftoff
-    return np.array([(p - p0) @ e, p[2], v @ e, v[2]])
-
-
-__all__ = ["AttitudeGains", "Execution", "ExecutionError", "PlannedPush", "execute"]
+__all__ = ["MOTIONS", "AttitudeGains", "Execution", "ExecutionError", "Feedback", "PlannedPush", "execute"]

@@ -9,9 +9,11 @@ the problem. ``HeightGuards`` is the rule the pronk executes:
   lift-off height z_lo (the motion's take-off height: the legs are then still
   within reach) and moves up;
 - apex where the base's vertical speed is zero;
-- touchdown where the base height has come back to the lift-off level, moving
-  down: the flight controller holds the legs at the take-off length, so the feet
-  meet the ground when the base is back at that height.
+- touchdown where the base height has come back to the touchdown level z_td,
+  moving down: the pronk's flight controller holds the legs at the take-off
+  length, so its feet meet the ground when the base is back at the lift-off
+  height (z_td = z_lo); a froggy jump lands nose down, lower than it left
+  (z_td from its training data, ``plan.jump``).
 
 ``LearnedGuards`` puts the model's own learned switches (``model.guards``) in
 their place. Each method returns ``(expression, lower, upper)`` triples, CasADi SX.
@@ -36,8 +38,8 @@ class Guards(Protocol):
     def apex(self, dyn, s: ca.SX) -> list[Constraint]:
         """Constraints on the state s at the top of the flight."""
 
-    def touchdown(self, dyn, s: ca.SX, z_lo: ca.SX) -> list[Constraint]:
-        """Constraints on the state s at touchdown."""
+    def touchdown(self, dyn, s: ca.SX, z_td: ca.SX) -> list[Constraint]:
+        """Constraints on the state s at touchdown (z_td: the motion's touchdown height, m)."""
 
 
 @dataclass(frozen=True)
@@ -53,8 +55,8 @@ class HeightGuards:
     def apex(self, dyn, s):
         return [(dyn.velocity(s)[1], 0.0, 0.0)]
 
-    def touchdown(self, dyn, s, z_lo):
-        return [(dyn.position(s)[1] - z_lo, 0.0, 0.0), (dyn.velocity(s)[1], -ca.inf, 0.0)]
+    def touchdown(self, dyn, s, z_td):
+        return [(dyn.position(s)[1] - z_td, 0.0, 0.0), (dyn.velocity(s)[1], -ca.inf, 0.0)]
 
 
 @dataclass(frozen=True)
@@ -62,8 +64,8 @@ class LearnedGuards:
     """The model's own learned switches (``model.guards``: an affine g of z = [xi, dxi, nu]
     that fires at g >= 0), for a ``LearnedDynamics`` planner:
 
-    - lift-off: the ``contact -> flight`` guard is met (g = 0) at the end of the planned stance,
-      nu = B F of the last force, the base rising;
+    - lift-off: the ``contact -> flight`` guard (a froggy's ``partial -> flight``) is met
+      (g = 0) at the end of the planned push, nu = B F of the last force, the base rising;
     - apex: the vertical speed is zero and the ``flight -> contact`` guard has not fired (g <= 0);
     - touchdown: the ``flight -> contact`` guard is met (g = 0, nu = 0 in flight), falling.
 
@@ -71,19 +73,21 @@ class LearnedGuards:
     crouch already keeps the robot in contact longer than any learned dwell, and a pronk's
     flight lasts twice the ``flight`` dwell or more."""
 
-    lift: object  # symrom.model.guards.Guard, contact -> flight
+    lift: object  # symrom.model.guards.Guard, the last stance phase -> flight
     land: object  # symrom.model.guards.Guard, flight -> contact
     min_rise_speed: float = 0.3  # m/s, as HeightGuards
 
     @classmethod
-    def of(cls, model, stance: str = STANCE_PHASE, flight: str = FLIGHT_PHASE) -> LearnedGuards:
-        """The guards of ``model`` (a ``HybridModel``); ValueError if it lacks either switch."""
+    def of(cls, model, stance: str = STANCE_PHASE, flight: str = FLIGHT_PHASE,
+           landing: str = STANCE_PHASE) -> LearnedGuards:
+        """The guards of ``model`` (a ``HybridModel``): lift-off ``stance -> flight`` (the push's
+        last stance phase), touchdown ``flight -> landing``; ValueError if it lacks either."""
         found = {(g.source, g.target): g for g in getattr(model, "guards", None) or []}
-        for pair in ((stance, flight), (flight, stance)):
+        for pair in ((stance, flight), (flight, landing)):
             if pair not in found:
                 raise ValueError(f"the model has no learned {pair[0]} -> {pair[1]} guard (a model trained "
                                  "before guards were learned, or without that transition)")
-        return cls(found[(stance, flight)], found[(flight, stance)])
+        return cls(found[(stance, flight)], found[(flight, landing)])
 
     @staticmethod
     def _g(guard, dyn, s, nu):
@@ -92,11 +96,11 @@ class LearnedGuards:
         return guard.bias + sum(float(w) * z[int(i)] for w, i in zip(guard.weights, guard.indices(l)))
 
     def liftoff(self, dyn, s, z_lo, F):
-        nu = ca.mtimes(ca.DM(dyn.B), F)
+        nu = ca.mtimes(ca.DM(dyn.B_of[self.lift.source]), F)
         return [(self._g(self.lift, dyn, s, nu), 0.0, 0.0), (dyn.velocity(s)[1], self.min_rise_speed, ca.inf)]
 
     def apex(self, dyn, s):
         return [(dyn.velocity(s)[1], 0.0, 0.0), (self._g(self.land, dyn, s, ca.DM.zeros(dyn.l)), -ca.inf, 0.0)]
 
-    def touchdown(self, dyn, s, z_lo):
+    def touchdown(self, dyn, s, z_td):
         return [(self._g(self.land, dyn, s, ca.DM.zeros(dyn.l)), 0.0, 0.0), (dyn.velocity(s)[1], -ca.inf, 0.0)]

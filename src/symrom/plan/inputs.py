@@ -27,35 +27,41 @@ from symrom.robots import leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 
 
-def stance_input(robot: str, q: np.ndarray, F: np.ndarray) -> np.ndarray:
+ALL_LEGS = tuple(range(N_LEGS))
+
+
+def stance_input(robot: str, q: np.ndarray, F: np.ndarray, legs: tuple[int, ...] = ALL_LEGS) -> np.ndarray:
     """u (18,) = [tau (12) N m, wrench (6)] of the summed world force F (3,) N shared equally by
-    the four feet at configuration q (18,): tau_k = -J_k^T R^T F / 4, the wrench from tau as the
-    data derive it."""
+    the feet ``legs`` (default all four; a froggy's rear-only push: (2, 3)) at configuration q
+    (18,): tau_k = -J_k^T R^T F / len(legs) for those legs, 0 for the others, the wrench from
+    tau as the data derive it (those feet down)."""
     q = np.asarray(q, dtype=float).reshape(N_Q)
     J = leg_kinematics(robot).jacobians(q[None, JOINTS])[0]  # (4, 3, 3), base frame
     R = rpy_to_matrix(q[None, BASE_RPY])[0]
-    f_base = R.T @ (np.asarray(F, dtype=float) / N_LEGS)
-    tau = np.concatenate([-J[k].T @ f_base for k in range(N_LEGS)])
-    return input_from_torques(robot, q[None], tau[None], np.ones((1, N_LEGS)))[0]
+    f_base = R.T @ (np.asarray(F, dtype=float) / len(legs))
+    tau = np.concatenate([-J[k].T @ f_base if k in legs else np.zeros(3) for k in range(N_LEGS)])
+    contact = np.array([[1.0 if k in legs else 0.0 for k in range(N_LEGS)]])
+    return input_from_torques(robot, q[None], tau[None], contact)[0]
 
 
-def force_input_map(model: HybridModel, robot: str, q: np.ndarray) -> np.ndarray:
-    """B (l, 2): the model's input nu = B (F_x, F_z) for a summed ground force at configuration
-    q (18,) (module docstring)."""
-    cols = [model.autoencoder.encode_input(stance_input(robot, q, e)[None])[0]
+def force_input_map(model: HybridModel, robot: str, q: np.ndarray, legs: tuple[int, ...] = ALL_LEGS) -> np.ndarray:
+    """B (l, 2): the model's input nu = B (F_x, F_z) for a summed ground force on the feet
+    ``legs`` at configuration q (18,) (module docstring)."""
+    cols = [model.autoencoder.encode_input(stance_input(robot, q, e, legs)[None])[0]
             for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
     return np.stack(cols, axis=1)
 
 
-def torque_map(robot: str, qs: list[np.ndarray], limits: np.ndarray, share: float = 0.9) -> tuple[np.ndarray, np.ndarray]:
+def torque_map(robot: str, qs: list[np.ndarray], limits: np.ndarray, share: float = 0.9,
+               legs: tuple[int, ...] = ALL_LEGS) -> tuple[np.ndarray, np.ndarray]:
     """(A (m, 2), bounds (m,)): the joint torques A F (N m) that a summed force F = (F_x, F_z) N
-    shared equally by the four feet asks of every joint at each configuration of ``qs`` (each
-    (18,)), and ``share`` of the joint's torque limit (``limits`` (12,) N m) as its bound, the
-    rest left to the execution's joint PD and attitude moment. Rows that bound the same torque
-    (mirrored legs) appear once."""
+    shared equally by the feet ``legs`` asks of every joint at each configuration of ``qs``
+    (each (18,)), and ``share`` of the joint's torque limit (``limits`` (12,) N m) as its
+    bound, the rest left to the execution's joint PD and attitude moment. Rows that bound the
+    same torque (mirrored legs) appear once."""
     rows, bounds = [], []
     for q in qs:
-        cols = [stance_input(robot, q, e)[:12] for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
+        cols = [stance_input(robot, q, e, legs)[:12] for e in (np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))]
         rows.append(np.stack(cols, axis=1))
         bounds.append(share * np.asarray(limits, dtype=float))
     A, b = np.concatenate(rows), np.concatenate(bounds)

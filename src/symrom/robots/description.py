@@ -27,6 +27,7 @@ from symrom.robots.mjcf import FOOT_KINDS, FOOT_LINK, Feet, RobotModelError
 FORMAT = 2  # the newest format this symrom reads and writes
 FORMATS = (1, 2)  # the formats it reads
 PYBULLET_DATA = "pybullet_data:"  # urdf prefix: a path inside the pybullet_data package
+FRICTION_SPEED = 0.1  # rad/s: a joint's friction loss takes its full torque from this speed on
 
 _KEYS: dict[str, tuple[str, ...] | None] = {  # top-level key -> allowed sub-keys (None: a value)
     "format": None, "name": None, "urdf": None, "base_link": None,
@@ -80,6 +81,25 @@ class ActuatorEffects:
     def ideal(self) -> bool:
         """Whether every effect is zero (an ideal motor)."""
         return not any(self.damping) and not any(self.armature) and not any(self.friction_loss)
+
+    def __add__(self, other: ActuatorEffects) -> ActuatorEffects:
+        """Both effects at once, joint by joint (a robot's stated ones and hardware's on top)."""
+        return ActuatorEffects(*(tuple(a + b for a, b in zip(getattr(self, n), getattr(other, n)))
+                                 for n in ("damping", "armature", "friction_loss")))
+
+    def losses(self, dq: np.ndarray, ddq: np.ndarray | None = None) -> np.ndarray:
+        """The torques (..., 12) N m the effects take from the motors at joint speeds dq (..., 12)
+        rad/s and, if given, accelerations ddq (..., 12) rad/s^2 (in symrom's signs or the
+        model's alike: a loss turns with its joint): damping x dq + friction_loss x s(dq) + armature x ddq, where the
+        friction's sign s ramps linearly through zero over +-``FRICTION_SPEED`` (the engines'
+        friction loss is a regularised constraint, not a jump at rest). A motor's torque less
+        these is what reaches the joint."""
+        dq = np.asarray(dq, dtype=float)
+        out = np.asarray(self.damping) * dq
+        out = out + np.asarray(self.friction_loss) * np.clip(dq / FRICTION_SPEED, -1.0, 1.0)
+        if ddq is not None:
+            out = out + np.asarray(self.armature) * np.asarray(ddq, dtype=float)
+        return out
 
 
 @dataclass(frozen=True)

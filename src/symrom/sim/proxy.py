@@ -51,7 +51,11 @@ Use, in this order (what a runner does)::
     logged = world.logged_torque(tau_cmd, applied)  # what the log holds (torque_log)
 
 ``apply_to_world(world, cfg)``, ``TorqueChannel`` and ``SensorModel`` are the
-parts, usable on their own. Units: s, m, rad, N m; arrays as in
+parts, usable on their own.
+
+Disturbances a model's data never held, for testing a controller (``Disturbances``,
+``DisturbedWorld``, on any engine): a payload fixed to the base, the ground's friction, motors
+that deliver a fraction of their command. Units: s, m, rad, N m; arrays as in
 ``symrom.sim.engines.world``.
 """
 
@@ -243,7 +247,9 @@ def for_engine(cfg: ProxyConfig, engine: str) -> ProxyConfig:
 
 def apply_to_world(world, cfg: ProxyConfig) -> None:
     """Scale the robot's link masses and inertias, set the ground friction and contact and the
-    joints' damping, armature and friction loss, in place.
+    joints' damping, armature and friction loss, in place: the proxy's on top of those the
+    robot's description states (hardware the controllers do not know of; the built-in robots
+    state none).
 
     world: any engine's world (``symrom.sim.engines.world.World``); an engine without armature
     refuses a non-zero one (``for_engine`` first).
@@ -253,7 +259,7 @@ def apply_to_world(world, cfg: ProxyConfig) -> None:
     if cfg.contact_stiffness is not None:
         world.set_ground_contact(cfg.contact_stiffness, cfg.contact_damping)
     if not cfg.effects.ideal:
-        world.set_actuator_effects(cfg.effects)
+        world.set_actuator_effects(world.spec.actuators + cfg.effects)
 
 
 class TorqueChannel:
@@ -370,6 +376,69 @@ class ProxyWorld:
         if c.torque_log == "measured":
             return self._bias + c.torque_scale * applied
         return applied
+
+    def apply_base_force(self, force_world: np.ndarray) -> None:
+        self.world.apply_base_force(force_world)
+
+    def close(self) -> None:
+        self.world.close()
+
+
+@dataclass(frozen=True)
+class Disturbances:
+    """What a world may differ by from the one a model was learned in, for testing a controller
+    (none by default): payload kg fixed to the base at its centre of mass
+    (``World.add_payload``); friction: the ground's friction coefficient (None: the engine's);
+    motor_scale: the torque each motor delivers per unit of its command (1: all of it)."""
+
+    payload: float = 0.0
+    friction: float | None = None
+    motor_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.payload) and self.payload >= 0):
+            raise ValueError(f"payload must be a mass >= 0 kg, got {self.payload}")
+        if self.friction is not None and not (np.isfinite(self.friction) and self.friction > 0):
+            raise ValueError(f"friction must be a coefficient > 0, got {self.friction}")
+        if not (np.isfinite(self.motor_scale) and 0 < self.motor_scale <= 2):
+            raise ValueError(f"motor_scale must be in (0, 2], got {self.motor_scale}")
+
+    @property
+    def none(self) -> bool:
+        return self.payload == 0 and self.friction is None and self.motor_scale == 1
+
+    def to_dict(self) -> dict:
+        return {"payload_kg": self.payload, "friction": self.friction, "motor_scale": self.motor_scale}
+
+
+class DisturbedWorld:
+    """A world of any engine with ``Disturbances``: the payload and the friction set at
+    construction, and every motor delivering ``motor_scale`` times its command (clipped to the
+    limits first, as a motor driver would); the same methods (a
+    ``symrom.sim.engines.world.World``). ``step`` returns what the joints got."""
+
+    def __init__(self, world, disturbances: Disturbances):
+        self.world, self.disturbances = world, disturbances
+        if disturbances.payload:
+            world.add_payload(disturbances.payload)
+        if disturbances.friction is not None:
+            world.set_ground_friction(disturbances.friction)
+        self._scale = float(disturbances.motor_scale)
+
+    def __getattr__(self, name):
+        return getattr(self.world, name)
+
+    def reset(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:
+        self.world.reset(q, dq)
+
+    def state(self):
+        return self.world.state()
+
+    def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
+        if self._scale != 1.0:
+            limit = self.world.torque_limit
+            tau = self._scale * np.minimum(np.maximum(np.asarray(tau, dtype=float), -limit), limit)
+        return self.world.step(tau, report)
 
     def apply_base_force(self, force_world: np.ndarray) -> None:
         self.world.apply_base_force(force_world)

@@ -22,12 +22,28 @@ The hip abduction (hx) joints are held at their standing angle by the world
 errors are 1e-10 rad); ``FroggyParams(hold_hx=False)`` drives them by the
 Cartesian PD like the other joints. The parameters were tuned on the A1; for
 another robot they are scaled by its mass and leg length (``scaled``), as pronk
-scales its own.
+scales its own. A robot whose description states actuator effects gets the legs' torques
+
+A push policy. ``FroggyController(..., push=policy)`` hands the push (four feet, then the
+plus what those take (damping and friction loss at the measured joint speeds, armature at the
+push's planned joint accelerations), fitted into the limits leg by leg
+(``symrom.sim.controllers.actuators``).
+rear feet alone) to a ``FroggyPushPolicy``, as the pronk hands its own: called once when the
+push is due (``start``: how long each part lasts, ``FroggyPushTiming``) and then at every
+tick of the push with the measured state (``command``: the summed ground force of the feet
+down and its moment about the base, a ``PushCommand``; it may re-time the rest). The feet
+down get the least-norm forces that make that wrench (the force exactly; on the rear feet
+alone the pitch moment is what their forces make), as joint torques through massless legs;
+the front legs tuck as in the controller's own push. Settle, crouch, hold, flight and landing
+are the controller's own. The jump's events (``push_start``, ``liftoff``, ``touchdown``,
+``airborne``) are public and read-only, with or without a policy. Without a policy nothing
+changes: the controller's own push, compiled.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -35,8 +51,9 @@ from symrom.names import JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim.controllers import compiled
+from symrom.sim.controllers.actuators import Compensation, stance_acceleration
 from symrom.sim.controllers.flight import longest_run
-from symrom.sim.controllers.motion import PlainMotion
+from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.engines.world import RobotState, World
 from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
 
@@ -238,6 +255,23 @@ def sample_params(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> Fro
     ), robot)
 
 
+def crouch_pose(robot: str, params: FroggyParams) -> np.ndarray:
+    """q (18,): the robot at the bottom of the crouch of ``params`` (at rest, base over the origin):
+    the feet at the crouch's targets (``crouch_height`` below the base, the front ones higher by
+    ``crouch_pitch``, shifted by ``crouch_shift``), the base pitched nose down by ``crouch_pitch``
+    so that the feet stand level, at ``crouch_height`` above the feet's centres."""
+    from symrom.robots.stance import leg_ik
+
+    feet0 = nominal_feet(robot) * [1.0, 1.0, 0.0]
+    targets = feet0 + np.stack([np.full(N_LEGS, params.crouch_shift), np.zeros(N_LEGS),
+                                -params.crouch_height + params.crouch_pitch * feet0[:, 0]], axis=1)
+    q = np.zeros(18)
+    q[JOINTS] = leg_ik(robot, targets)
+    q[14] = params.crouch_height + get_robot(robot).foot_radius
+    q[16] = params.crouch_pitch
+    return q
+
+
 def smooth(s: float) -> float:
     """Cosine blend 0 -> 1 on s in [0, 1] (clipped), zero slope at both ends."""
     s = min(max(s, 0.0), 1.0)
@@ -265,6 +299,57 @@ def distribute(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...],
     return grf
 
 
+@dataclass(frozen=True)
+class FroggyPushTiming:
+    """The push a ``FroggyPushPolicy`` means to make: ``four`` s on all four feet from its first
+    tick, then ``rear`` s on the rear feet alone; the flight follows."""
+
+    four: float
+    rear: float
+
+
+@runtime_checkable
+class FroggyPushPolicy(Protocol):
+    """What drives the froggy's push in place of its Cartesian push (``FroggyController(push=...)``).
+
+    ``start`` is called once, at the first tick of the push (the settle, crouch and hold are
+    over), with the measured state; then ``command`` at every tick of the push (``since`` = 0
+    first), with the measured state and the time since the push began; its
+    ``PushCommand.timing`` (a ``FroggyPushTiming``, the whole push's from its start) moves the
+    ends of the two parts. The four-foot part ends at the first tick ``four`` s or more after
+    the push began, the rear-only part ``four + rear`` s after it."""
+
+    def start(self, state: RobotState) -> FroggyPushTiming:
+        """The push's timing, planned from the measured ``state`` at its first tick."""
+
+    def command(self, state: RobotState, since: float) -> PushCommand:
+        """The command for this tick of the push, ``since`` s after it began."""
+
+
+def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...], force: np.ndarray,
+                  moment: np.ndarray) -> np.ndarray:
+    """Ground forces (4, 3) N, world, on the feet ``legs`` (the others 0): the least-norm
+    forces that sum to ``force`` (3,) N and, as closely as the feet allow, make ``moment``
+    (3,) N m about ``centre`` (3,) m, the feet at foot_pos (4, 3) m. The sum is held exactly
+    (two feet cannot make every moment: on a line across the body, none about it)."""
+    r = foot_pos[list(legs)] - centre
+    n = len(legs)
+    A = np.zeros((6, 3 * n))
+    for i, (x, y, z) in enumerate(r):
+        A[:3, 3 * i:3 * i + 3] = np.eye(3)
+        A[3:, 3 * i:3 * i + 3] = [[0, -z, y], [z, 0, -x], [-y, x, 0]]
+    b = np.concatenate([force, moment])
+    # the force rows exactly: f = f_p + N z, with N the null space of the force rows
+    Af, Am = A[:3], A[3:]
+    f_p = np.linalg.lstsq(Af, force, rcond=None)[0]
+    vt = np.linalg.svd(Af)[2]
+    N = vt[3:].T  # (3 n, 3 n - 3)
+    z = np.linalg.lstsq(Am @ N, b[3:] - Am @ f_p, rcond=None)[0]
+    out = np.zeros((N_LEGS, 3))
+    out[list(legs)] = (f_p + N @ z).reshape(n, 3)
+    return out
+
+
 class FroggyController:
     """Finite-state froggy jump controller; one instance per jump.
 
@@ -273,11 +358,16 @@ class FroggyController:
     current stage (settle, crouch, hold, push_all, push_rear, flight, land).
     """
 
-    def __init__(self, robot: str, params: FroggyParams):
+    def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None):
         self.robot = robot
         self.params = params
+        self.push = push
         self.kin = leg_kinematics(robot)
         self.limit = np.asarray(get_robot(robot).torque_limit, dtype=float)  # (12,) N m
+        # the description's actuator effects, fed forward (sim/controllers/actuators.py): the
+        # legs' torques are then fitted into the limits with the losses, not before
+        self.compensation = Compensation(robot)
+        self._fit_at = np.full(self.limit.shape, np.inf) if self.compensation.active else self.limit
         self.feet0 = nominal_feet(robot) * [1.0, 1.0, 0.0]  # (4, 3) level-frame xy of each foot
         self.mass = 12.0  # kg, replaced by the world's true mass in reset
         self.phase = "settle"
@@ -291,6 +381,38 @@ class FroggyController:
         self._t_push = p.t_settle + p.t_crouch + p.t_hold
         self._t_rear = self._t_push + p.t_push_all
         self._t_fly = self._t_rear + p.t_push_rear
+        # the jump's events (the public read-only properties)
+        self._push_start: tuple[float, np.ndarray] | None = None
+        self._liftoff: tuple[np.ndarray, np.ndarray] | None = None
+        self._touchdown: tuple[float, np.ndarray] | None = None
+        self._airborne = False
+
+    @property
+    def push_start(self) -> tuple[float, np.ndarray] | None:
+        """t s and base position (3,) m at the push's first tick (four feet); None before."""
+        return self._push_start
+
+    @property
+    def liftoff(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Base position (3,) m and velocity (3,) m/s at the first tick of the flight stage (the
+        push ended); None before."""
+        return self._liftoff
+
+    @property
+    def touchdown(self) -> tuple[float, np.ndarray] | None:
+        """t s and base position (3,) m at the landing (the first tick a foot met the ground once
+        the flight had lasted 0.05 s) if the robot flew (``airborne``); None before."""
+        return self._touchdown
+
+    @property
+    def airborne(self) -> bool:
+        """Whether some tick of the flight stage had no foot on the ground."""
+        return self._airborne
+
+    @property
+    def timing(self) -> FroggyPushTiming:
+        """The push's timing in force: the parameters', or the policy's from the push on."""
+        return FroggyPushTiming(self._t_rear - self._t_push, self._t_fly - self._t_rear)
 
     # --------------------------------------------------------------- set-up
     def reset(self, world: World) -> np.ndarray:
@@ -330,15 +452,80 @@ class FroggyController:
         The stages above pick the targets; ``symrom.sim.controllers.compiled.froggy_torque`` does the
         arithmetic (it reads as ``torque_numpy``, the reference it is tested against).
         """
+        if self.push is not None and self._push_start is None and self.phase not in ("flight", "land") \
+                and s.t >= self._t_push:
+            self._t_push = s.t  # the policy's push begins at this tick
+            self._set_timing(self.push.start(s))
+        was = self.phase
         self.phase = self._stage(s)
+        self._events(s, was)
         stage = STAGES.index(self.phase)
         if self.phase in ("push_all", "push_rear") and self._p0 is None:
             self._p0 = (s.foot_pos.copy(), s.q[12:15].copy())
+        if self.push is not None and self.phase in ("push_all", "push_rear"):
+            cmd = self.push.command(s, s.t - self._t_push)
+            if cmd.timing is not None:
+                self._set_timing(cmd.timing)
+            return self.push_torque(s, cmd.force, cmd.moment)
         feet_w, b0 = self._p0 if self._p0 is not None else (self.feet0, np.zeros(3))
-        return compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
-                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
-                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                      self.limit, *self._chains)
+        tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
+                                     float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
+                                     s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
+                                     self._fit_at, *self._chains)
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
+        return tau
+
+    def _planned_acceleration(self, s: RobotState) -> np.ndarray | None:
+        """The joint accelerations (12,) rad/s^2 the push plans for its stance legs, zero for
+        the others (``stance_acceleration``: their feet leave the base at ``push_speed`` along the
+        take-off line, so the joints speed up as the legs straighten); None outside the push or
+        for a robot without armature."""
+        if self.phase not in ("push_all", "push_rear") or not any(self.compensation.effects.armature):
+            return None
+        p = self.params
+        v_feet = np.tile(-p.push_speed * np.array([np.sin(p.angle), 0.0, np.cos(p.angle)]), (N_LEGS, 1))
+        legs = range(N_LEGS) if self.phase == "push_all" else REAR
+        return stance_acceleration(self.kin, s.q[JOINTS], v_feet, legs)
+
+    def _set_timing(self, timing: FroggyPushTiming) -> None:
+        """A policy's timing: the push's parts end ``four`` and ``four + rear`` s after it began."""
+        self._t_rear = self._t_push + float(timing.four)
+        self._t_fly = self._t_rear + float(timing.rear)
+
+    def _events(self, s: RobotState, was: str) -> None:
+        """Book the jump's events on the stage this tick entered (no effect on the torques)."""
+        now = self.phase
+        if now in ("push_all", "push_rear") and self._push_start is None:
+            self._push_start = (s.t, s.q[12:15].copy())
+        if now == "flight" and was != "flight":
+            self._liftoff = (s.q[12:15].copy(), s.dq[12:15].copy())
+        if now == "flight" and not s.contact.any():
+            self._airborne = True
+        if now == "land" and was == "flight" and self._airborne:
+            self._touchdown = (s.t, s.q[12:15].copy())
+
+    def push_torque(self, s: RobotState, force: np.ndarray, moment: np.ndarray) -> np.ndarray:
+        """Joint torques (12,) N m of a policy's push at state ``s`` (stage ``push_all`` or
+        ``push_rear``): the feet down (all four, or the rear ones) get the forces of
+        ``wrench_forces`` for ``force`` (3,) N and ``moment`` (3,) N m about the base (world), as
+        tau = -J^T R^T f; in the rear-only part the front legs tuck as in the controller's own
+        push (Cartesian PD, ``kp_swing``, ``kd_swing``). Each leg's torques are scaled together
+        into the limits."""
+        p = self.params
+        qj, dqj = s.q[JOINTS], s.dq[JOINTS]
+        pos, J = self.kin.one(qj)
+        legs = tuple(range(N_LEGS)) if self.phase == "push_all" else REAR
+        grf = wrench_forces(s.foot_pos, s.q[12:15], legs, np.asarray(force, float), np.asarray(moment, float))
+        f = -(grf @ s.R)  # the force on the ground, base frame
+        if self.phase == "push_rear":
+            vel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))
+            for k in FRONT:  # tuck up and forward, as the controller's own push
+                target = self.feet0[k] + np.array([0.04, 0.0, -p.crouch_height + 0.04])
+                f[k] = p.kp_swing * (target - pos[k]) - p.kd_swing * vel[k]
+        tau = np.einsum("kji,kj->ki", J, f)
+        over = np.max(np.abs(tau) / self.limit.reshape(N_LEGS, 3), axis=1, keepdims=True)
+        return (tau / np.maximum(over, 1.0)).reshape(-1)
 
     def torque_numpy(self, s: RobotState) -> np.ndarray:
         """``torque`` in NumPy, the reference of the compiled arithmetic (the same stages)."""
@@ -423,6 +610,8 @@ class FroggyController:
         axis = np.array([xy, xy, 1.0])
         f = (kp[:, None] * axis) * (p_d - pos) + (kd[:, None] * axis) * (v_d - vel) + f_ff
         tau = np.einsum("kji,kj->ki", J, f)  # J^T f per leg
+        if self.compensation.active:
+            return self.compensation.scaled_legs(tau.reshape(-1), dqj, self.limit, self._planned_acceleration(s))
         # Scale each leg's torques together into the limits: clipping joints one by one
         # would turn the foot force (e.g. a push down becomes a push backwards).
         over = np.max(np.abs(tau) / self.limit.reshape(N_LEGS, 3), axis=1, keepdims=True)

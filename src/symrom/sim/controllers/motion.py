@@ -32,6 +32,20 @@ from symrom.sim.engines.world import RobotState, World, WorldConfig
 from symrom.sim.proxy import ProxyWorld
 
 
+@dataclass(frozen=True)
+class PushCommand:
+    """A push policy's command for one tick of a push (the pronk's ``PushPolicy``, the froggy's
+    ``FroggyPushPolicy``): force (3,) N, the summed ground force on the feet down, and moment
+    (3,) N m, its moment (about the CoM for the pronk, about the base for the froggy), both
+    world; the legs' torques stand for them. timing: the push's new timing (the motion's
+    record: ``pronk.PushTiming``, ``froggy.FroggyPushTiming``) when the policy re-planned it,
+    else None (the last one holds)."""
+
+    force: np.ndarray
+    moment: np.ndarray
+    timing: Any = None
+
+
 @runtime_checkable
 class Controller(Protocol):
     """One jump's controller: the same three methods for every motion."""

@@ -32,7 +32,9 @@ robot they are scaled by its mass and leg length relative to the Go1's
 (``scales``, ``PronkGains.scaled``): heights and distances with leg length,
 forces with mass, joint stiffness and damping with mass x length, Cartesian
 stiffness with mass / length, times of the landing reference with the square
-root of length. For the Go1 both ratios are exactly 1.
+root of length. For the Go1 both ratios are exactly 1. A robot whose description states
+actuator effects (joint damping, friction loss, armature) gets every torque plus what they take
+at the measured joint speeds, within the limits (``symrom.sim.controllers.actuators``).
 
 A push policy. ``PronkController(..., push=policy)`` hands the push to a
 ``PushPolicy`` in place of the MPC: called once when the push is due and then at
@@ -69,9 +71,10 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
+from symrom.sim.controllers.actuators import Compensation
 from symrom.sim.controllers.body import GRAVITY, LegGravity, body_model
 from symrom.sim.controllers.compiled import pronk_stance_torque as stance_torque
-from symrom.sim.controllers.motion import PlainMotion
+from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.controllers.mpc import ConvexMPC, MPCConfig, rot_z, srb_state
 from symrom.sim.engines.world import RobotState, World
 from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
@@ -247,18 +250,6 @@ class PushTiming:
     flight_time: float
 
 
-@dataclass(frozen=True)
-class PushCommand:
-    """A ``PushPolicy``'s command for one tick of the push: force (3,) N, the summed ground force
-    on the feet, and moment (3,) N m, its moment about the CoM, both world; the legs' torques
-    stand for them (``PronkController.push_torque``). timing: the push's new ``PushTiming``
-    when the policy re-planned it, else None (the last one holds)."""
-
-    force: np.ndarray
-    moment: np.ndarray
-    timing: PushTiming | None = None
-
-
 @runtime_checkable
 class PushPolicy(Protocol):
     """What drives the pronk's push in place of its MPC (``PronkController(push=...)``).
@@ -321,6 +312,10 @@ class PronkController:
         self.leg_gravity = LegGravity(robot)
         self.plan = plan_jump(params, self.gains.brake_time, self.gains.takeoff_boost)
         self.torque_limit = np.asarray(self.spec.torque_limit, dtype=float)
+        # the description's actuator effects, fed forward (sim/controllers/actuators.py); the
+        # torques before it are clipped at infinity, after it at the limits
+        self.compensation = Compensation(robot)
+        self._clip_at = np.full(N_JOINTS, np.inf) if self.compensation.active else self.torque_limit
         self._phase = "crouch"
         self._x0: np.ndarray | None = None  # base position at the first call
         self._forces = np.zeros((N_LEGS, 3))
@@ -530,6 +525,8 @@ class PronkController:
         g = self.gains
         if self._phase == "flight":
             tau = self._flight_pd(state)
+            if self.compensation.active:
+                return self.compensation.clipped(tau, state.dq[JOINTS], self.torque_limit)
             return np.minimum(np.maximum(tau, -self.torque_limit), self.torque_limit)
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         p_b, J = self._p_b, self._J  # feet (4, 3) m and leg Jacobians (4, 3, 3), base frame
@@ -554,7 +551,9 @@ class PronkController:
         # kp_hx, kd_hx; damp the legs with kd_stance), clipped: one compiled call
         tau = np.empty(N_JOINTS)
         stance_torque(J, f_base, tau_g, land, p_b, p_land, state.contact, v_rel, h_ref, g.k_land, g.d_land,
-                      self._posture, qj, dqj, self.torque_limit, tau)
+                      self._posture, qj, dqj, self._clip_at, tau)
+        if self.compensation.active:
+            return self.compensation.clipped(tau, dqj, self.torque_limit)
         return tau
 
     def push_torque(self, state: RobotState, force: np.ndarray, moment: np.ndarray) -> np.ndarray:
@@ -577,7 +576,9 @@ class PronkController:
         f_base = -(f @ state.R)
         tau = np.empty(N_JOINTS)
         stance_torque(J, f_base, self._zero_tau, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
-                      self._posture, qj, dqj, self.torque_limit, tau)
+                      self._posture, qj, dqj, self._clip_at, tau)
+        if self.compensation.active:
+            return self.compensation.clipped(tau, dqj, self.torque_limit)
         return tau
 
     def _flight_pd(self, state) -> np.ndarray:

@@ -275,6 +275,15 @@ class BulletWorld:
             p.changeDynamics(rob, link, mass=mass * s, localInertiaDiagonal=[v * s * inertia for v in diag],
                              physicsClientId=c)
 
+    def add_payload(self, mass: float) -> None:
+        """A point load of ``mass`` kg at the base link's centre of mass (its inertia kept);
+        ``mass`` stays the nominal one."""
+        if not (np.isfinite(mass) and mass >= 0):
+            raise ValueError(f"payload must be a mass >= 0 kg, got {mass}")
+        c, rob = self.client, self.robot
+        m0, _, diag = p.getDynamicsInfo(rob, -1, physicsClientId=c)[:3]
+        p.changeDynamics(rob, -1, mass=m0 + mass, localInertiaDiagonal=list(diag), physicsClientId=c)
+
     def set_ground_friction(self, mu: float) -> None:
         """Lateral friction of the ground (the feet carry 1; Bullet multiplies the two)."""
         p.changeDynamics(self.plane, -1, lateralFriction=mu, physicsClientId=self.client)

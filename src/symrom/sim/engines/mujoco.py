@@ -379,6 +379,15 @@ class MujocoWorld:
         mujoco.mj_setConst(m, self.data)
         mujoco.mj_forward(m, self.data)
 
+    def add_payload(self, mass: float) -> None:
+        """A point load of ``mass`` kg at the base's centre of mass; ``mass`` stays the nominal one."""
+        if not (np.isfinite(mass) and mass >= 0):
+            raise ValueError(f"payload must be a mass >= 0 kg, got {mass}")
+        m = self.model
+        m.body_mass[self._base] += mass
+        mujoco.mj_setConst(m, self.data)
+        mujoco.mj_forward(m, self.data)
+
     def set_ground_friction(self, mu: float) -> None:
         """Foot/ground sliding friction (every geom carries it: MuJoCo takes the larger)."""
         self.model.geom_friction[:, 0] = mu

@@ -156,6 +156,10 @@ class World(Protocol):
     def scale_inertia(self, trunk_mass: float, leg_mass: float, inertia: float) -> None:
         """Scale the trunk's and the other links' masses (and inertias, times ``inertia``)."""
 
+    def add_payload(self, mass: float) -> None:
+        """Fix a load of ``mass`` kg to the base at its centre of mass (the base's mass grows, its
+        inertia stays: a point mass there); ``mass`` (the attribute) stays the nominal one."""
+
     def set_ground_friction(self, mu: float) -> None:
         """Set the foot/ground lateral friction coefficient."""
 

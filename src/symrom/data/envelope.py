@@ -1,0 +1,69 @@
+"""What a dataset's jumps did: how far and how high they went, where they left and met the ground.
+
+A model learned from these jumps knows the motion only there; the planner reads the
+envelope (saved with the model, ``provenance.data.envelope``) as the part of its reach the data
+hold. Per jump, its main flight (the longest run of ``flight`` rows) and:
+
+- the push start: the lowest base height before the flight (the bottom of the crouch);
+- travel: the base's forward travel (world x) from the push start to the first row after the
+  flight (the touchdown);
+- apex: the largest base height in the flight;
+- the base height at lift-off (the flight's first row) and at touchdown;
+- push: the time from the push start to lift-off, s.
+
+A jump without a flight, or whose flight runs to its last row, is left out.
+Units: m, s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from symrom.data.dataset import Dataset
+from symrom.names import BASE_POS, FLIGHT_PHASE
+
+_X, _Z = BASE_POS.start, BASE_POS.start + 2
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) of each run of True in ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
+def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
+    """The envelope of ``jumps`` (dataset indices) of ``ds`` (module docstring), JSON-ready:
+    ``jumps`` (how many had a landed flight), ``travel_x_m`` and ``apex_z_m`` [min, max],
+    ``liftoff_z_m`` and ``touchdown_z_m`` (medians), ``push_s`` [min, max]; None if no jump
+    has a landed flight or the dataset has no ``flight`` phase."""
+    if FLIGHT_PHASE not in ds.phase_names:
+        return None
+    fid = ds.phase_names.index(FLIGHT_PHASE)
+    bounds = ds.jump_bounds()
+    travel, apex, z_lo, z_td, push = [], [], [], [], []
+    for j in np.asarray(jumps, dtype=int):
+        a0, a1 = bounds[j]
+        q, phase = ds.q[a0:a1], ds.phase[a0:a1]
+        runs = _runs(phase == fid)
+        if not runs:
+            continue
+        a, b = max(runs, key=lambda r: r[1] - r[0])
+        if b >= len(q) or a == 0:
+            continue
+        k0 = int(np.argmin(q[:a, _Z]))
+        travel.append(q[b, _X] - q[k0, _X])
+        apex.append(q[a:b, _Z].max())
+        z_lo.append(q[a, _Z])
+        z_td.append(q[b, _Z])
+        push.append((a - k0) * ds.dt)
+    if not travel:
+        return None
+
+    def span(v):
+        return [float(np.min(v)), float(np.max(v))]
+
+    return {"jumps": len(travel), "travel_x_m": span(travel), "apex_z_m": span(apex),
+            "liftoff_z_m": float(np.median(z_lo)), "touchdown_z_m": float(np.median(z_td)), "push_s": span(push)}
+
+
+__all__ = ["jump_envelope"]

@@ -1,0 +1,235 @@
+"""The closed loop's re-planning (``plan.replan``) on planted models: it lands a disturbed system
+that the open-loop plan misses, re-plans within its time budget, and keeps the plan when nothing
+is disturbed; the froggy's two-stance problem; disturbances on both engines."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from symrom.plan.dynamics import GRAVITY, LearnedDynamics
+from symrom.plan.problem import JumpPlanner, Stance
+from symrom.plan.replan import Replanner
+
+from test_plan import DAMP_X, G_C, GAIN_X, GAIN_Z, PLANTED, X, Z, planted_model
+
+Z_LO = 0.33
+
+
+def _fly(s: np.ndarray, z_td: float = Z_LO) -> float:
+    """x where the ballistic flight from s = [x, z, vx, vz] comes down through z_td."""
+    x, z, vx, vz = s
+    t = (vz + np.sqrt(vz ** 2 + 2 * GRAVITY * (z - z_td))) / GRAVITY
+    return float(x + vx * t)
+
+
+def _run(force_at, end_at, gain_scale: float, replan=None, period: float = 0.01, dt: float = 1e-4):
+    """Integrate the planted contact law with its force gains times ``gain_scale`` (the world
+    differs from the model) under the force F(tau), to the push's end; with ``replan(s, tau)``
+    called every ``period`` s from the measured state. Returns the landing x and the re-plans."""
+    s = np.array([0.5, 0.21, 0.0, 0.0])
+    tau, last, n = 0.0, 0.0, 0
+    while tau < end_at():
+        if replan is not None and tau - last >= period - 1e-12 and tau > 0:
+            replan(s.copy(), tau)
+            last, n = tau, n + 1
+        Fx, Fz = force_at(tau)
+
+        def f(v, Fx=Fx, Fz=Fz):
+            return np.array([v[2], v[3], gain_scale * GAIN_X * Fx + DAMP_X * v[2], gain_scale * GAIN_Z * Fz + G_C])
+
+        k1 = f(s)
+        k2 = f(s + dt / 2 * k1)
+        k3 = f(s + dt / 2 * k2)
+        k4 = f(s + dt * k3)
+        s = s + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        tau += dt
+    return _fly(s) - 0.5, n
+
+
+@pytest.fixture(scope="module")
+def planted_nlp():
+    dyn = LearnedDynamics(PLANTED, np.eye(2))  # nu = F
+    return JumpPlanner(dyn, mass=13.0)
+
+
+def _plan(nlp, target):
+    q0 = np.zeros(18)
+    q0[X], q0[Z] = 0.5, 0.21
+    s0 = nlp.dyn.initial_state(q0, np.zeros(18))
+    plan = nlp.solve(s0, target, z_liftoff=Z_LO, min_apex=0.43, warm=False)
+    assert plan.success, plan.status
+    return plan
+
+
+@pytest.mark.parametrize("scale", [0.93, 1.1])
+def test_replanning_lands_a_disturbed_system_the_plan_misses(planted_nlp, scale):
+    target = 0.3
+    plan = _plan(planted_nlp, target)
+    # open loop: the plan's forces on a world whose force gains are off by ``scale``
+    open_x, _ = _run(plan.force_at, lambda: plan.t_stance, scale)
+    assert abs(open_x - target) > 0.01
+    rp = Replanner(planted_nlp)
+    rp.begin(plan, target, plan.x0, Z_LO, Z_LO, None, 0.43)
+    closed_x, n = _run(lambda tau: rp.schedule.force_at(tau), lambda: rp.schedule.end, scale,
+                       replan=lambda s, tau: rp.step(s, tau))
+    assert n >= 10 and len(rp.stats.solve_time_s) == n
+    # every QP solved; at the very end of the push the guards may only be met as closely as can be
+    assert all(st in ("ok", "softened") for st in rp.stats.status) and rp.stats.status[:-2].count("ok") == n - 2
+    assert abs(closed_x - target) < 0.2 * abs(open_x - target)
+    assert abs(closed_x - target) < 4e-3
+    # every schedule keeps the force within the friction pyramid and its bounds
+    for F in rp.schedule.forces:
+        assert np.all(F[:, 1] >= -1e-6) and np.all(np.abs(F[:, 0]) <= 0.6 * F[:, 1] + 1e-6)
+
+
+def test_replanning_keeps_the_plan_when_nothing_is_disturbed(planted_nlp):
+    target = 0.25
+    plan = _plan(planted_nlp, target)
+    rp = Replanner(planted_nlp)
+    rp.begin(plan, target, plan.x0, Z_LO, Z_LO, None, 0.43)
+    x, _ = _run(lambda tau: rp.schedule.force_at(tau), lambda: rp.schedule.end, 1.0,
+                replan=lambda s, tau: rp.step(s, tau))
+    assert abs(x - target) < 2e-3
+    assert np.allclose(rp.stats.landing_x, target, atol=2e-3)  # each re-plan still predicts the target
+
+
+def test_replan_is_fast(planted_nlp):
+    """A re-plan (linearisation, QP, update) takes well under the 10 ms between re-plans."""
+    plan = _plan(planted_nlp, 0.3)
+    rp = Replanner(planted_nlp)
+    rp.begin(plan, 0.3, plan.x0, Z_LO, Z_LO, None, 0.43)
+    s = plan.states[2]
+    for k in range(20):
+        rp.step(s, 0.01 + 1e-4 * k)
+    assert np.median(rp.stats.solve_time_s[1:]) < 5e-3
+
+
+def test_two_stances_plan_and_replan():
+    """A push on four feet then on the rear feet alone, each with its own law (the partial
+    phase's force gain half the contact's): the plan keeps each part within its bounds and
+    lands on the target; the model's own rollout of the plan lands there too."""
+    contact = [{"nu1": GAIN_X, "dxi1": DAMP_X}, {"nu2": GAIN_Z, "1": G_C}]
+    partial = [{"nu1": GAIN_X / 2}, {"nu2": GAIN_Z / 2, "1": G_C}]
+    model = planted_model(contact, [{}, {"1": -GRAVITY}], phases=("contact", "partial", "flight"), third=partial)
+    dyn = LearnedDynamics(model, {"contact": np.eye(2), "partial": np.eye(2)})
+    stances = (Stance("contact", 3, 0.05, 0.15), Stance("partial", 3, 0.04, 0.10))
+    nlp = JumpPlanner(dyn, mass=13.0, stances=stances)
+    q0 = np.zeros(18)
+    q0[Z] = 0.21
+    s0 = dyn.initial_state(q0, np.zeros(18))
+    plan = nlp.solve(s0, 0.3, z_liftoff=Z_LO, min_apex=0.43, z_touchdown=0.30)
+    assert plan.success, plan.status
+    assert 0.05 - 1e-9 <= plan.durations[0] <= 0.15 + 1e-9 and 0.04 - 1e-9 <= plan.durations[1] <= 0.10 + 1e-9
+    assert plan.phase_at(plan.durations[0] - 1e-6) == 0 and plan.phase_at(plan.durations[0] + 1e-6) == 1
+    # roll the plan out by hand: contact law, then the partial law, then ballistic to z = 0.30
+    s, dt = np.array([0.0, 0.21, 0.0, 0.0]), 1e-5
+    for tau in np.arange(0.0, plan.t_stance, dt):
+        Fx, Fz = plan.force_at(tau)
+        g = 1.0 if plan.phase_at(tau) == 0 else 0.5
+        a = np.array([g * GAIN_X * Fx + (DAMP_X * s[2] if g == 1.0 else 0.0), g * GAIN_Z * Fz + G_C])
+        s = s + dt * np.array([s[2], s[3], *a])
+    assert s[1] == pytest.approx(Z_LO, abs=2e-3)
+    assert _fly(s, 0.30) == pytest.approx(0.3, abs=4e-3)
+    # the re-planner runs through the switch from one stance to the next
+    rp = Replanner(nlp)
+    rp.begin(plan, 0.3, plan.x0, Z_LO, 0.30, None, 0.43)
+    for tau in np.arange(0.01, plan.t_stance, 0.01):
+        k = min(int(tau / plan.t_stance * (len(plan.states) - 5)), len(plan.states) - 6)
+        rp.step(plan.states[k + 1], tau)
+    assert rp.schedule.first == 1 and all(st in ("ok", "softened") for st in rp.stats.status)
+
+
+@pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
+def test_disturbances_change_the_world(engine):
+    from symrom.robots.stance import start_pose
+    from symrom.sim.engines.registry import make_world
+    from symrom.sim.engines.world import WorldConfig
+    from symrom.sim.proxy import Disturbances, DisturbedWorld
+
+    q0 = start_pose("go1")
+
+    def standing(d):
+        """Stand 0.5 s under a joint PD: the summed vertical ground force at the end, the
+        torques applied at the last tick for the PD's command, the world's mass."""
+        w = make_world(engine, "go1", WorldConfig())
+        w = DisturbedWorld(w, d) if d is not None else w
+        try:
+            w.reset(q0)
+            for _ in range(500):
+                s = w.state()
+                tau = 60.0 * (q0[:12] - s.q[:12]) - 2.0 * s.dq[:12]
+                applied = w.step(tau)
+            return w.contact_forces().sum(axis=0)[2], tau, applied, w.mass
+        finally:
+            w.close()
+
+    fz0, _, _, m0 = standing(None)
+    fz1, _, _, m1 = standing(Disturbances(payload=2.0))
+    assert m1 == m0  # the controller's mass stays the nominal one
+    assert fz0 == pytest.approx(m0 * 9.81, rel=0.05)
+    assert fz1 - fz0 == pytest.approx(2.0 * 9.81, rel=0.1)  # the ground carries the load
+    _, tau, applied, _ = standing(Disturbances(motor_scale=0.85))
+    assert applied == pytest.approx(0.85 * tau)
+    with pytest.raises(ValueError, match="motor_scale"):
+        Disturbances(motor_scale=0.0)
+
+
+def test_jump_cli_closed_loop_under_a_payload(tmp_path):
+    """``symrom jump --control mpc --payload``: the closed loop lands a loaded Go1 the open-loop
+    plan cannot lift off the ground, and landing.json records the control, the disturbances and
+    every re-plan's solve time."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from symrom.cli import app
+    from symrom.model.persistence import save_model
+
+    save_model(planted_model([{"nu1": 0.062, "nu2": -0.0075}, {"nu2": 0.085, "1": -9.68}], [{}, {"1": -10.2}]),
+               tmp_path / "model.json")
+    args = ["jump", str(tmp_path / "model.json"), "--target-x", "0.3", "--engine", "mujoco", "--payload", "2.6",
+            "--no-trajectory"]
+    res = CliRunner().invoke(app, [*args, "--out", str(tmp_path / "open")])
+    assert res.exit_code == 1 and "never left the ground" in res.output
+    assert not (tmp_path / "open").exists()
+    res = CliRunner().invoke(app, [*args, "--control", "mpc", "--out", str(tmp_path / "mpc")])
+    assert res.exit_code == 0, res.output
+    d = json.loads((tmp_path / "mpc" / "landing.json").read_text())
+    assert d["control"] == "mpc" and d["disturbances"]["payload_kg"] == 2.6 and d["motion"] == "pronk"
+    assert abs(d["error_x"]) < 0.04
+    r = d["replans"]
+    assert r["rate_hz"] == 100.0 and r["count"] == len(r["solve_time_s"]) == len(r["t_s"]) >= 10
+    assert np.allclose(np.diff(r["t_s"]), 0.01, atol=1.5e-3)  # every 10 ms of the push
+    assert 0 < r["solve_time_median_s"] < 0.01
+
+
+def test_froggy_jump_end_to_end(tmp_path):
+    """A froggy model (Newton's law on the A1's mass in each phase) plans four feet then the rear
+    feet alone and the A1 executes it: the rear feet push alone before the flight, it lands."""
+    import json
+
+    from typer.testing import CliRunner
+
+    from symrom.cli import app
+    from symrom.model.persistence import save_model
+
+    m = 1 / 12.5
+    law = [{"nu1": m}, {"nu2": m, "1": -9.81}]
+    model = planted_model(law, [{}, {"1": -9.81}], phases=("contact", "partial", "flight"), third=law,
+                          info={"robot": "a1", "motion": "froggy"})
+    save_model(model, tmp_path / "model.json")
+    out = tmp_path / "frog"
+    res = CliRunner().invoke(app, ["jump", str(tmp_path / "model.json"), "--robot", "a1", "--target-x", "0.35",
+                                   "--control", "mpc", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    d = json.loads((out / "landing.json").read_text())
+    assert d["motion"] == "froggy" and [s["phase"] for s in d["plan"]["stances"]] == ["contact", "partial"]
+    assert d["landing_x"] > 0.1 and d["replans"]["count"] >= 10
+    tr = json.loads((out / "trajectory.json").read_text())
+    c = np.asarray(tr["contact"])
+    first_air = int(np.flatnonzero(c.sum(axis=1) == 0)[0])
+    before = c[first_air - 10:first_air]  # the 20 ms before the flight: the rear feet alone
+    assert np.all(before[:, :2] == 0) and np.all(before[:, 2:].sum(axis=1) > 0)
+    phases = tr["phase"]
+    assert "push_all" in phases and "push_rear" in phases and phases[-1] == "land"

@@ -1,0 +1,122 @@
+"""Reach, said plainly: the model's bounds give the farthest jump, the training jumps' envelope
+narrows it, an out-of-reach target is refused with nothing written, ``--closest`` plans the
+closest reachable jump and says so in landing.json; a model that cannot plan fails in one line."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from symrom.cli import app
+from symrom.data.dataset import Dataset
+from symrom.data.envelope import jump_envelope
+from symrom.model.persistence import save_model
+from symrom.plan.dynamics import PlanModelError, PointMass
+from symrom.plan.problem import JumpPlanner
+
+from conftest import one_line_error
+from test_plan import planted_model
+
+ENVELOPE = {"jumps": 9, "travel_x_m": [0.1, 0.35], "apex_z_m": [0.40, 0.47], "liftoff_z_m": 0.33,
+            "touchdown_z_m": 0.33, "push_s": [0.15, 0.2]}
+GO1_LIKE = ([{"nu1": 0.062, "nu2": -0.0075}, {"nu2": 0.085, "1": -9.68}], [{}, {"1": -10.2}])
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory):
+    path = tmp_path_factory.mktemp("reach") / "model.json"
+    save_model(planted_model(*GO1_LIKE, info={"envelope": ENVELOPE}), path)
+    return path
+
+
+def test_the_model_bounds_give_the_farthest_jump():
+    """The reach's farthest landing is where the NLP can still land; 5 cm farther it cannot."""
+    m = 13.1
+    nlp = JumpPlanner(PointMass(m), mass=m, torque_map=(np.array([[0.0, 0.05], [0.03, 0.04]]), np.array([14.0, 16.0])))
+    s0 = np.array([0.0, 0.21, 0.0, 0.0])
+    r = nlp.reach(s0, 0.33, 0.43)
+    assert 0.2 < r.x_max < 3.0 and abs(r.x_min) < 1e-3 and r.z_max > 0.43
+    at = nlp.solve(s0, r.x_max, z_liftoff=0.33, min_apex=0.43, warm=False)
+    assert at.success and at.landing_x == pytest.approx(r.x_max, abs=2e-3)
+    beyond = nlp.solve(s0, r.x_max + 0.05, z_liftoff=0.33, min_apex=0.43, warm=False)
+    assert beyond.landing_x < r.x_max + 0.01
+    high = nlp.solve(s0, 0.2, z_liftoff=0.33, apex=r.z_max + 0.05, warm=False)
+    assert high.apex_z < r.z_max + 0.01
+
+
+def test_out_of_reach_is_refused_and_nothing_written(tmp_path, model_path):
+    out = tmp_path / "j"
+    res = CliRunner().invoke(app, ["jump", str(model_path), "--target-x", "1.5", "--out", str(out)])
+    one_line_error(res, "out of the learned planner's reach", "0.100-0.350 m forward", "--closest")
+    assert not out.exists()
+    res = CliRunner().invoke(app, ["jump", str(model_path), "--target-x", "0.2", "--target-z", "2.0",
+                                   "--out", str(out)])
+    one_line_error(res, "apex 2 m", "0.400-0.470 m")
+    assert not out.exists()
+
+
+def test_closest_plans_the_closest_reachable_jump(tmp_path, model_path):
+    out = tmp_path / "j"
+    res = CliRunner().invoke(app, ["jump", str(model_path), "--target-x", "1.5", "--target-z", "2.0", "--closest",
+                                   "--out", str(out), "--no-trajectory"])
+    assert res.exit_code == 0, res.output
+    assert "warning" in res.output and "out of" in res.output
+    d = json.loads((out / "landing.json").read_text())
+    assert d["target_reachable"] is False and d["target_x"] == 1.5 and d["target_z"] == 2.0
+    assert d["planned_target_x"] == pytest.approx(0.35) and d["planned_target_z"] == pytest.approx(0.47)
+    assert d["reach"]["x_m"] == pytest.approx([0.1, 0.35]) and d["reach"]["training_data"]["x_m"] == [0.1, 0.35]
+    assert d["plan"]["landing_x_m"] == pytest.approx(0.35, abs=5e-3)
+    assert d["error_x"] == pytest.approx(d["landing_x"] - 1.5)
+    assert d["control"] == "plan" and d["disturbances"] == {"payload_kg": 0.0, "friction": None, "motor_scale": 1.0}
+
+
+def test_a_model_that_cannot_plan_fails_in_one_line(tmp_path):
+    """A model whose push cannot lift the base (its vertical force gain is negative)."""
+    path = tmp_path / "model.json"
+    save_model(planted_model([{"nu1": 0.062}, {"nu2": -0.085, "1": -9.68}], [{}, {"1": -10.2}]), path)
+    out = tmp_path / "j"
+    res = CliRunner().invoke(app, ["jump", str(path), "--target-x", "0.2", "--out", str(out)])
+    one_line_error(res, "cannot plan")
+    assert not out.exists()
+    from symrom.model.persistence import load_model
+    from symrom.plan.jump import make_planner
+
+    with pytest.raises(PlanModelError):
+        make_planner("learned", "go1", model=load_model(path)).reach()
+
+
+def test_the_envelope_of_planted_jumps():
+    """Two jumps drawn by hand: crouch, push, flight, landing; travel from the crouch's bottom."""
+    rows = []
+    for j, (travel, apex) in enumerate(((0.2, 0.44), (0.3, 0.46))):
+        n = 300
+        t = np.arange(n) * 0.002
+        x = np.zeros(n)
+        z = np.full(n, 0.3)
+        phase = np.zeros(n, int)
+        z[:100] = 0.3 - 0.1 * np.sin(np.pi * np.arange(100) / 198)  # crouch, lowest at row 99
+        lo, td = 150, 250
+        x[100:td] = np.linspace(0.0, travel, td - 100)
+        x[td:] = travel
+        z[100:lo] = np.linspace(z[99], 0.33, lo - 100)
+        z[lo:td] = 0.33 + (apex - 0.33) * np.sin(np.pi * np.arange(td - lo) / (td - lo))
+        x[:100] = 0.0
+        phase[lo:td] = 1
+        q = np.zeros((n, 18))
+        q[:, 12], q[:, 14] = x + 0.01 * j, z
+        rows.append((np.full(n, j), t, q, phase))
+    jump, t, q, phase = (np.concatenate(v) for v in zip(*rows))
+    N = len(t)
+    ds = Dataset("go1", "pronk", "sim", ["contact", "flight"], jump.astype(np.int32), t, q, np.zeros((N, 18)),
+                 np.zeros((N, 18)), np.zeros((N, 12)), np.ones((N, 4), np.uint8), np.zeros((N, 18)),
+                 phase.astype(np.int8), np.array(["train", "train"]))
+    env = jump_envelope(ds, [0, 1])
+    assert env["jumps"] == 2
+    assert env["travel_x_m"] == pytest.approx([0.2, 0.3], abs=2e-3)
+    assert env["apex_z_m"] == pytest.approx([0.44, 0.46], abs=1e-3)
+    assert env["liftoff_z_m"] == pytest.approx(0.33) and env["touchdown_z_m"] == pytest.approx(0.3)
+    assert env["push_s"] == pytest.approx([0.102, 0.102])
+    assert jump_envelope(ds, []) is None
