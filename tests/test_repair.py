@@ -438,6 +438,31 @@ def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
         assert got.generator["files"][0]["consistency"] == []
 
 
+def test_the_flights_of_a_file_together_tell_a_clock_from_velocities(tmp_path):
+    """Velocities 1/1.03 of the true ones on hardware-like Go1 jumps (noise, drift, soft feet):
+    on some jumps the ratio is off but their flight alone fits a wrong clock and wrong
+    velocities alike (undetermined, kept as logged); in one file, written by one logger, the
+    flights of its jumps together tell the velocities apart on those jumps too."""
+    ds = proxy_go1()
+    logs = []
+    for j in range(ds.n_jumps):
+        m = jump(ds, j)
+        m["dq"] = m["dq"] / 1.03
+        logs.append(m)
+    alone = [repair_log(read_log(write_plain(tmp_path / f"one{j}.csv", [m], accelerations=False)), "go1", REPAIR)[0]
+             for j, m in enumerate(logs)]
+    undetermined = [j for j, r in enumerate(alone) if r.clock.finding == "undetermined"]
+    assert undetermined and all(r.clock.finding in ("none", "velocities", "undetermined") for r in alone)
+    together = repair_log(read_log(write_plain(tmp_path / "all.csv", logs, accelerations=False)), "go1", REPAIR)
+    for j in undetermined:
+        r = together[j]
+        assert r.clock.finding == "velocities" and "told by the file's flights together" in r.line(), r.line()
+        assert abs(r.velocities[0].gain * 1.03 - 1) < 0.01 and not r.clock.applied
+    for a, b in zip(alone, together):  # the jumps one flight decides are decided alike
+        if a.clock.finding != "undetermined":
+            assert b.clock.finding == a.clock.finding
+
+
 @pytest.mark.parametrize("retime", [False, True])
 def test_stale_rows_do_not_pass_for_faults(tmp_path, retime):
     """16 % of the joint rows and 40 % of the base rows repeat the previous one (stale reads,

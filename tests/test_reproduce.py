@@ -133,10 +133,10 @@ def test_sim2real_table_on_every_target(run):
         for col in ("logged", "source", "fine_tuned", "target_alone", "chosen"):
             e = t[col]
             assert {"x_rmse", "z_rmse", "diverged_jumps", "drifted_jumps", "flight_acc", "flight_ratio"} <= set(e)
-            metrics = json.loads((d / name / {"logged": f"sources_eval_logged/{t['source_model']}",
-                                              "source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
-                                              "target_alone": "target_alone/eval", "chosen": "eval"}[col]
-                                  / "metrics.json").read_text())
+            folder = {"logged": f"sources_eval_logged/{t['source_model']}",
+                      "source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
+                      "target_alone": "target_alone/eval", "chosen": "eval"}[col]
+            metrics = json.loads((d / name / folder / "metrics.json").read_text())
             assert e["z_rmse"] == metrics["horizons"]["full"]["components"]["z"]["rmse"]
         assert t["checks"] == sim2real_checks(t)
 

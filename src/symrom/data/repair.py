@@ -42,7 +42,8 @@ from symrom.data.repair_clock import (VELOCITY_GROUPS, ClockEstimate, ClockFit, 
                                       VelocityGain, estimate_clock, file_kind)
 from symrom.names import BASE_POS
 
-REPAIR_VERSION = 1
+# 2: where one jump's flight fits a wrong clock and wrong velocities alike, the file's flights together decide
+REPAIR_VERSION = 2
 _Z = BASE_POS.start + 2
 __all__ = ["REPAIR_VERSION", "JumpRepair", "RepairError", "RepairLimits", "repair_log", "repairs_record"]
 
@@ -90,7 +91,8 @@ class JumpRepair:
         together = "; told by the file's flights together" if "flights together" in c.note else ""
         if c.finding == "clock":
             kind = f"a time warp, rate {c.rate_low:.3f}..{c.rate_high:.3f}" if c.warp else "a uniform scale"
-            parts.append(f"clock wrong ({kind}{together}): duration x {c.scale:.4f} +- {c.scale_sd:.4f}, {flight} on it")
+            parts.append(f"clock wrong ({kind}{together}): duration x {c.scale:.4f} +- {c.scale_sd:.4f}, "
+                         f"{flight} on it")
         elif c.finding == "clock and velocities":
             parts.append(f"clock and velocities wrong: duration x {c.scale:.4f} +- {c.scale_sd:.4f}, {flight} on it")
         elif c.finding == "velocities":

@@ -414,7 +414,8 @@ def file_kind(fits: list[ClockFit], limits: RepairLimits) -> tuple[str | None, s
         return None, ""
     zc, zv = (float(sum(e[i] ** 2 for e in ev)) for i in (0, 1))
     clock, vel = _fits(zc, len(ev), limits.z), _fits(zv, len(ev), limits.z)
-    words = f"the file's {len(ev)} flights together: chi-square {zc:.3g} for a wrong clock, {zv:.3g} for wrong velocities"
+    words = (f"the file's {len(ev)} flights together: chi-square {zc:.3g} for a wrong clock, "
+             f"{zv:.3g} for wrong velocities")
     if clock and not vel:
         return "clock", words
     if vel and not clock:
@@ -496,7 +497,7 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
             finding, kappa = "velocities", 1.0 / level
         elif z_vel <= limits.z and z_clock <= limits.z and kind is not None:
             finding, kappa = kind[0], (1.0 if kind[0] == "clock" else 1.0 / level)
-            note_kind = f"; the flight fits both alike, {kind[1]}: the {'clock' if kind[0] == 'clock' else 'velocities'}"
+            note_kind = f"; the flight fits both alike, {kind[1]}: the {kind[0]}"
         elif z_vel <= limits.z and z_clock <= limits.z:
             finding = "undetermined"
             undetermined = (f"{where}: the {primary} change {level:.4g} times as fast as the velocities integrate "

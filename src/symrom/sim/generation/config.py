@@ -23,8 +23,12 @@ from symrom.sim.generation.checks import JumpChecks
 # per-jump effects per jump; its jumps change), the randomized variant (all per jump); the A1's
 # and Go1's nominal and noisy PyBullet jumps bitwise those of 3; 5: the MPC's QP solver is a
 # choice (``mpc_solver``), DAQP by default in MuJoCo (its pronk jumps change), OSQP in PyBullet
-# (its jumps bitwise those of 4)
-GENERATOR_VERSION = 5
+# (its jumps bitwise those of 4); 6: froggy's randomised jumps draw two kinds of push (a quick one and
+# a real froggy's long one; its data change), froggy has a hardware-like variant (``proxy``), a drawn
+# variant replaces a draw that does not land up to ``runner.DRAWN_ATTEMPTS`` times, and a file may be
+# logged with a real robot's log faults (``log_faults``); nominal, noisy and proxy pronk jumps and
+# nominal froggy jumps bitwise those of 5
+GENERATOR_VERSION = 6
 
 # The MPC's QP solver when a config names none, per engine. PyBullet keeps OSQP: every PyBullet
 # dataset behind the documented results was made with it, and stays reproducible bit for bit.
