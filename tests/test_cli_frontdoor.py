@@ -132,7 +132,7 @@ def test_a_sim2real_target_is_said_as_logged_repaired_and_fine_tuned():
          "method": "calibrate_rollout", "chosen_source": "a1_randomized/exact", "chosen_method": "calibrate",
          "engine": "mujoco", "jumps": {"train": 12, "val": 4, "test": 8},
          "repair": {"planted": {"clock": 1.06, "clock_wobble": 0.03, "velocity_gain": 1.0, "torque_gain": 0.6,
-                                "height_offset": -0.02, "contact_lag": 1, "torque_gain_planted": 0.57},
+                                "height_offset": -0.02, "contact_lag": 1, "sensor_scale": 0.95},
                     "found": {"jumps": 24, "changed": 24, "findings": {"clock": 24},
                               "clock_scale": stat(1.058, 1.04, 1.07), "velocity_gain": stat(1.0, 1.0, 1.0),
                               "torque_gain": stat(0.571, 0.55, 0.59), "height_offset": stat(0.021, 0.019, 0.023),
@@ -143,7 +143,7 @@ def test_a_sim2real_target_is_said_as_logged_repaired_and_fine_tuned():
                      "fine-tuned 0.020 / 0.010 m, target alone 0.030 / 0.012 m; 5 of 5 targets met"]
     (line,) = repair_lines({"a1_proxy_mujoco": t})
     assert line.startswith("a1_proxy_mujoco: planted: loop 1.060x its period +- 3.0 %, velocities x 1.000, "
-                           "torques x 0.570 (logger 0.600 x sensor), z -20.0 mm, contacts 1 row(s) late; "
+                           "torques x 0.600 (its sensor x 0.950 under it), z -20.0 mm, contacts 1 row(s) late; "
                            "repaired 24 of 24 jumps (24 clock): duration x 1.058 (1.040..1.070)")
     assert "z +21.0 (+19.0..+23.0) mm" in line
     md = sim2real_markdown({"a1_proxy_mujoco": t})

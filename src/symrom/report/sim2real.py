@@ -55,9 +55,9 @@ def sim2real_rows(targets: dict[str, dict]) -> list[list[str]]:
 def _faults(f: dict) -> str:
     """A target's log faults as planted (``generator.log_faults``), in words."""
     clock = f"loop {f['clock']:.3f}x its period" + (f" +- {100 * f['clock_wobble']:.1f} %" if f["clock_wobble"] else "")
-    return (f"{clock}, velocities x {f['velocity_gain']:.3f}, torques x {f['torque_gain_planted']:.3f} "
-            f"(logger {f['torque_gain']:.3f} x sensor), z {1e3 * f['height_offset']:+.1f} mm, "
-            f"contacts {f['contact_lag']} row(s) late")
+    sensor = "" if f.get("sensor_scale") is None else f" (its sensor x {f['sensor_scale']:.3f} under it)"
+    return (f"{clock}, velocities x {f['velocity_gain']:.3f}, torques x {f['torque_gain']:.3f}{sensor}, "
+            f"z {1e3 * f['height_offset']:+.1f} mm, contacts {f['contact_lag']} row(s) late")
 
 
 def repair_lines(targets: dict[str, dict]) -> list[str]:

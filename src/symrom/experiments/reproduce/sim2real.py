@@ -127,8 +127,9 @@ def repaired_target(run: Path, name: str, logged: Path, say: Say) -> Path:
 def repair_summary(logged: Dataset, repaired: Dataset) -> dict:
     """What the repair found on a target's jumps beside what its logger planted
     (``generator.log_faults``; absent from a target logged without faults): per estimate the
-    median and range over the jumps. ``torque_gain_planted`` is the planted gain times the
-    proxy's own torque sensor's scale, which the weight sees as well."""
+    median and range over the jumps. ``sensor_scale`` beside the planted faults is the proxy's
+    own torque sensor's scale (``proxy_robot.torque_scale``), under the logger's gain: the
+    weight sees both, and the proxy's joint damping and friction loss besides."""
     jumps = repaired.generator["repairs"]["jumps"]
 
     def stat(values: list[float]) -> dict | None:
@@ -147,8 +148,7 @@ def repair_summary(logged: Dataset, repaired: Dataset) -> dict:
              "contact_lag": stat([j["contacts"]["lag"] for j in jumps])}
     planted = logged.generator.get("log_faults")
     if planted is not None:
-        scale = (logged.generator.get("proxy_robot") or {}).get("torque_scale", 1.0)
-        planted = {**planted, "torque_gain_planted": planted["torque_gain"] * scale}
+        planted = {**planted, "sensor_scale": (logged.generator.get("proxy_robot") or {}).get("torque_scale")}
     return {"planted": planted, "found": found}
 
 
