@@ -40,12 +40,13 @@ from symrom.model.persistence import load_model, write_model_files
 @dataclass(frozen=True)
 class Sim2RealTarget:
     """One sim-to-real target: its dataset (as logged), the SIM experiment whose selected
-    settings its sources are trained with, and its sources (source key -> dataset)."""
+    settings its sources are trained with, its sources (source key, dataset) and the paper's
+    Table 2 row its candidates are scored against on val (None: each component's spread)."""
 
     name: str
     settings: str
     sources: tuple[tuple[str, str], ...]
-    paper: str | None = None  # the paper's Table 2 row its candidates are scored against
+    paper: str | None = None
 
 
 GO1_SOURCES = (("noisy", "go1_noisy"), ("randomized", "go1_randomized"))
