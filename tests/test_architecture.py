@@ -30,7 +30,7 @@ LAYERS: dict[str, int] = {
 # Inside a package (or a subpackage, dotted), the same rule between its modules (or subpackages).
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # compiled execution: the descriptions it reads, then its kernels and generated code
-    "compiled": {"dynamics": 0, "codec": 0, "kernel": 1, "codegen": 1},
+    "compiled": {"dynamics": 0, "codec": 0, "table_kernels": 0, "kernel": 1, "codegen": 1},
     # the fitted model: its terms, the expressions, the guards, then the model, its file
     "model": {"autoencoder": 0, "library": 0, "provenance": 0, "expressions": 1, "guards": 1,
               "hybrid": 2, "path": 2, "persistence": 3},
@@ -54,7 +54,8 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
                         "pronk": 2, "froggy": 2},
     # generation: the checks, parts, the episode loop and the warm start; the configuration; one
     # checked jump; the whole file
-    "sim.generation": {"checks": 0, "parts": 0, "episode": 0, "warm": 0, "config": 1, "runner": 2, "generate": 3},
+    "sim.generation": {"checks": 0, "parts": 0, "episode": 0, "warm": 0, "preload": 1, "config": 1, "runner": 2,
+                       "generate": 3},
     "sim.diagnostics": {"forces": 0, "render": 0},
     # experiments: the resumable grid, what runs on it, the reproduction made of them, the demo that is one
     "experiments": {"grid": 0, "select": 1, "sweep": 1, "finetune": 1, "reproduce": 2, "demo": 3},

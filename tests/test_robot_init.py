@@ -316,7 +316,10 @@ def test_pybullet_refuses_an_mjcf_only_robot_in_one_line(written, tmp_path):
 
 
 # ------------------------------------------------------------------ robot show
-def test_robot_show_prints_the_description_as_symrom_reads_it(written):
+def test_robot_show_prints_the_description_as_symrom_reads_it(written, monkeypatch):
+    # rich fixes a console's width from COLUMNS when it is made; a CI shell's 80 columns would wrap the names
+    from symrom.cli.common import out_console
+    monkeypatch.setattr(out_console, "width", 200)
     d = written["anymal_c"].description
     s = robot_summary(d.source)
     assert s.name == "anymal_c" and s.urdf_derived and s.model == d.mjcf_path and s.format == 2
@@ -327,7 +330,7 @@ def test_robot_show_prints_the_description_as_symrom_reads_it(written):
     assert s.legs[2].knee_range == (0.3, 2.8) and s.legs[2].stance[2] > 0
     go1 = robot_summary("go1")
     assert go1.leg_length == pytest.approx(0.426) and go1.legs[0].foot == "link 'FR_foot'" and not go1.urdf_derived
-    r = CliRunner().invoke(app, ["robot", "show", str(d.source)], env={"COLUMNS": "200"})
+    r = CliRunner().invoke(app, ["robot", "show", str(d.source)])
     assert r.exit_code == 0, r.output
     for needle in ("anymal_c", "format 2", "URDF derived", "RF_KFE", "LH_HFE", "44.965 kg", "[0.3, 2.8]"):
         assert needle in r.output, needle

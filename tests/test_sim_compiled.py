@@ -3,9 +3,6 @@
 from __future__ import annotations
 
 import copy
-import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -214,25 +211,3 @@ def test_mpc_force_clipping_is_numpys_to_the_bit():
         ref[..., 1] = np.clip(ref[..., 1], -lim, lim)
         compiled.clip_forces(U, c, 0.0, 250.0, 0.6)
         np.testing.assert_array_equal(U.view(np.int64), ref.view(np.int64))  # signs of zeros too
-
-
-def test_the_compiled_routines_load_from_numba_s_disk_cache():
-    """After one process has compiled them, a fresh one loads every routine of both warm-ups from
-    the disk cache (cache=True survives the modules' layout) and compiles none."""
-    code = """
-import json
-from symrom.sim.controllers import compiled as controllers
-from symrom.sim.engines import compiled as engines
-engines.warm_up()
-controllers.warm_up(froggy=True)
-funcs = [engines.base_state, engines.mujoco_state, engines.mujoco_foot_forces, controllers.pronk_stance_torque,
-         controllers.clip_forces, controllers.condensed_qp, controllers.froggy_torque]
-print(json.dumps({f.__name__: [sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values())]
-                  for f in funcs}))
-"""
-    for _ in range(2):  # the first may compile (a fresh checkout); the second must not
-        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
-        assert r.returncode == 0, r.stderr
-    stats = json.loads(r.stdout.strip().splitlines()[-1])
-    assert all(hits > 0 and misses == 0 for hits, misses in stats.values()), stats
-

@@ -218,7 +218,7 @@ class SymbolicROM:
         data = DataRecord(robot=ds.robot, motion=ds.motion, source=ds.source, dt=ds.dt, q_names=tuple(Q_NAMES),
                           sha256=data_hash(ds), train_rows=int(rows.sum()),
                           train_jumps=int(np.unique(ds.jump[rows]).size),
-                          envelope=jump_envelope(ds, np.unique(ds.jump[rows])))
+                          envelope=freeze(jump_envelope(ds, np.unique(ds.jump[rows]))))
         training = TrainingRecord(settings=freeze(self.settings),
                                   encoder_rows=(f"the {self.contact_phase!r} phase" if has_contact
                                                 else f"all training rows (they hold no {self.contact_phase!r} row)"),

@@ -158,7 +158,7 @@ class FineTuneRecord(_Record):
 # info keys of model files of format 1-4, by the part that now holds them
 _DATA_KEYS = {"robot": "robot", "motion": "motion", "source": "source", "dt": "dt", "q_names": "q_names",
               "data_sha256": "sha256", "data_path": "path", "n_train_rows": "train_rows",
-              "n_train_jumps": "train_jumps"}
+              "n_train_jumps": "train_jumps", "envelope": "envelope"}
 _TRAINING_KEYS = {"training": "settings", "encoder_rows": "encoder_rows", "latent_mean": "latent_mean",
                   "latent_spread": "latent_spread", "untrained_phases": "untrained_phases",
                   "wall_time_s": "wall_time_s"}

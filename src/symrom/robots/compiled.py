@@ -36,7 +36,9 @@ def legs_one(qj, n_el, xyz, rot, axis, col, pos, J):
             for a in range(3):
                 for b in range(3):
                     T[a, b] = R[a, 0] * rot[k, e, 0, b] + R[a, 1] * rot[k, e, 1, b] + R[a, 2] * rot[k, e, 2, b]
-            R[:, :] = T
+            for a in range(3):  # R = T (loops: numba's array copy compiles seconds of error checks)
+                for b in range(3):
+                    R[a, b] = T[a, b]
             c = col[k, e]
             if c < 0:
                 continue
@@ -56,7 +58,9 @@ def legs_one(qj, n_el, xyz, rot, axis, col, pos, J):
                 T[a, 0] = r0 * G00 + r1 * G10 + r2 * G20
                 T[a, 1] = r0 * G01 + r1 * G11 + r2 * G21
                 T[a, 2] = r0 * G02 + r1 * G12 + r2 * G22
-            R[:, :] = T
+            for a in range(3):
+                for b in range(3):
+                    R[a, b] = T[a, b]
         for a in range(3):
             pos[k, a] = p[a]
         for j in range(3):

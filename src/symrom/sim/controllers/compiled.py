@@ -34,7 +34,8 @@ def distribute(foot_pos, centre, legs, force, moment, mu, grf):
         A[4, 3 * i + 0], A[4, 3 * i + 2] = r2, -r0
         A[5, 3 * i + 0], A[5, 3 * i + 1] = -r1, r0
     b = np.empty(6)
-    b[:3], b[3:] = force, moment
+    for a in range(3):
+        b[a], b[3 + a] = force[a], moment[a]
     sol = np.linalg.pinv(A) @ b
     grf[:, :] = 0.0
     for i in range(m):
@@ -180,16 +181,21 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     for k in range(4):
         for a in range(3):
             vel[k, a] = J[k, a, 0] * dq[3 * k] + J[k, a, 1] * dq[3 * k + 1] + J[k, a, 2] * dq[3 * k + 2]
+    # Arrays are filled element by element rather than by np.array, np.eye, np.full, np.arange or
+    # slice copies: the same numbers, and numba compiles a cold cache seconds faster.
     cyaw, syaw = np.cos(q[17]), np.sin(q[17])
-    Y = np.array([[cyaw, -syaw, 0.0], [syaw, cyaw, 0.0], [0.0, 0.0, 1.0]])
-    to_base = np.eye(3)
+    Y = np.zeros((3, 3))
+    Y[0, 0], Y[0, 1], Y[1, 0], Y[1, 1], Y[2, 2] = cyaw, -syaw, syaw, cyaw, 1.0
+    to_base = np.zeros((3, 3))
+    to_base[0, 0], to_base[1, 1], to_base[2, 2] = 1.0, 1.0, 1.0
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
         to_base = R.T @ Y
     weight = mass * 9.81
     shift = 0.0
-    kp, kd = np.full(4, prm[_KP_ST]), np.full(4, prm[_KD_ST])
+    kp, kd, z_leg = np.empty(4), np.empty(4), np.empty(4)
+    for k in range(4):
+        kp[k], kd[k], z_leg[k] = prm[_KP_ST], prm[_KD_ST], -prm[_STAND]
     grf = np.zeros((4, 3))
-    z_leg = np.full(4, -prm[_STAND])
     x_off = np.zeros(4)
     v_d = np.zeros((4, 3))
     xy = prm[_XY]
@@ -197,11 +203,17 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     pitch_ref = 0.0
     if stage == CROUCH or stage == HOLD or stage == PUSH_ALL:
         pitch_ref = prm[_PITCH] * smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
-    err = np.array([q[15], q[16] - pitch_ref, 0.0])
-    level = -prm[_K_ATT] * (R @ err)
+    err = np.zeros(3)
+    err[0], err[1] = q[15], q[16] - pitch_ref
+    tilt = R @ err
+    level = np.empty(3)
+    for a in range(3):
+        level[a] = -prm[_K_ATT] * tilt[a]
     level[0] -= prm[_D_ATT] * omega[0]
     level[1] -= prm[_D_ATT] * omega[1]
-    all_legs = np.arange(4)
+    all_legs = np.empty(4, dtype=np.int64)
+    for k in range(4):
+        all_legs[k] = k
     p_stroke = np.zeros((4, 3))
     if stage <= HOLD:
         if stage != SETTLE:
@@ -212,41 +224,73 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         distribute(foot_pos, base, all_legs, np.array([0.0, 0.0, weight]), level, 0.6, grf)
     elif stage == PUSH_ALL or stage == PUSH_REAR:
         sa, ca = np.sin(prm[_ANGLE]), np.cos(prm[_ANGLE])
-        direction = Y @ np.array([sa, 0.0, ca])
-        b_d = b0 + prm[_SPEED] * (t - t_push) * direction
+        along = np.zeros(3)
+        along[0], along[2] = sa, ca
+        direction = Y @ along
+        travel = prm[_SPEED] * (t - t_push)
+        b_d, thrust = np.empty(3), np.empty(3)
+        for a in range(3):
+            b_d[a] = b0[a] + travel * direction[a]
+            thrust[a] = prm[_F_ALL] * direction[a]
         b_d[2] = min(b_d[2], b0[2] + prm[_RISE])
-        p_stroke = (feet_w - b_d) @ Y
+        stroke = np.empty((4, 3))
+        for k in range(4):
+            for a in range(3):
+                stroke[k, a] = feet_w[k, a] - b_d[a]
+        p_stroke = stroke @ Y
         for k in range(4):
             v_d[k, 0], v_d[k, 1], v_d[k, 2] = -prm[_SPEED] * sa, 0.0, -prm[_SPEED] * ca
-        thrust = prm[_F_ALL] * direction
-        kp[:], kd[:] = prm[_KP_PUSH], prm[_KD_PUSH]
+        for k in range(4):
+            kp[k], kd[k] = prm[_KP_PUSH], prm[_KD_PUSH]
         xy = 1.0
         if stage == PUSH_ALL:
             distribute(foot_pos, base, all_legs, thrust, level, 0.6, grf)
         else:
-            distribute(foot_pos, base, np.arange(2, 4), prm[_F_REAR] / prm[_F_ALL] * thrust, level, 0.6, grf)
+            rear = np.empty(2, dtype=np.int64)
+            rear[0], rear[1] = 2, 3
+            share = prm[_F_REAR] / prm[_F_ALL]
+            for a in range(3):
+                thrust[a] = share * thrust[a]
+            distribute(foot_pos, base, rear, thrust, level, 0.6, grf)
             for k in range(2):  # front feet tuck up and forward
                 z_leg[k], x_off[k] = -prm[_CROUCH_H] + 0.04, 0.04
                 kp[k], kd[k] = prm[_KP_SW], prm[_KD_SW]
-                v_d[k, :] = 0.0
+                v_d[k, 0], v_d[k, 1], v_d[k, 2] = 0.0, 0.0, 0.0
     elif stage == FLIGHT:
-        kp[:], kd[:] = prm[_KP_SW], prm[_KD_SW]
-        x_off[:] = prm[_RAIBERT] * dq[12]
+        for k in range(4):
+            kp[k], kd[k], x_off[k] = prm[_KP_SW], prm[_KD_SW], prm[_RAIBERT] * dq[12]
     else:  # land
-        kp[:], kd[:] = prm[_KP_LAND], prm[_KD_LAND]
+        for k in range(4):
+            kp[k], kd[k] = prm[_KP_LAND], prm[_KD_LAND]
         a = smooth((t - t_land) / 0.3)  # the weight support ramps in over 0.3 s
-        down = np.flatnonzero(contact)
-        if down.size:
-            distribute(foot_pos, base, down, np.array([0.0, 0.0, weight]), level, 0.6, grf)
-            grf *= a
+        n_down = 0
+        for k in range(4):
+            if contact[k] != 0:
+                n_down += 1
+        if n_down:
+            down = np.empty(n_down, dtype=np.int64)  # the feet down, in order (np.flatnonzero)
+            n_down = 0
+            for k in range(4):
+                if contact[k] != 0:
+                    down[n_down] = k
+                    n_down += 1
+            up = np.zeros(3)
+            up[2] = weight
+            distribute(foot_pos, base, down, up, level, 0.6, grf)
+            for k in range(4):
+                for c in range(3):
+                    grf[k, c] *= a
     p_d = np.empty((4, 3))
+    lv = np.empty(3)
     for k in range(4):
-        lv = np.array([feet0[k, 0] + x_off[k] + shift, feet0[k, 1], feet0[k, 2] + z_leg[k]])
-        p_d[k] = to_base @ lv
-    if stage == PUSH_ALL:
-        p_d[:, :] = p_stroke
-    elif stage == PUSH_REAR:
-        p_d[2:, :] = p_stroke[2:]
+        lv[0], lv[1], lv[2] = feet0[k, 0] + x_off[k] + shift, feet0[k, 1], feet0[k, 2] + z_leg[k]
+        r = to_base @ lv
+        for a in range(3):
+            p_d[k, a] = r[a]
+    if stage == PUSH_ALL or stage == PUSH_REAR:
+        for k in range(2 if stage == PUSH_REAR else 0, 4):
+            for a in range(3):
+                p_d[k, a] = p_stroke[k, a]
     tau = np.empty(12)
     for k in range(4):
         f = np.empty(3)
@@ -264,26 +308,36 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     return tau
 
 
-def warm_up(froggy: bool = True) -> None:
-    """Compile (or load from the disk cache) the routines here now, as the first tick of a
-    simulation would: the one-configuration leg kinematics, the pronk controller's and the
-    MPC's (quick), and with ``froggy`` the froggy controller's (the slowest to compile, about
-    10 s the first time)."""
+# The routines each built-in motion's controller calls every tick (``warm_up``).
+MOTION_ROUTINES = {"pronk": ("legs_one", "pronk_stance_torque", "clip_forces", "condensed_qp"),
+                   "froggy": ("legs_one", "froggy_torque")}
+
+
+def routines(motion: str) -> list:
+    """The compiled routines (numba dispatchers) a controller of ``motion`` calls; none for a
+    motion that is not built in."""
+    return [legs_one if name == "legs_one" else globals()[name] for name in MOTION_ROUTINES.get(motion, ())]
+
+
+def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
+    """Compile (or load from the disk cache) the routines the controllers of ``motions`` call,
+    now, as their first tick would: the one-configuration leg kinematics, the pronk controller's
+    and the MPC's, the froggy controller's."""
     from symrom.robots import leg_kinematics
 
     kin = leg_kinematics("go1")
     kin.one(np.zeros(12))
-    J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
-    pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
-                        np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
-    clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
-    h, m = 2, 6
-    condensed_qp(np.zeros((h, m, h, m)), np.zeros((h * m, 13)), np.zeros((h * m, 13 * h)), np.zeros((m, 12)),
-                 np.zeros(13), np.zeros(13 * h), 1.0, np.empty((12 * h, 12 * h)), np.empty(12 * h))
-    if not froggy:
-        return
-    feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
-    q, dq = np.zeros(18), np.zeros(18)
-    q[14] = 0.3
-    froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
-                  np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())
+    if "pronk" in motions:
+        J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
+        pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
+                            np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
+        clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
+        h, m = 2, 6
+        condensed_qp(np.zeros((h, m, h, m)), np.zeros((h * m, 13)), np.zeros((h * m, 13 * h)), np.zeros((m, 12)),
+                     np.zeros(13), np.zeros(13 * h), 1.0, np.empty((12 * h, 12 * h)), np.empty(12 * h))
+    if "froggy" in motions:
+        feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+        q, dq = np.zeros(18), np.zeros(18)
+        q[14] = 0.3
+        froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
+                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())

@@ -146,36 +146,71 @@ def mujoco_foot_forces(con_geom, con_frame, con_friction, con_dim, con_efc, efc_
                                + con_frame[i, 6 + r] * local[2])
 
 
-def warm_up() -> None:
-    """Compile (or load from the disk cache) the reads here now, as the first tick of a
-    simulation would, for the argument types each engine hands them."""
+# The arguments of the MuJoCo reads that are MuJoCo's contact fields: strided views of its
+# contact structs, contiguous when there is one contact or none.
+STATE_CONTACTS = (12,)
+FORCE_CONTACTS = (0, 1, 2, 3, 4)
+
+
+def settle(dispatcher, args: tuple, loose: tuple[int, ...]) -> None:
+    """Give ``dispatcher`` a build for ``args`` (compiled, or loaded from the disk cache, now),
+    the arrays at the positions ``loose`` typed as of any layout, and let it compile nothing on
+    its own from then on: a call converts its arrays to a settled build's types. MuJoCo's
+    contact fields come contiguous or strided by the number of contacts, and numba would
+    otherwise compile a build for each (a second or so each on a cold cache, and a load each
+    on a warm one). A call of types no settled build takes raises numba's TypeError."""
+    from numba import typeof
+
+    sig = tuple(typeof(a).copy(layout="A") if i in loose else typeof(a) for i, a in enumerate(args))
+    if sig not in dispatcher.overloads:
+        dispatcher.disable_compile(False)
+        dispatcher.compile(sig)
+    dispatcher.disable_compile(True)
+
+
+# The reads each engine calls every tick (``warm_up``).
+ENGINE_ROUTINES = {"pybullet": ("base_state",), "mujoco": ("mujoco_state", "mujoco_foot_forces")}
+
+
+def routines(engine: str) -> list:
+    """The compiled reads (numba dispatchers) a world of ``engine`` calls."""
+    return [globals()[name] for name in ENGINE_ROUTINES.get(engine, ())]
+
+
+def warm_up(engines: tuple[str, ...] = ("pybullet", "mujoco")) -> None:
+    """Compile (or load from the disk cache) the reads ``engines`` use now, as their first tick
+    would, for the argument types each engine hands them."""
     q, dq, R = np.zeros(18), np.zeros(18), np.empty((3, 3))
     unit = np.array([0.0, 0.0, 0.0, 1.0])
-    base_state(np.zeros(3), unit, np.zeros(3), np.zeros(3), np.zeros(3), unit, q, dq, R)
-    zero = (0.0, 0.0, 0.0)  # as BulletWorld.state passes PyBullet's tuples
-    base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
-    _warm_mujoco()
+    if "pybullet" in engines:
+        zero = (0.0, 0.0, 0.0)  # as BulletWorld.state passes PyBullet's tuples
+        base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
+    if "mujoco" in engines:
+        settle_mujoco(*mujoco_arguments())
 
 
-def _warm_mujoco() -> None:
-    """Compile the MuJoCo world's reads for the array types MuJoCo hands them: its contact
-    fields are strided views of the contact structs, contiguous when there is one contact
-    or none."""
-    nb, ng = 6, 8
+def mujoco_arguments(nbody: int = 6, ngeom: int = 8, ncon: int = 2) -> tuple[tuple, tuple]:
+    """Arguments of ``mujoco_state`` and ``mujoco_foot_forces`` of the types a MuJoCo world
+    passes (MuJoCo's int32 and float64 fields, the world's int64 and uint8 arrays), the contact
+    fields strided views as MuJoCo hands them: for warming them up without a model."""
     i32, i64 = np.int32, np.int64
-    f4, legs = np.zeros((4, 3)), np.full(ng, -1, dtype=i64)
+    legs = np.full(ngeom, -1, dtype=i64)
     legs[2:6] = np.arange(4)
     qpos = np.zeros(19)
     qpos[3] = 1.0  # a unit quaternion
-    for n, strided in ((1, False), (2, True)):
-        rows = np.zeros((n, 12 if strided else 2), dtype=i32)
-        geom, dim, efc = rows[:, :2], np.full(n, 3, i32), np.zeros(n, i32)
-        frame, friction = np.zeros((n, 9 if not strided else 20))[:, :9], np.zeros((n, 5 if not strided else 8))[:, :5]
-        if strided:
-            dim, efc = rows[:, 2], rows[:, 3]
-        mujoco_state(qpos, np.zeros(18), np.tile(np.eye(3).ravel(), (nb, 1)), np.zeros((nb, 3)),
-                     np.zeros((nb, 6)), np.zeros((nb, 3)), np.zeros(nb, dtype=i64), 1, np.arange(2, 6, dtype=i64),
-                     np.arange(7, 19, dtype=i32), np.arange(6, 18, dtype=i32), np.ones(12), geom, legs, 0,
-                     np.empty(4), np.empty(18), np.empty(18), np.empty((3, 3)), np.empty(3), np.empty((4, 3)),
-                     np.empty((4, 3)), np.empty(4, dtype=np.uint8))
-        mujoco_foot_forces(geom, frame, friction, dim, efc, np.zeros(4 * n), legs, 0, f4)
+    rows = np.zeros((ncon, 12), dtype=i32)
+    geom, dim, efc = rows[:, :2], rows[:, 2], rows[:, 3]
+    frame, friction = np.zeros((ncon, 20))[:, :9], np.zeros((ncon, 8))[:, :5]
+    state = (qpos, np.zeros(18), np.tile(np.eye(3).ravel(), (nbody, 1)), np.zeros((nbody, 3)),
+             np.zeros((nbody, 6)), np.zeros((nbody, 3)), np.zeros(nbody, dtype=i64), 1, np.arange(2, 6, dtype=i64),
+             np.arange(7, 19, dtype=i32), np.arange(6, 18, dtype=i32), np.ones(12), geom, legs, 0,
+             np.empty(4), np.empty(18), np.empty(18), np.empty((3, 3)), np.empty(3), np.empty((4, 3)),
+             np.empty((4, 3)), np.empty(4, dtype=np.uint8))
+    forces = (geom, frame, friction, dim, efc, np.zeros(4 * ncon), legs, 0, np.zeros((4, 3)))
+    return state, forces
+
+
+def settle_mujoco(state: tuple, forces: tuple) -> None:
+    """``settle`` the two MuJoCo reads for these arguments (``mujoco_arguments``' order)."""
+    settle(mujoco_state, state, STATE_CONTACTS)
+    settle(mujoco_foot_forces, forces, FORCE_CONTACTS)

@@ -48,7 +48,7 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.mjcf import foot_frames
-from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state
+from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state, settle_mujoco
 from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
                                       standing_configuration)
 
@@ -205,6 +205,13 @@ class MujocoWorld:
         self._forces = np.zeros((N_LEGS, 3))
         self._vel = np.zeros(6)
         self._res = np.zeros(6)
+        d, con = self.data, self.data.contact
+        settle_mujoco((*self._views, self._body_root, self._base, self._feet_arr, self._qadr, self._vadr,
+                       self._signs_arr, con.geom, self._leg_of_geom, self._ground, self._quat, np.empty(N_Q),
+                       np.empty(N_Q), np.empty((3, 3)), np.empty(3), np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3)),
+                       np.empty(N_LEGS, np.uint8)),
+                      (con.geom, con.frame, con.friction, con.dim, con.efc_address, d.efc_force, self._leg_of_geom,
+                       self._ground, self._forces))
 
     # ------------------------------------------------------------------ state
     def reset(self, q: np.ndarray, dq: np.ndarray | None = None) -> None:

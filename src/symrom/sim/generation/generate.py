@@ -138,9 +138,24 @@ def proxy_robot(records: list[dict]) -> dict:
 def _preload(cfg: GenerateConfig) -> list[str]:
     """Modules a fresh local worker imports once: the runner, the motion's plug-in, PyBullet (without
     its banner; the pronk's body model reads the URDF with it on any engine), the engine's world and
-    the compiled simulation routines (``warm``)."""
+    the compiled simulation routines from numba's disk cache (``preload``)."""
     return ["symrom.sim.generation.runner", get_motion(cfg.motion).plugin.partition(":")[0],
-            "symrom.sim.engines.bullet", engine_module(cfg.engine), "symrom.sim.generation.warm"]
+            "symrom.sim.engines.bullet", engine_module(cfg.engine), "symrom.sim.generation.preload"]
+
+
+def _prepare(cfg: GenerateConfig, backend: Backend) -> None:
+    """On local processes, the compiled routines of the jumps made ready before the first: in
+    this process for one worker, on the disk for the workers' fork server to load (a cold cache
+    compiled once, by two processes, rather than by every worker or inside the first jump)."""
+    if isinstance(backend, LocalBackend):
+        import importlib
+
+        from symrom.sim.generation.warm import prepare
+
+        prepare(cfg.motion, cfg.engine, load=backend.workers == 1)
+        if backend.workers == 1:  # the tasks run here: what a worker imports before its first (``_preload``)
+            for module in _preload(cfg)[:-1]:
+                importlib.import_module(module)
 
 
 def run_record_path(out: str | os.PathLike) -> Path:
@@ -244,6 +259,8 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     say(done, total, {"resumed": len(have)})
     fingerprint = cfg.fingerprint()
     tasks = [(j, (j,)) for j in todo]
+    if tasks:
+        _prepare(cfg, backend)
     for task in backend.map(run_checked_jump, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
         log, record = task.value
         execution = {"seconds": round(task.seconds, 4), "worker": task.worker, "retries": task.retries}

@@ -1,11 +1,93 @@
-"""Importing this module compiles, or loads from numba's disk cache, the compiled routines every
-simulation uses (``symrom.sim.engines.compiled.warm_up``, ``symrom.sim.controllers.compiled.warm_up``;
-a motion's own, such as the froggy controller's, load on their first call). The worker processes'
-fork server imports it, so that every worker starts with them instead of loading them on its first
-tick."""
+"""The compiled routines a simulation's ticks call, made ready before its first tick.
 
-from symrom.sim.controllers.compiled import warm_up as warm_controllers
-from symrom.sim.engines.compiled import warm_up as warm_engines
+The engines' reads (``symrom.sim.engines.compiled``) and the controllers' arithmetic
+(``symrom.sim.controllers.compiled``) are compiled by numba once per installation and kept in
+its disk cache; a later process loads them. ``prepare(motion, engine)`` makes them ready in
+this process before a generation's first jump: loaded from the disk cache, or, on a cold
+cache, compiled, the engine's in a helper process beside this one while this one compiles the
+motion's (the longer: the froggy controller's routines are most of a cold start), so that the
+helper's own start-up is off the critical path.
 
-warm_engines()
-warm_controllers(froggy=False)
+``load_cached()`` loads every routine the disk cache holds and compiles none: the worker
+processes' fork server does so (it imports ``preload``, ``generate._preload``), so that every
+worker starts with them instead of loading them on its first tick.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+from symrom.sim.controllers import compiled as controllers
+from symrom.sim.engines import compiled as engines
+
+HELPER_TIMEOUT = 600.0  # s: a helper still compiling then is left behind; this process compiles
+
+
+def routines(kind: str, name: str) -> list:
+    """The numba dispatchers of a group: ``("engine", name)`` or ``("motion", name)``."""
+    return engines.routines(name) if kind == "engine" else controllers.routines(name)
+
+
+def in_disk_cache(dispatcher) -> bool:
+    """Whether numba's disk cache holds a build of ``dispatcher`` for its present source
+    (False where the cache cannot be read)."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba's cache internals; any failure means "compile"
+        return False
+
+
+def warm(kind: str, name: str) -> None:
+    """Compile, or load from the disk cache, the routines of the group (``routines``) now, for
+    the argument types the simulation passes them."""
+    if kind == "engine":
+        engines.warm_up((name,))
+    else:
+        controllers.warm_up((name,))
+
+
+def prepare(motion: str, engine: str, helper: bool = True, load: bool = True) -> None:
+    """Make the routines a jump of ``motion`` in ``engine`` calls ready in this process (see the
+    module docstring). ``helper``: on a cold cache, compile the engine's in a second process
+    while this one compiles the motion's (with more than one core). ``load=False``: only make
+    sure the disk cache holds them (for worker processes that load them themselves): groups
+    already there are not loaded here."""
+    groups = [g for g in (("motion", motion), ("engine", engine)) if routines(*g)]  # a plug-in's: none
+    cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
+    proc = None
+    if helper and len(cold) == 2 and (os.cpu_count() or 1) > 1:
+        proc = _start_helper(*cold[1])
+    for g in groups:
+        if (proc is None or g != cold[1]) and (load or g in cold):
+            warm(*g)
+    if proc is not None:
+        try:
+            proc.wait(timeout=HELPER_TIMEOUT)
+        except subprocess.TimeoutExpired:
+            pass
+        if load or not all(in_disk_cache(d) for d in routines(*cold[1])):
+            warm(*cold[1])  # from the disk cache the helper filled (or compiled here if it failed)
+
+
+def _start_helper(kind: str, name: str) -> subprocess.Popen | None:
+    """A process compiling the group into numba's disk cache; None if it cannot be started. It
+    imports the symrom this process runs (its folder first on the path)."""
+    root = str(Path(__file__).resolve().parents[3])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+    code = f"from symrom.sim.generation.warm import warm; warm({kind!r}, {name!r})"
+    try:
+        return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+
+
+def load_cached() -> None:
+    """Load every routine of every group that numba's disk cache holds; compile none."""
+    for kind, names in (("engine", engines.ENGINE_ROUTINES), ("motion", controllers.MOTION_ROUTINES)):
+        for name in names:
+            if all(in_disk_cache(d) for d in routines(kind, name)):
+                warm(kind, name)

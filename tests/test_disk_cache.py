@@ -1,0 +1,69 @@
+"""A new process compiles nothing an earlier one compiled: every numba routine, the term-table
+kernels, the autoencoder's passes, the simulation's reads and arithmetic and a model's generated
+code are loaded from the disk caches (numba's, keyed by source file; the generated code's, keyed
+by the model)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+# Runs every compiled path once, and prints what numba compiled (the compile event fires only
+# for builds that were not found in the disk cache, nested ones included).
+CODE = """
+import json
+import numpy as np
+from numba.core import event
+
+compiled = []
+
+
+class Compiles(event.Listener):
+    def on_start(self, e):
+        pass
+
+    def on_end(self, e):
+        compiled.append(e.data["dispatcher"].py_func.__qualname__)
+
+
+event.register("numba:compile", Compiles())
+
+from symrom import compiled as C
+from symrom.learn.training import TrainConfig, train
+from symrom.rollout.integrate import RolloutOptions, rollout
+from symrom.sim.generation.warm import warm
+from symrom.testing import make_planted_dataset
+
+for kind, name in (("engine", "pybullet"), ("engine", "mujoco"), ("motion", "pronk"), ("motion", "froggy")):
+    warm(kind, name)
+ds, _ = make_planted_dataset(n_jumps=3, n_samples=60, seed=1)
+model = train(ds, TrainConfig(latent_dim=2, poly_order=1))
+for backend in ("table", "generated"):
+    rollout(model, ds, None, RolloutOptions("rk4", backend=backend))
+j = 0
+a, b = ds.jump_bounds()[j]
+model.predict_path(ds.q[a], ds.dq[a], ds.u[a:b], ds.dt, phases=model.phase_index(ds)[a:b],
+                   options=RolloutOptions("rk4", backend="table"))
+dyn = model.dynamics()
+P, p, l = model.Xi.shape
+win = np.zeros((2, 5, l))
+C.rollout_windows(dyn.terms, model.Xi, np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.int64),
+                  win, win, win, np.zeros((2, 5), np.int64), ds.dt, np.full(2 * l, 1e3))
+print(json.dumps(compiled))
+"""
+
+
+def test_a_new_process_compiles_nothing_an_earlier_one_compiled(tmp_path):
+    env = dict(os.environ, SYMROM_CACHE_DIR=str(tmp_path / "generated"),
+               PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    runs = []
+    for _ in range(2):  # the first may compile (a fresh checkout); the second must not
+        r = subprocess.run([sys.executable, "-c", CODE], capture_output=True, text=True, timeout=900, env=env)
+        assert r.returncode == 0, r.stderr
+        runs.append(json.loads(r.stdout.strip().splitlines()[-1]))
+    assert runs[1] == [], runs[1]
