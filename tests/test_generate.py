@@ -75,12 +75,18 @@ def test_checks_catch_bad_jumps():
     assert any("torque" in b for b in reasons())
 
 
-def test_bad_requests_fail_clearly(tmp_path):
+def test_bad_requests_fail_clearly(tmp_path, monkeypatch):
+    from dataclasses import replace
+
+    from symrom import motions
+
     with pytest.raises(GenerationError, match="unknown robot 'b2'"):
         generate(GenerateConfig("b2", "pronk", 2), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="unknown motion 'walk'"):
         generate(GenerateConfig("a1", "walk", 2), tmp_path / "x.h5")
-    with pytest.raises(GenerationError, match="proxy=True is not a variant of 'froggy'"):
+    # every built-in motion offers both variants; a motion registered without the proxy's
+    monkeypatch.setitem(motions.MOTIONS, "froggy", replace(motions.MOTIONS["froggy"], variants=("randomized",)))
+    with pytest.raises(GenerationError, match=r"proxy=True is not a variant of 'froggy'; motions with it: \['pronk'\]"):
         generate(GenerateConfig("a1", "froggy", 2, proxy=True), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="at least one jump"):
         generate(GenerateConfig("a1", "froggy", 0), tmp_path / "x.h5")

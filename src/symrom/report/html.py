@@ -63,7 +63,7 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None 
         secs += build_sections(run, Context(run, fig_dir))
         targets = run.summary.get("sim2real", {}).get("targets")
         if targets:
-            secs.append(Section("sim2real", "Sim-to-real: source, fine-tuned and target alone").add(
+            secs.append(Section("sim2real", "Sim-to-real: logged, repaired and fine-tuned").add(
                 *sim2real_blocks(targets)))
         say("data and provenance")
         secs += [Section("experiments", "Experiments of this run and their files").add(
