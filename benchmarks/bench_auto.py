@@ -41,6 +41,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import provenance
+
 
 def child(args: argparse.Namespace) -> dict:
     import numpy as np
@@ -139,7 +141,7 @@ def main() -> None:
                   f"{r['max_diff_vs_first_path']:.1e} |")
     print(f"\nwall time {res['wall_time_s']:.0f} s")
     if args.out:
-        args.out.write_text(json.dumps(res, indent=1) + "\n")
+        args.out.write_text(json.dumps({**provenance(), **res}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -49,6 +49,7 @@ os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
 
 import numpy as np  # noqa: E402
+from provenance import provenance  # noqa: E402
 
 CLI = "import sys; from symrom.cli import main; sys.argv[0] = 'symrom'; main()"
 MACHINES = (1, 2, 4, 8, 16, 32)
@@ -215,7 +216,8 @@ def main() -> None:
         "overhead_ratio_inside_generate": round(statistics.median(inner["ray"]) / statistics.median(inner["local"]), 3),
         "datasets_identical": True,
         "task_s": {"median": round(float(np.median(task_s)), 3), "min": round(min(task_s), 3),
-                   "max": round(max(task_s), 3), "sum": round(sum(task_s), 2), "per_jump": [round(t, 3) for t in task_s]},
+                   "max": round(max(task_s), 3), "sum": round(sum(task_s), 2),
+                   "per_jump": [round(t, 3) for t in task_s]},
         "dispatch_s_per_task": {k: round(v, 5) for k, v in dispatch.items()},
         "driver": {k: (round(v, 5) if isinstance(v, float) else v) for k, v in driver.items()},
         "fixed_s": round(fixed, 2),
@@ -223,7 +225,7 @@ def main() -> None:
         "projection": rows,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    args.out.write_text(json.dumps({**provenance(), **result}, indent=1) + "\n")
     print(f"| back end | wall time, median of {args.repeats} (s) | fastest (s) | runs (s) |\n|---|---|---|---|")
     for k in ("local", "ray"):
         print(f"| {k} | {med[k]:.2f} | {min(walls[k]):.2f} | {', '.join(f'{x:.2f}' for x in walls[k])} |")
@@ -233,7 +235,8 @@ def main() -> None:
     print(f"\n| jumps | machines ({args.workers} cores each) | projected wall (s) | speed-up | efficiency |")
     print("|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['jumps']} | {r['machines']} | {r['projected_s']:.1f} | {r['speedup']:.2f} | {r['efficiency']:.2f} |")
+        print(f"| {r['jumps']} | {r['machines']} | {r['projected_s']:.1f} | {r['speedup']:.2f} "
+              f"| {r['efficiency']:.2f} |")
     print(f"\nresults: {args.out}")
 
 

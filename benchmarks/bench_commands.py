@@ -47,6 +47,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import provenance
+
+from symrom.atomic import write_text_atomic
+
 HERE = Path(__file__).resolve().parents[1]
 CLI = "import sys; sys.argv[0] = 'symrom'; from symrom.cli import app; app()"
 ROLLOUT = r"""
@@ -163,7 +167,7 @@ def jump_seconds(out: Path) -> dict:
 
 
 def summarise(items: dict) -> dict:
-    for name, it in items.items():
+    for it in items.values():
         med = {}
         for side, runs in it["runs"].items():
             ok = [r for r in runs if r["returncode"] == 0]
@@ -196,7 +200,8 @@ def markdown(items: dict) -> str:
             if "samples_per_s" in m:
                 text += f", {m['samples_per_s']:.3g} samples/s"
             if "first_rollout_s" in m:
-                text += (f"; rollout first {1e3 * m['first_rollout_s']:.0f} ms, then {1e3 * m['later_rollout_s']:.1f} ms;"
+                text += (f"; rollout first {1e3 * m['first_rollout_s']:.0f} ms, "
+                         f"then {1e3 * m['later_rollout_s']:.1f} ms;"
                          f" predict_path first {1e3 * m['first_predict_path_s']:.0f} ms, then "
                          f"{1e3 * m['later_predict_path_s']:.1f} ms")
             cells.append(text)
@@ -244,10 +249,11 @@ def main() -> None:
         return wanted is None or name in wanted
 
     def save() -> None:  # after every item, so that an interrupted run keeps what it measured
-        record = {"machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node()},
+        record = {**provenance(),
+                  "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node()},
                   "sides": {s.name: str(s.src) for s in sides}, "runs": args.runs, "items": summarise(items)}
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(record, indent=1) + "\n")
+        write_text_atomic(args.out, json.dumps(record, indent=1) + "\n")
 
     items.on_set = save
 

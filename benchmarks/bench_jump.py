@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.model.persistence import load_model
 from symrom.plan.jump import jump, make_planner, read_aslip_params
@@ -169,7 +170,8 @@ def replan_table(res: dict) -> str:
 
 
 def froggy_table(fr: dict) -> str:
-    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled |", "|---|---|---|---|---|---|---|"]
+    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled |",
+             "|---|---|---|---|---|---|---|"]
     for r in fr["results"].values():
         e = r["abs_error_x_m"]
         settled = sum(bool(j.get("settled")) for j in r["jumps"] if "failed" not in j)
@@ -204,7 +206,8 @@ def verdicts(res: dict, fr: dict | None) -> list[str]:
         if f"point-mass/plan/{w}" in R:
             ratio = med(f"point-mass/plan/{w}") / m
             out.append(f"{w}: learned mpc {ratio:.1f}x closer than point-mass plan")
-    times = [R[f"learned/mpc/{w}"]["replan_solve_cpu_s"]["median"] for w in ws if "replan_solve_cpu_s" in R[f"learned/mpc/{w}"]]
+    times = [R[f"learned/mpc/{w}"]["replan_solve_cpu_s"]["median"] for w in ws
+             if "replan_solve_cpu_s" in R[f"learned/mpc/{w}"]]
     if times:
         t = max(times)
         out.append(f"re-plan <= 2 ms median on one core: {'met' if t <= 2e-3 else 'NOT met'} "
@@ -248,7 +251,7 @@ def main() -> None:
     print(f"wall time {res['wall_time_s']:.1f} s")
     if a.out:
         a.out.parent.mkdir(parents=True, exist_ok=True)
-        a.out.write_text(json.dumps(res, indent=1, default=float) + "\n")
+        a.out.write_text(json.dumps({**provenance(), **res}, indent=1, default=float) + "\n")
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import AdamConfig, TrainConfig, train
@@ -90,8 +91,10 @@ def main() -> None:
                      f"{args.adam_runs}", f"{res['train_adam_s']['test_worst_nmae']['full']:.2%}"))
     for key in ("full", "0.1"):
         r = res[f"rollout_{key}"]
-        rows.append((f"rollout {key}, lsoda ({args.jumps} jumps)", f"{r['lsoda_median_s']:.2f} s", f"{args.rollout_runs}", ""))
-        rows.append((f"rollout {key}, rk4 batch ({args.jumps} jumps)", f"{r['rk4_median_s']:.3f} s", f"{args.rollout_runs}", ""))
+        rows.append((f"rollout {key}, lsoda ({args.jumps} jumps)", f"{r['lsoda_median_s']:.2f} s",
+                     f"{args.rollout_runs}", ""))
+        rows.append((f"rollout {key}, rk4 batch ({args.jumps} jumps)", f"{r['rk4_median_s']:.3f} s",
+                     f"{args.rollout_runs}", ""))
     print("\n| task | median time | runs | worst test nMAE (full horizon) |\n|---|---|---|---|")
     for r in rows:
         print("| " + " | ".join(r) + " |")
@@ -100,7 +103,7 @@ def main() -> None:
               f"rk4 batch is {res['rollout_full']['speedup']:.0f}x faster than lsoda (full horizon)")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=1))
+        args.out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 if __name__ == "__main__":

@@ -54,6 +54,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_CACHE_DIR", tempfile.mkdtemp(prefix="symrom-bench-numba-"))
 
 import numpy as np
+from provenance import provenance
 
 from symrom import compiled
 from symrom.export import export
@@ -352,7 +353,7 @@ def main() -> None:
                             "drift_dxi": drift([y[:, model.latent_dim:] for y in Y], ref[1][:k])}
             print(f"  peer ({k} jumps): {secs:.3g} s", file=sys.stderr, flush=True)
         base = {n: rows[n]["integration"]["cpu_median_s"] for n in ("lsoda_numpy", "rk4_numpy")}
-        for name, row in rows.items():  # ratios of CPU time, per jump
+        for row in rows.values():  # ratios of CPU time, per jump
             per_jump = row["integration"]["cpu_median_s"] * len(lens) / row.get("jumps", len(lens))
             row["speedup_vs_lsoda"] = base["lsoda_numpy"] / per_jump
             row["speedup_vs_numpy_rk4"] = base["rk4_numpy"] / per_jump
@@ -403,7 +404,7 @@ def main() -> None:
           f"kernel once per installation (its first call above). Wall time {res['wall_time_s']:.0f} s.")
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(res, indent=1))
+        args.out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 if __name__ == "__main__":

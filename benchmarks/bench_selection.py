@@ -22,6 +22,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from provenance import provenance
+
 from symrom.data.io import read_dataset
 from symrom.experiments.reproduce import ExperimentSpec, ReproduceConfig
 from symrom.experiments.select import select
@@ -65,7 +67,7 @@ def main() -> None:
     out = {"machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
            "workers": args.workers, "results": results}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    args.out.write_text(json.dumps({**provenance(), **out}, indent=1) + "\n")
     print("| dataset | candidates | selection wall time | chosen | refinement of the chosen (median) |")
     print("|---|---|---|---|---|")
     for r in results:

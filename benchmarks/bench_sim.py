@@ -47,6 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.sim.generation.generate import GenerateConfig, generate, motion_available
 
@@ -205,7 +206,7 @@ def write(out: Path | None, res: dict) -> None:
     """The results JSON, if asked for."""
     if out:
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(res, indent=1))
+        out.write_text(json.dumps({**provenance(), **res}, indent=1))
 
 
 def main() -> None:
@@ -286,7 +287,8 @@ def main() -> None:
             mpc = f"{1e3 * one['mpc_solve_median_s']:.2f} ms" if one["mpc_solve_median_s"] else "-"
             rows.append(f"| {ROBOT_OF_MOTION[motion]} {motion} | {args.jumps} ({one['retries']} retries) "
                         f"| {one['simulated_s']:.1f} s | {r['rtf_one_worker']:.2f} ({one['wall_s']:.1f} s) "
-                        f"| {r['rtf_per_cpu_s']:.2f} | {r['speedup_two_workers']:.2f}x ({two['wall_s']:.1f} s) | {mpc} |")
+                        f"| {r['rtf_per_cpu_s']:.2f} | {r['speedup_two_workers']:.2f}x ({two['wall_s']:.1f} s) "
+                        f"| {mpc} |")
     print("| motion | jumps | simulated | real-time factor, 1 worker (wall) | per CPU second "
           "| speed-up, 2 workers (wall) | median MPC solve |")
     print("|---|---|---|---|---|---|---|")

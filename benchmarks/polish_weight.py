@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from provenance import provenance
 
 from symrom.atomic import write_text_atomic
 from symrom.data.io import read_dataset
@@ -50,6 +51,28 @@ def polish_alone(model: HybridModel, ds, weight: float) -> HybridModel:
     return replace(model, Xi=fit.Xi, mask=fit.mask)
 
 
+def score_variant(name: str, weight: float | None, model: HybridModel, ds, yardstick: dict, substeps: int,
+                  seconds: float) -> dict:
+    """One row of the record: the variant, its weight (None: not polished), its terms and its val
+    rollouts scored against ``yardstick`` (``select.score_model``: per horizon ``worst`` ratio)."""
+    scored = select.score_model(model, ds, yardstick, substeps)
+    return {"variant": name, "polish_weight": weight, "active_terms": int(model.mask.sum()),
+            "active_per_phase": model.active_terms(), "seconds": round(seconds, 1), **scored}
+
+
+def worst_ratio(row: dict) -> float:
+    """The row's largest val RMSE / yardstick ratio over both horizons; inf if a horizon diverged."""
+    ratios = [row["horizons"][h]["worst"] for h in ("full", "0.1")]
+    return float("inf") if any(r is None for r in ratios) else max(ratios)
+
+
+def best_weight(rows: list[dict]) -> float | None:
+    """The polish weight whose variant val puts furthest under the yardstick (the smallest
+    worst ratio; None: the unpolished variant); on a tie the smaller weight."""
+    best = min(rows, key=lambda r: (worst_ratio(r), -1.0 if r["polish_weight"] is None else r["polish_weight"]))
+    return best["polish_weight"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, required=True, help="run directory of a budget SIM A1 selection")
@@ -79,15 +102,15 @@ def main() -> None:
     yardstick = cfg.yardstick(ds)
     rows = []
     for name, w, model, seconds in variants:
-        scored = select.score_model(model, ds, yardstick, cfg.substeps)
-        rows.append({"variant": name, "polish_weight": w, "active_terms": int(model.mask.sum()),
-                     "active_per_phase": model.active_terms(), "seconds": round(seconds, 1), **scored})
-        print(f"{name}: val worst ratio to the paper, full {scored['horizons']['full']['worst']}, "
-              f"0.1 s {scored['horizons']['0.1']['worst']}", flush=True)
+        rows.append(score_variant(name, w, model, ds, yardstick, cfg.substeps, seconds))
+        h = rows[-1]["horizons"]
+        print(f"{name}: val worst ratio to the paper, full {h['full']['worst']}, 0.1 s {h['0.1']['worst']}",
+              flush=True)
+    print(f"best weight on val: {best_weight(rows)} (the default: {Refine().polish_weight:g})")
     out = {"version": VERSION, "candidate": candidate, "max_terms": chosen["max_terms"],
-           "default_polish_weight": Refine().polish_weight, "val": rows,
+           "default_polish_weight": Refine().polish_weight, "best_weight": best_weight(rows), "val": rows,
            "seconds": round(time.perf_counter() - t0, 1)}
-    write_text_atomic(args.out, json.dumps(out, indent=1))
+    write_text_atomic(args.out, json.dumps({**provenance(), **out}, indent=1))
     print(f"record: {args.out} ({out['seconds']:.0f} s)")
 
 

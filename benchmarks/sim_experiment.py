@@ -5,10 +5,10 @@
 
 Runs into ``--run`` what ``symrom reproduce`` runs for the experiment, with the same
 functions and settings (``ReproduceConfig``: the dataset's spec and seed, the validation
-selection (with ``--max-terms``, as ``reproduce --max-terms``), the evaluation on the test split, the paper's defaults and
-the baselines), each step skipped when its output exists, as ``reproduce`` skips it: on a
+selection (with ``--max-terms``, as ``reproduce --max-terms``), the evaluation on the test split,
+the paper's defaults and the baselines), each step skipped when its output exists, as ``reproduce`` skips it: on a
 finished ``reproduce`` run directory it only reads. Then it writes, per experiment, the
-facts the tests check (``tests/test_reproduce_summary.py``): the selected settings, the
+facts docs/results.md reports (``tests/test_reproduce_summary.py`` tests ``record``): the selected settings, the
 active terms, the test RMSE of the paper's Table 2 components beside the paper's implied
 RMSE, how many are at or below it and the diverged test jumps, per horizon. Experiments
 already in ``--out`` and not run now are kept.
@@ -22,8 +22,10 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from provenance import provenance
+
 from symrom.atomic import write_text_atomic
-from symrom.evaluate.paper import implied_rmse, paper_row
+from symrom.evaluate.paper import at_or_below_paper, paper_rmse
 from symrom.experiments.reproduce import ReproduceConfig, ensure_dataset, run_learned
 from symrom.names import TABLE2_COMPONENTS
 
@@ -35,18 +37,16 @@ def record(name: str, entry: dict, selection: dict) -> dict:
     selection table: settings, active terms and, per horizon, the Table 2 comparison."""
     horizons = {}
     for h, hm in entry["metrics"]["horizons"].items():
-        paper = paper_row(name, h)
         comps = hm["components"]
         rmse = {c: comps[c]["rmse"] for c in TABLE2_COMPONENTS if c in comps}
-        ref = {c: implied_rmse(*paper[c]) for c in TABLE2_COMPONENTS} if paper else None
         horizons[h] = {"diverged_jumps": hm["diverged_jumps"], "drifted_jumps": hm.get("drifted_jumps"),
                        "jumps": entry["metrics"].get("n_jumps"), "rmse": rmse,
-                       "paper_rmse": ref,
-                       "at_or_below_paper": None if ref is None else [c for c in rmse if rmse[c] <= ref[c]]}
+                       "paper_rmse": paper_rmse(name, h), "at_or_below_paper": at_or_below_paper(name, h, rmse)}
     chosen = selection["rows"][selection["chosen"]]
-    return {"config": {**entry["config"], "max_terms": chosen.get("max_terms")}, "active_terms": sum(entry["active_terms"].values()),
-            "active_per_phase": entry["active_terms"], "selection_seconds": selection.get("seconds"),
-            "candidates": len(selection["rows"]), "selection_rule": selection.get("rule"), "selection_notes": selection.get("notes", []),
+    return {"config": {**entry["config"], "max_terms": chosen.get("max_terms")},
+            "active_terms": sum(entry["active_terms"].values()), "active_per_phase": entry["active_terms"],
+            "selection_seconds": selection.get("seconds"), "candidates": len(selection["rows"]),
+            "selection_rule": selection.get("rule"), "selection_notes": selection.get("notes", []),
             "horizons": horizons}
 
 
@@ -79,7 +79,7 @@ def main() -> None:
             f"{h}: {len(v['at_or_below_paper'] or [])}/12 at or below the paper, {v['diverged_jumps']} diverged"
             for h, v in line["horizons"].items()))
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(args.out, json.dumps(out, indent=1, allow_nan=False) + "\n")
+    write_text_atomic(args.out, json.dumps({**out, **provenance()}, indent=1, allow_nan=False) + "\n")
 
 
 if __name__ == "__main__":

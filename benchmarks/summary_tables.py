@@ -14,7 +14,7 @@ import argparse
 import json
 from pathlib import Path
 
-from symrom.evaluate.paper import PAPER_ASLIP, implied_rmse, paper_row
+from symrom.evaluate.paper import PAPER_ASLIP, at_or_below_paper, implied_rmse, paper_row
 from symrom.evaluate.tables import fmt_value as fmt
 from symrom.names import TABLE2_COMPONENTS
 
@@ -39,15 +39,10 @@ def table2(summary: dict) -> list[str]:
                              + " | ".join(fmt(implied_rmse(*paper[c])) for c in TABLE2_COMPONENTS) + " | |")
             hm = metrics["horizons"][h]
             comps = hm["components"]
-            cells, wins = [], 0
-            for c in TABLE2_COMPONENTS:
-                if c not in comps:
-                    cells.append("div.")
-                    continue
-                v = comps[c]["rmse"]
-                ok = paper is not None and v <= implied_rmse(*paper[c])
-                wins += ok
-                cells.append(f"**{fmt(v)}**" if ok else fmt(v))
+            below = at_or_below_paper(key, h, {c: comps[c]["rmse"] for c in comps}) or []
+            wins = len(below)
+            cells = ["div." if c not in comps else f"**{fmt(comps[c]['rmse'])}**" if c in below
+                     else fmt(comps[c]["rmse"]) for c in TABLE2_COMPONENTS]
             tail = f"{hm['diverged_jumps']}" + (f" ({wins}/12 ≤ paper)" if paper and comps else "")
             lines.append(f"| {label} | {hl} | ours | " + " | ".join(cells) + f" | {tail} |")
     return lines

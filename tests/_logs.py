@@ -8,9 +8,9 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
+from _simdata import reference_file, tmp_path
 from scipy.interpolate import CubicSpline
 
-from _simdata import reference_file, tmp_path
 from symrom.data.io import read_dataset
 from symrom.names import JOINT_NAMES, LEGS, Q_NAMES
 from symrom.sim.generation.generate import GenerateConfig, generate

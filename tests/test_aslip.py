@@ -7,19 +7,27 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-from symrom.baselines.aslip import (GRAVITY, PAPER_PARAMS, ASlip, ASlipParams, aslip_acceleration,
-                                    fit_aslip, fit_aslip_rollout, stance_pivots)
+from symrom.baselines.aslip import (
+    GRAVITY,
+    PAPER_PARAMS,
+    ASlip,
+    ASlipParams,
+    aslip_acceleration,
+    fit_aslip,
+    fit_aslip_rollout,
+    stance_pivots,
+)
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.evaluate.metrics import evaluate_model, rollout_errors
 from symrom.evaluate.tables import table2
 from symrom.names import BASE_POS
-from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.robots import total_mass
+from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.testing import make_slip_dataset
-from conftest import one_line_error
 
 runner = CliRunner()
 
@@ -109,6 +117,21 @@ def test_reset_restarts_from_the_truth(slip, method):
     every = int(round(0.1 / ds.dt))
     np.testing.assert_allclose(ro.q_pred[0][::every], b_true[::every], atol=1e-12)
     assert not np.allclose(ro.q_pred[0][1:every], b_true[1:every], atol=1e-6)
+
+
+@pytest.mark.parametrize("reset", [None, 0.1])
+@pytest.mark.parametrize("k_scale", [0.7, 1e6])
+def test_the_compiled_rk4_is_the_numpy_rk4_bit_for_bit(slip, reset, k_scale):
+    """The aSLIP's compiled integrator (the default) against the NumPy RK4 of any model: the same
+    paths, the same divergence samples (a spring a million times too stiff diverges)."""
+    ds, truth = slip
+    model = ASlip(replace(truth, k_s=k_scale * truth.k_s))
+    opts = RolloutOptions("rk4", reset=reset, substeps=2)
+    fast, slow = rollout(model, ds, options=opts), rollout(model, ds, options=replace(opts, backend="numpy"))
+    assert np.array_equal(fast.diverged_at, slow.diverged_at)
+    assert fast.diverged.any() == (k_scale > 1)
+    for a, b in zip(fast.q_pred, slow.q_pred):
+        assert np.array_equal(a, b, equal_nan=True)
 
 
 @pytest.mark.parametrize("method", ["lsoda", "rk4"])

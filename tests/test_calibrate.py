@@ -12,10 +12,10 @@ import pytest
 
 from symrom.evaluate.metrics import evaluate_model
 from symrom.experiments.finetune import FineTuneCheck, run_finetune
-from symrom.learn.calibrate import STANDARD_GRAVITY, CalibrationError
+from symrom.learn.calibrate import CalibrationError
 from symrom.learn.finetune import FineTuneConfig, finetune
 from symrom.learn.training import TrainConfig, train
-from symrom.names import Q_NAMES
+from symrom.names import GRAVITY, Q_NAMES
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import PLANTED_2D, embedding_matrix, make_planted_dataset
 
@@ -34,7 +34,7 @@ def _height_latent() -> int:
     return int(np.flatnonzero(E[Z])[0])
 
 
-def _equations(flight_g: float = STANDARD_GRAVITY, gain: float = 1.0, damping: float = 0.0,
+def _equations(flight_g: float = GRAVITY, gain: float = 1.0, damping: float = 0.0,
                spring: float = 1.0) -> dict:
     """The planted equations with a ballistic flight: the latent that carries the base height
     falls at ``flight_g`` m/s^2 once decoded; contact's input terms scaled by ``gain``, its
@@ -83,7 +83,7 @@ def test_calibration_recovers_the_input_gain_and_keeps_flight(source, target):
     assert not rec["calibration"]["flight_test"]["contradicted"]
     assert rec["phases_refit"] == ["contact"]
     fg = rec["flight_gravity"]
-    assert abs(fg["model"] / -STANDARD_GRAVITY - 1) < 0.05 and fg["ratio"] == pytest.approx(1.0, abs=0.05)
+    assert abs(fg["model"] / -GRAVITY - 1) < 0.05 and fg["ratio"] == pytest.approx(1.0, abs=0.05)
     # The calibrated contact equations are the source's with the inputs scaled and damping added.
     k = source.phase_names.index("contact")
     names = source.library.feature_names
@@ -93,13 +93,13 @@ def test_calibration_recovers_the_input_gain_and_keeps_flight(source, target):
 
 
 def test_calibration_follows_data_that_contradict_the_flight_gravity(source):
-    low = _target(flight_g=0.8 * STANDARD_GRAVITY)  # the data fall at 7.8 m/s^2, clearly not g
+    low = _target(flight_g=0.8 * GRAVITY)  # the data fall at 7.8 m/s^2, clearly not g
     tuned = finetune(source, low, config=CALIBRATE)
     rec = tuned.provenance.finetune.to_dict()
     test = rec["calibration"]["flight_test"]
-    assert test["contradicted"] and test["mean"] == pytest.approx(0.2 * STANDARD_GRAVITY, rel=0.05)
+    assert test["contradicted"] and test["mean"] == pytest.approx(0.2 * GRAVITY, rel=0.05)
     assert rec["calibration"]["phases"]["flight"]["calibrated"]
-    assert rec["flight_gravity"]["model"] == pytest.approx(-0.8 * STANDARD_GRAVITY, rel=0.02)
+    assert rec["flight_gravity"]["model"] == pytest.approx(-0.8 * GRAVITY, rel=0.02)
 
 
 def test_the_val_check_applies_to_calibration(source, target):

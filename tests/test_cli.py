@@ -89,7 +89,8 @@ def test_progress_reaches_the_end_with_the_batch_integrator(planted_block, tmp_p
     model = train(ds, TrainConfig())
     for method in ("rk4", "lsoda"):
         seen = []
-        evaluate_model(model, ds, "test", (None, 0.1, 0.2), RolloutOptions(method), progress=lambda d, t: seen.append((d, t)))
+        evaluate_model(model, ds, "test", (None, 0.1, 0.2), RolloutOptions(method),
+                       progress=lambda d, t: seen.append((d, t)))
         n = 3 * ds.jumps_in("test").size
         assert seen[-1] == (n, n) and all(t == n for _, t in seen), method
         assert [d for d, _ in seen] == sorted(d for d, _ in seen), method

@@ -10,13 +10,13 @@ import stat
 import h5py
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.model.persistence import FORMAT_VERSION
 from symrom.testing import make_planted_dataset
-from conftest import one_line_error
 
 N_PER_JUMP = 80
 runner = CliRunner()

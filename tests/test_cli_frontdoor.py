@@ -116,6 +116,40 @@ def test_the_sweeps_best_dimension_is_told_apart_from_the_model():
     assert "not the selected model's: go1_sim has l = 2, chosen on the validation jumps" in lines[-1]
 
 
+def test_a_sim2real_target_is_said_as_logged_repaired_and_fine_tuned():
+    """The summary line and the report's repair line of one target: the source's x / z as logged
+    and repaired, repaired + fine-tuned, target alone; the planted faults beside the found ones."""
+    from symrom.experiments.reproduce import sim2real_checks, summary_lines
+    from symrom.report.sim2real import repair_lines, sim2real_markdown
+
+    def col(x, z):
+        return {"x_rmse": x, "z_rmse": z, "diverged_jumps": 0, "drifted_jumps": 0, "flight_acc": -9.9,
+                "flight_acc_data": -9.8, "flight_ratio": 1.01}
+
+    stat = lambda m, lo, hi: {"median": m, "min": lo, "max": hi}  # noqa: E731
+    t = {"logged": col(0.4, 0.3), "source": col(0.2, 0.04), "fine_tuned": col(0.02, 0.01),
+         "target_alone": col(0.03, 0.012), "chosen": col(0.02, 0.01), "source_model": "a1_randomized/exact",
+         "method": "calibrate_rollout", "chosen_source": "a1_randomized/exact", "chosen_method": "calibrate",
+         "engine": "mujoco", "jumps": {"train": 12, "val": 4, "test": 8},
+         "repair": {"planted": {"clock": 1.06, "clock_wobble": 0.03, "velocity_gain": 1.0, "torque_gain": 0.6,
+                                "height_offset": -0.02, "contact_lag": 1, "sensor_scale": 0.95},
+                    "found": {"jumps": 24, "changed": 24, "findings": {"clock": 24},
+                              "clock_scale": stat(1.058, 1.04, 1.07), "velocity_gain": stat(1.0, 1.0, 1.0),
+                              "torque_gain": stat(0.571, 0.55, 0.59), "height_offset": stat(0.021, 0.019, 0.023),
+                              "contact_lag": stat(1.0, 1.0, 1.0)}}}
+    t["checks"] = sim2real_checks(t)
+    lines = summary_lines({"experiments": {}, "sim2real": {"targets": {"a1_proxy_mujoco": t}}})
+    assert lines == ["a1_proxy_mujoco: x / z RMSE as logged 0.400 / 0.300 m, repaired 0.200 / 0.040 m, repaired + "
+                     "fine-tuned 0.020 / 0.010 m, target alone 0.030 / 0.012 m; 5 of 5 targets met"]
+    (line,) = repair_lines({"a1_proxy_mujoco": t})
+    assert line.startswith("a1_proxy_mujoco: planted: loop 1.060x its period +- 3.0 %, velocities x 1.000, "
+                           "torques x 0.600 (its sensor x 0.950 under it), z -20.0 mm, contacts 1 row(s) late; "
+                           "repaired 24 of 24 jumps (24 clock): duration x 1.058 (1.040..1.070)")
+    assert "z +21.0 (+19.0..+23.0) mm" in line
+    md = sim2real_markdown({"a1_proxy_mujoco": t})
+    assert "| a1_proxy_mujoco | as logged: source as is (a1_randomized/exact) | 4.00e-01 | 3.00e-01 |" in md
+
+
 @pytest.mark.parametrize("contradicted", [False, True])
 def test_the_flight_test_says_what_it_found(contradicted):
     from symrom.experiments.finetune import calibration_lines

@@ -5,8 +5,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from symrom.learn.training import TrainConfig, train
 from symrom.compiled import JumpViews, decode_jumps, encode_inputs, encode_states
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.rollout.system import Padded
 

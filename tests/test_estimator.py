@@ -5,6 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 import symrom
@@ -14,7 +15,6 @@ from symrom.data.io import write_dataset
 from symrom.model.hybrid import HybridModel, ModelDataError
 from symrom.model.library import Inputs, Polynomial, Trigonometric
 from symrom.rollout.integrate import rollout
-from conftest import one_line_error
 
 runner = CliRunner()
 

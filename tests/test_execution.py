@@ -7,11 +7,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import _tasks
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-import _tasks
-from conftest import one_line_error
 from symrom import execution
 from symrom.execution import BackendError, LocalBackend, WorkerLostError, make_backend
 

@@ -7,14 +7,14 @@ import subprocess
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
-from symrom.learn.training import TrainConfig, train
 from symrom.export import export
+from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import model_hash, save_model
 from symrom.rollout.integrate import RolloutOptions, rollout
-from conftest import one_line_error
 
 SUBSTEPS = 2
 

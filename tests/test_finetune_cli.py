@@ -8,10 +8,10 @@ import json
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import flight_segment, proxy_go1, sim_go1, write_hardware
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.io import read_dataset, write_dataset
 from symrom.evaluate.metrics import evaluate_model
@@ -66,7 +66,8 @@ def test_finetune_on_a_flight_only_set(files, tmp_path):
     rec = json.loads((out / "finetune.json").read_text())
     assert rec["phases_kept"] == ["contact"] and rec["phases_refit"] == ["flight"]
     assert rec["score_after"] <= rec["score_before"] * (1 + rec["check"]["tolerance"])
-    assert rec["check"]["tolerance"] == 0.05 and rec["decoder"]["max_abs_W_d"] < 2 * rec["decoder"]["max_abs_W_d_source"]
+    assert (rec["check"]["tolerance"] == 0.05
+            and rec["decoder"]["max_abs_W_d"] < 2 * rec["decoder"]["max_abs_W_d_source"])
     # Both val evaluations are written, and they are what the record says.
     ds = read_dataset(data)
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), 0.05)

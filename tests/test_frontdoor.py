@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 import symrom
@@ -19,7 +20,6 @@ from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.model.persistence import load_model
 from symrom.testing import make_planted_dataset
-from conftest import one_line_error
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[1]
@@ -258,14 +258,19 @@ def test_readme_is_a_front_page_with_the_details_in_docs():
     block = text.split("## Quick start", 1)[1].split("```")[1].strip().splitlines()
     assert block == ["python3.11 -m pip install -e . && symrom demo",
                      "python3.11 -m pip install -e '.[adam,test,ray]' && python3.11 -m pytest -q -n 2 --dist loadfile"]
-    assert "symrom reproduce --out runs/paper" in text and "29 min 43 s" in text  # results: command, wall time
+    # Results: each names the command that gives it, and that command its wall time.
+    from test_benchmark_records import WALL_TIME, readme_result_problems
+
+    assert readme_result_problems(text.split("## Results", 1)[1].split("\n## ", 1)[0]) == []
     pages = set(re.findall(r"\]\((docs/[a-z_]+\.md)\)", text))
     assert {"docs/method.md", "docs/results.md", "docs/benchmarks.md", "docs/design.md",
             "docs/import.md", "docs/engines.md"} <= pages
     for page in pages - {"docs/import.md", "docs/engines.md"}:  # those two come with their own changes
         assert (ROOT / page).is_file(), page
     results = (ROOT / "docs" / "results.md").read_text()
-    assert "29 min 43 s" in results and "| experiment | horizon | RMSE | fl_hx |" in results
+    run = re.search(r"`symrom reproduce --out runs/paper`[^`]*", results)
+    assert run and WALL_TIME.search(run.group(0)), "docs/results.md: the run's command and its wall time"
+    assert "| experiment | horizon | RMSE | fl_hx |" in results
     for img in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", results):
         assert (ROOT / "docs" / img).is_file(), img
     assert "python benchmarks/bench_learner.py" in (ROOT / "docs" / "benchmarks.md").read_text()

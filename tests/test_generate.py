@@ -8,16 +8,15 @@ import sys
 import h5py
 import numpy as np
 import pytest
-
 from _simdata import N_JUMPS, SEED, config, reference_file, tmp_path
+
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
+from symrom.sim.controllers.froggy import MOTION as FROGGY
 from symrom.sim.generation import generate as gen
 from symrom.sim.generation.checks import JumpChecks, check_jump
-from symrom.sim.controllers.froggy import MOTION as FROGGY
 from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, parts_dir, split_counts
 from symrom.sim.generation.parts import read_part, write_part
-
 
 
 def _same_file(a, b) -> None:
@@ -76,12 +75,18 @@ def test_checks_catch_bad_jumps():
     assert any("torque" in b for b in reasons())
 
 
-def test_bad_requests_fail_clearly(tmp_path):
+def test_bad_requests_fail_clearly(tmp_path, monkeypatch):
+    from dataclasses import replace
+
+    from symrom import motions
+
     with pytest.raises(GenerationError, match="unknown robot 'b2'"):
         generate(GenerateConfig("b2", "pronk", 2), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="unknown motion 'walk'"):
         generate(GenerateConfig("a1", "walk", 2), tmp_path / "x.h5")
-    with pytest.raises(GenerationError, match="proxy=True is not a variant of 'froggy'"):
+    # every built-in motion offers both variants; a motion registered without the proxy's
+    monkeypatch.setitem(motions.MOTIONS, "froggy", replace(motions.MOTIONS["froggy"], variants=("randomized",)))
+    with pytest.raises(GenerationError, match=r"proxy=True is not a variant of 'froggy'; motions with it: \['pronk'\]"):
         generate(GenerateConfig("a1", "froggy", 2, proxy=True), tmp_path / "x.h5")
     with pytest.raises(GenerationError, match="at least one jump"):
         generate(GenerateConfig("a1", "froggy", 0), tmp_path / "x.h5")

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import json
 import hashlib
+import json
+from functools import partial
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from symrom.cli import app
-from functools import partial
-
 from symrom.data.importers import LogError, parse_split, read_log, write_plain_csv
 from symrom.data.importers import import_logs as _import_logs
 from symrom.data.io import read_dataset

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import jump, sim_go1, write_plain, write_ros1, write_ros2
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.bags import parse_topics, read_bag
 from symrom.data.importers import import_logs, log_kind

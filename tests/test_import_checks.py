@@ -9,10 +9,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import at_times, flight_segment, jump, sim_go1, write_hardware, write_plain
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.dataset import DatasetError, validate
 from symrom.data.importers import import_logs

@@ -77,6 +77,34 @@ def test_velocities_in_degrees_per_second_against_radians_are_named(tmp_path):
                    "units.csv", "jump 0", "joint angles change 0.349 times", "0.95..1.05")
 
 
+def test_a_noisy_base_position_on_a_right_clock_passes_and_a_wrong_clock_is_still_caught():
+    """The base position read with a proxy's sensor noise (2 mm, 0.02 m/s per row): the windows'
+    ratios scatter widely, and their median left 1 by more than 5 % on a right clock; the
+    least-squares ratio over the windows together stays within 2 % of 1 on every draw, and a
+    loop 6 % slower than logged is still found at 1.06 in both groups."""
+    from symrom.data.consistency import ConsistencyLimits, pooled_ratio, time_scale, window_ratios
+    from symrom.names import BASE_POS
+
+    limits, medians = ConsistencyLimits(), []
+    for j in range(3):
+        for seed in range(6):
+            m = jump(sim_go1(), j)
+            rng = np.random.default_rng(seed)
+            m["q"][:, BASE_POS] += rng.normal(0.0, 0.002, (m["t"].size, 3))
+            m["dq"][:, BASE_POS] += rng.normal(0.0, 0.02, (m["t"].size, 3))
+            _, r, p = window_ratios(m["t"], m["q"][:, BASE_POS], m["dq"][:, BASE_POS], limits.window,
+                                    limits.min_motion)
+            medians.append(float(np.median(r)))
+            assert abs(pooled_ratio(r, p) - 1.0) < 0.02 and time_scale("x", m["t"], m["q"], m["dq"], limits) == []
+            if seed == 0:
+                slow = {k: v.copy() for k, v in m.items()}
+                slow["t"] = m["t"] / 1.06  # rows 1.06 times further apart than logged
+                found = {p["group"]: p["value"] for p in time_scale("x", slow["t"], slow["q"], slow["dq"], limits)}
+                assert set(found) == {"joint angles", "base position"}
+                assert all(abs(v - 1.06) < 0.015 for v in found.values()), found
+    assert min(medians) < 0.95  # what the median over windows refused
+
+
 # ----------------------------------------------------------------- stale rows
 
 def _stale(m: dict, rng, joints: float, base: float) -> tuple[dict, np.ndarray, np.ndarray]:

@@ -2,11 +2,11 @@ import json
 
 import numpy as np
 import pytest
+from conftest import as_format
 
 from symrom.learn.training import TrainConfig, train
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
 from symrom.rollout.integrate import rollout
-from conftest import as_format
 
 
 def test_round_trip_is_exact(planted_block, tmp_path):

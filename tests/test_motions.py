@@ -9,9 +9,9 @@ from symrom import motions
 from symrom.data.phases import label_phases
 from symrom.motions import MOTIONS, MotionEntry, UnknownMotionError, contact_flight, get_motion
 from symrom.sim.controllers.motion import Controller, load_motion
+from symrom.sim.engines.bullet import BulletWorld as World
 from symrom.sim.generation.generate import GenerateConfig, split_counts
 from symrom.sim.generation.runner import jump_seed, run_checked_jump, run_jump
-from symrom.sim.engines.bullet import BulletWorld as World
 
 # Two jumps: 4 feet, rear only (1), none, staggered touch-down (2), 4 feet | 4, none, 3, 4.
 CONTACT = np.array([[1, 1, 1, 1], [0, 0, 1, 1], [0, 0, 0, 0], [1, 0, 1, 0], [1, 1, 1, 1],

@@ -7,8 +7,16 @@ import pytest
 import scipy.linalg
 import scipy.optimize
 
-from symrom.sim.controllers.mpc import (MOVING, QP_SOLVERS, ConvexMPC, MPCConfig, condense, continuous_dynamics,
-                            discretize, srb_state)
+from symrom.sim.controllers.mpc import (
+    MOVING,
+    QP_SOLVERS,
+    ConvexMPC,
+    MPCConfig,
+    condense,
+    continuous_dynamics,
+    discretize,
+    srb_state,
+)
 
 MASS = 13.1
 INERTIA = np.diag([0.05, 0.18, 0.20])

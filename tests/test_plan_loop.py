@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_plan import DAMP_X, G_C, GAIN_X, GAIN_Z, PLANTED, X, Z, planted_model
 
 from symrom.plan.dynamics import GRAVITY, LearnedDynamics
 from symrom.plan.problem import JumpPlanner, Stance
 from symrom.plan.replan import Replanner
-
-from test_plan import DAMP_X, G_C, GAIN_X, GAIN_Z, PLANTED, X, Z, planted_model
 
 Z_LO = 0.33
 

@@ -8,6 +8,8 @@ import json
 
 import numpy as np
 import pytest
+from conftest import one_line_error
+from test_plan import planted_model
 from typer.testing import CliRunner
 
 from symrom.cli import app
@@ -16,9 +18,6 @@ from symrom.data.envelope import jump_envelope
 from symrom.model.persistence import save_model
 from symrom.plan.dynamics import PlanModelError, PointMass
 from symrom.plan.problem import JumpPlanner
-
-from conftest import one_line_error
-from test_plan import planted_model
 
 ENVELOPE = {"jumps": 9, "travel_x_m": [0.1, 0.35], "apex_z_m": [0.40, 0.47], "liftoff_z_m": 0.33,
             "touchdown_z_m": 0.33, "push_s": [0.15, 0.2]}

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from conftest import normalised_mae
 
 from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
-
-from conftest import normalised_mae
 
 
 def test_exact_solver_recovers_planted_equations(planted_axis):

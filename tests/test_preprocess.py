@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symrom.data.preprocess import (assemble, com_wrench, differentiate, foot_positions_world,
-                                    ground_reaction_forces)
+from symrom.data.preprocess import assemble, com_wrench, differentiate, foot_positions_world, ground_reaction_forces
 from symrom.robots import get_robot, leg_kinematics
 
 ROBOTS = ["a1", pytest.param("go1", marks=pytest.mark.skipif(

@@ -155,13 +155,25 @@ def test_randomized_variant_recorded_and_reproducible():
         generate(replace(cfg, splits=(1, 1, 1)), tmp_path("rand_s.h5"))
     with pytest.raises(GenerationError, match="choose one"):
         generate(replace(cfg, proxy=True), tmp_path("rand_c.h5"), force=True)
-    # froggy's randomised jumps vary the length of the rear-only phase
-    from symrom.sim.controllers.froggy import MOTION as FROGGY, RANDOMIZED_MOTION
+    # froggy's randomised jumps vary the length of the rear-only phase: a quick push and a real
+    # froggy's long one (each kind's ranges covering the hardware-like froggy's on every side)
+    from symrom.sim.controllers.froggy import (MOTION as FROGGY, RANDOMIZED_LONG, RANDOMIZED_QUICK, REAL_MOTION,
+                                               FroggyParams, FroggyRanges)
 
-    rear = [FROGGY.sample_params(np.random.default_rng(s), "a1", "randomized") for s in range(8)]
-    lo, hi = RANDOMIZED_MOTION.t_push_rear
-    assert all(p.randomized and p.proxy is not None and lo <= p.t_push_rear <= hi for p in rear)
-    assert np.ptp([p.t_push_rear for p in rear]) > 0.3 * (hi - lo)
+    nominal, drawn = FroggyParams(), FroggyRanges().draw(np.random.default_rng(0))
+    assert all(getattr(drawn, f) == pytest.approx(getattr(nominal, f)) for f in nominal.__dataclass_fields__
+               if f != "proxy")
+    for f in REAL_MOTION.__dataclass_fields__:
+        (lo, hi), (wlo, whi) = getattr(REAL_MOTION, f), getattr(RANDOMIZED_LONG, f)
+        assert wlo <= lo and hi <= whi, f
+    rear = [FROGGY.sample_params(np.random.default_rng(s), "a1", "randomized") for s in range(16)]
+    assert all(p.randomized and p.proxy is not None for p in rear)
+    quick = [p.t_push_rear for p in rear if p.t_push_rear <= RANDOMIZED_QUICK.t_push_rear[1]]
+    long = [p.t_push_rear for p in rear if p.t_push_rear >= RANDOMIZED_LONG.t_push_rear[0]]
+    assert len(quick) + len(long) == len(rear) and len(quick) >= 4 and len(long) >= 4
+    real = FROGGY.sample_params(np.random.default_rng(1), "a1", "proxy", np.random.default_rng(2))
+    assert not real.randomized and real.proxy.torque_log == "measured" and FROGGY.source(real) == "proxy"
+    assert REAL_MOTION.t_push_rear[0] <= real.t_push_rear <= REAL_MOTION.t_push_rear[1]
 
 
 def test_proxy_is_one_robot_per_dataset():

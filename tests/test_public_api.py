@@ -53,7 +53,8 @@ def test_every_submodule_imports_after_import_symrom_and_none_is_shadowed():
     out = json.loads(r.stdout.strip().splitlines()[-1])
     assert out["failed"] == {}, out["failed"]
     assert out["shadowed"] == [], out["shadowed"]
-    assert len(out["seen"]) > 100 and "symrom.rollout.system" in out["seen"] and "symrom.evaluate.metrics" in out["seen"]
+    assert (len(out["seen"]) > 100 and "symrom.rollout.system" in out["seen"]
+            and "symrom.evaluate.metrics" in out["seen"])
     subpackages = {m.split(".")[1] for m in out["seen"] if m.count(".") >= 1}
     assert not (set(out["public"]) - {"names"}) & subpackages, "a public name is also a subpackage"
 

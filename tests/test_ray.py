@@ -21,6 +21,7 @@ ray = pytest.importorskip("ray")
 import _tasks  # noqa: E402
 from _simdata import SEED, reference_file  # noqa: E402
 from conftest import one_line_error  # noqa: E402
+
 from symrom.cli import app  # noqa: E402
 from symrom.data.io import write_dataset  # noqa: E402
 from symrom.execution import RayBackend, WorkerLostError  # noqa: E402

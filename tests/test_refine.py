@@ -8,8 +8,8 @@ from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.estimator import trajectories
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
-from symrom.learn.training import TrainConfig, train
 from symrom.learn.shooting import Parameters, cut_windows, simulate
+from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import make_planted_dataset
 

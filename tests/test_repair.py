@@ -12,12 +12,12 @@ from typer.testing import CliRunner
 from _logs import jump, on_clock, proxy_go1, sim_a1_froggy, sim_go1, write_plain, write_ros2
 from conftest import one_line_error
 from symrom.cli import app
-from symrom.data.consistency import G
 from symrom.data.importers import import_logs, read_log
 from symrom.data.io import read_dataset
 from symrom.data.repair import REPAIR_VERSION, RepairError, RepairLimits, repair_log
 from symrom.data.repair_body import body_state
 from symrom.data.repair_clock import flight_fall, flight_runs
+from symrom.names import GRAVITY as G
 
 runner = CliRunner()
 REPAIR = RepairLimits()
@@ -377,6 +377,47 @@ def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_
     assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
 
 
+def _without_time(path):
+    """The plain log at ``path`` with its time column removed (a logger that writes none)."""
+    lines = path.read_text().splitlines()
+    col = lines[0].split(",").index("t")
+    path.write_text("\n".join(",".join(c for i, c in enumerate(line.split(",")) if i != col) for line in lines) + "\n")
+    return path
+
+
+def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_and_retimed(tmp_path):
+    """A1 froggy logs with no time column, by a loop 3 % slower than its 2 ms and drifting +-5 %
+    within each jump: refused without a period (one line naming the time column and period);
+    read 2 ms apart, each jump's rows are warped back to their true times by the flight."""
+    ds = sim_a1_froggy()
+    logs = []
+    for j in range(ds.n_jumps):
+        m = jump(ds, j)
+        t_end = m["t"][-1]
+        logs.append(on_clock(m, lambda t: 1.03 + 0.05 * np.sin(2 * np.pi * t / t_end + j)))
+    path = _without_time(write_plain(tmp_path / "a1_untimed.csv", logs, accelerations=False))
+    one_line_error(runner.invoke(app, ["import", str(path), "--robot", "a1", "--motion", "froggy", "--out",
+                                       str(tmp_path / "x.h5"), "--repair"]),
+                   "a1_untimed.csv", "without a time column ('t')", "--period", "--repair")
+    lg = read_log(path, period=0.002)
+    assert lg.period == 0.002 and lg.n_jumps == ds.n_jumps
+    for j, (a, b) in enumerate(lg.bounds()):
+        np.testing.assert_array_equal(lg.t[a:b], np.arange(b - a) * 0.002)
+    recs = repair_log(lg, "a1", REPAIR)
+    for j, rec in enumerate(recs):
+        a, b = lg.bounds()[j]
+        assert rec.clock.finding == "clock" and rec.clock.warp, rec.line()
+        _times_within(lg.t[a:b], logs[j]["t_true"], logs[j]["t"])
+    out = tmp_path / "a1.h5"
+    r = runner.invoke(app, ["import", str(path), "--robot", "a1", "--motion", "froggy", "--out", str(out),
+                            "--repair", "--period", "0.002"])
+    assert r.exit_code == 0 and "warning" not in r.output, r.output
+    got = read_dataset(out)
+    assert got.generator["files"][0]["time"] == {"column": False, "period": 0.002}
+    assert got.generator["files"][0]["consistency"] == []
+    assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
+
+
 def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
     """Hardware-like jumps (sensor noise, estimator drift, soft feet, their own torque
     sensor): the planted Go1 faults are found on top of what each jump shows clean."""
@@ -395,6 +436,31 @@ def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
         assert abs(rec["gain"]["gain"] / clean["gain"]["gain"] / 0.56 - 1) < 0.03
         assert abs(rec["height"]["offset"] - clean["height"]["offset"] - 0.0217) < 0.002
         assert got.generator["files"][0]["consistency"] == []
+
+
+def test_the_flights_of_a_file_together_tell_a_clock_from_velocities(tmp_path):
+    """Velocities 1/1.03 of the true ones on hardware-like Go1 jumps (noise, drift, soft feet):
+    on some jumps the ratio is off but their flight alone fits a wrong clock and wrong
+    velocities alike (undetermined, kept as logged); in one file, written by one logger, the
+    flights of its jumps together tell the velocities apart on those jumps too."""
+    ds = proxy_go1()
+    logs = []
+    for j in range(ds.n_jumps):
+        m = jump(ds, j)
+        m["dq"] = m["dq"] / 1.03
+        logs.append(m)
+    alone = [repair_log(read_log(write_plain(tmp_path / f"one{j}.csv", [m], accelerations=False)), "go1", REPAIR)[0]
+             for j, m in enumerate(logs)]
+    undetermined = [j for j, r in enumerate(alone) if r.clock.finding == "undetermined"]
+    assert undetermined and all(r.clock.finding in ("none", "velocities", "undetermined") for r in alone)
+    together = repair_log(read_log(write_plain(tmp_path / "all.csv", logs, accelerations=False)), "go1", REPAIR)
+    for j in undetermined:
+        r = together[j]
+        assert r.clock.finding == "velocities" and "told by the file's flights together" in r.line(), r.line()
+        assert abs(r.velocities[0].gain * 1.03 - 1) < 0.01 and not r.clock.applied
+    for a, b in zip(alone, together):  # the jumps one flight decides are decided alike
+        if a.clock.finding != "undetermined":
+            assert b.clock.finding == a.clock.finding
 
 
 @pytest.mark.parametrize("retime", [False, True])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+import subprocess
 from dataclasses import replace
 from pathlib import Path
 
@@ -16,23 +17,22 @@ from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.paper import PAPER_TABLE2, implied_rmse
-from symrom.evaluate.records import (BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry, Metrics,
-                                    RecordError)
+from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SOLVER, SWEEP, ManifestEntry, Metrics, RecordError
 from symrom.evaluate.tables import fmt_value
 from symrom.learn.training import TrainConfig, reconstruction_error, train
 from symrom.model.persistence import save_model
 from symrom.names import TABLE2_COMPONENTS
 from symrom.report import figures
-from symrom.report.document import Section, render_html
 from symrom.report.context import Context
+from symrom.report.document import Section, render_html
 from symrom.report.html import build_report
 from symrom.report.roles import build_sections
 from symrom.report.run import load_run
 from symrom.rollout.integrate import RolloutOptions
 from symrom.testing import make_planted_dataset
 
-SECTION_IDS = ("experiments", "table2", "predictions", "baselines", "tradeoff", "equations", "solvers",
-               "data", "run")
+SECTION_IDS = ("headline", "table2", "predictions", "baselines", "tradeoff", "equations", "solvers",
+               "experiments", "data", "run")
 SECTION_TITLES = ("Table 2", "baselines", "accuracy vs complexity", "Learned equations",
                   "Data summary", "Commands, versions and seeds")
 
@@ -183,7 +183,7 @@ def test_a_run_holding_one_experiment_renders(run_dir, tmp_path):
     html_path, md_path = build_report(only, tmp_path / "r.html")
     html = html_path.read_text()
     ids = re.findall(r'<section id="([a-z0-9]+)">', html)
-    assert ids == ["experiments", "table2", "predictions", "equations", "data", "run"]
+    assert ids == ["headline", "table2", "predictions", "equations", "experiments", "data", "run"]
     assert "commands, versions and seeds unknown" in html and "paper row" not in html
     assert html.count('src="data:image/png;base64,') == 2  # its test jump, its errors beside the floor
     assert (tmp_path / "r_files").is_dir() and md_path == tmp_path / "r.md"
@@ -404,28 +404,150 @@ def test_horizon_figure_draws_the_reconstruction_floor(built):
 
 CHROMIUM = next((p for p in (shutil.which("chromium"), shutil.which("chromium-browser"), "/usr/bin/chromium")
                  if p and Path(p).is_file()), None)
+# As root on a machine without a network: no sandbox, no GPU, none of Chromium's own connections.
+CHROMIUM_FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                  "--disable-component-update", "--no-first-run", "--disable-sync")
+WINDOW = (1400, 1000)  # px: the first screen
+
+# Written into the page's body on load: page width and height, tables wider than a box that does not
+# scroll, the headline section's top and bottom and its first table's bottom, figures that did not
+# load or overflow the window, and the sections' ids in order.
+PROBE = """<script>window.addEventListener('load',()=>{const d=document.documentElement;let clipped=0;
+for(const t of document.querySelectorAll('table')){const box=t.parentElement;
+if(t.scrollWidth>box.clientWidth+1&&getComputedStyle(box).overflowX!=='auto')clipped++;}
+const head=document.getElementById('headline');const r=head?head.getBoundingClientRect():{top:-1,bottom:-1};
+const t=head?head.querySelector('table').getBoundingClientRect():{top:-1,bottom:-1};
+let broken=0,wide=0;const imgs=document.querySelectorAll('img');
+for(const i of imgs){if(!i.complete||i.naturalWidth===0)broken++;if(i.getBoundingClientRect().right>innerWidth)wide++;}
+const ids=[...document.querySelectorAll('section')].map(s=>s.id).join(' ');
+document.body.setAttribute('data-probe',[d.scrollWidth,d.scrollHeight,clipped,Math.round(r.top),
+Math.round(r.bottom),Math.round(t.top),Math.round(t.bottom),imgs.length,broken,wide].join(',')+';'+ids);});</script>"""
+
+
+def _chromium(*args, tmp_path: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([CHROMIUM, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
+                           f"--window-size={WINDOW[0]},{WINDOW[1]}", *args], capture_output=True, text=True,
+                          timeout=180)
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no headless Chromium on this machine")
-def test_report_fits_1400_px_in_a_real_browser(built, tmp_path):
-    """Headless Chromium at 1400 px: the page does not scroll sideways (wide tables scroll
-    in their own box), and a screenshot is taken."""
-    import subprocess
+def test_report_first_screen_in_a_real_browser(built, tmp_path):
+    """Headless Chromium at 1400 x 1000 px: the headline (its Table 2 counts) is in the first screen,
+    the page never scrolls sideways (wide tables scroll in their own box), every figure loads and
+    fits the window; and the screenshot shows it: the headline's table is painted where the page
+    lays it out, below the title, above the fold."""
+    from PIL import Image
 
     html, _, out = built
     probe = tmp_path / "probe.html"
-    script = ("<script>window.addEventListener('load',()=>{const w=document.documentElement.scrollWidth;"
-              "let clipped=0;for(const d of document.querySelectorAll('table')){const box=d.parentElement;"
-              "if(d.scrollWidth>box.clientWidth+1&&getComputedStyle(box).overflowX!=='auto')clipped++;}"
-              "document.body.setAttribute('data-probe',w+','+clipped);});</script>")
-    probe.write_text(html.replace("</body>", script + "</body>"))
-    flags = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-             "--disable-component-update", "--no-first-run", "--window-size=1400,2000"]
-    dom = subprocess.run([*flags, "--dump-dom", probe.as_uri()], capture_output=True, text=True, timeout=180)
-    width, clipped = map(int, re.search(r'data-probe="(\d+),(\d+)"', dom.stdout).groups())
-    assert width <= 1400 and clipped == 0, (width, clipped)
+    probe.write_text(html.replace("</body>", PROBE + "</body>"))
+    dom = _chromium("--dump-dom", probe.as_uri(), tmp_path=tmp_path).stdout
+    numbers, ids = re.search(r'data-probe="([-\d,]+);([a-z0-9 ]+)"', dom).groups()
+    (width, height, clipped, head_top, head_bottom, table_top, table_bottom, figures_n, broken,
+     wide) = map(int, numbers.split(","))
+    assert width <= WINDOW[0] and clipped == 0, (width, clipped)
+    assert ids.split()[0] == "headline" and ids.split()[-3:] == ["experiments", "data", "run"], ids
+    assert 0 < head_top < table_top < table_bottom <= WINDOW[1], (head_top, table_bottom)  # above the fold
+    assert figures_n == html.count('src="data:image/png;base64,') and broken == 0 and wide == 0
+    assert height > 3 * WINDOW[1]  # the details follow below
     shot = tmp_path / "report.png"
-    subprocess.run([*flags, f"--screenshot={shot}", out.as_uri()], capture_output=True, timeout=180)
-    from PIL import Image
+    _chromium(f"--screenshot={shot}", out.as_uri(), tmp_path=tmp_path)
+    image = np.asarray(Image.open(shot).convert("L"), dtype=float)
+    assert image.shape == (WINDOW[1], WINDOW[0])
+    ink = (image < 128).mean(axis=1)  # per screen row: the share of dark pixels (text)
+    lines = (image < 235).mean(axis=1)  # and of pixels that are not white (the tables' grey borders)
+    assert ink[:head_top].max() > 0.05  # the title and the run's line are painted
+    headline = html[html.index('<section id="headline">'):]
+    rows = headline[:headline.index("</table>")].count("<tr>")  # the header and one row per experiment
+    box = lines[table_top:table_bottom + 1]
+    borders = int(np.sum((box[1:] > 0.5) & (box[:-1] <= 0.5))) + int(box[0] > 0.5)  # rules across the table
+    assert borders >= rows + 1, (borders, rows)  # its grid is drawn where the page lays it out
+    assert (ink[table_top:table_bottom] > 0.005).mean() > 0.4  # and its cells hold text
 
-    assert Image.open(shot).size == (1400, 2000)
+
+# ---------------------------------------------------------------- the headline
+def _section(html: str, sid: str) -> str:
+    s = html[html.index(f'<section id="{sid}">'):]
+    return s[:s.index("</section>")]
+
+
+def test_headline_comes_first_with_table2_counts_terms_and_baseline_ratios(built, run_dir):
+    html, md, _ = built
+    assert re.findall(r'<section id="([a-z0-9]+)">', html)[0] == "headline"
+    assert md.index("## Headline") < md.index("## Table 2")
+    head = _section(html, "headline")
+    for name in ("go1_sim", "a1_sim", "go1_proxy"):
+        metrics = json.loads((run_dir / name / "eval" / "metrics.json").read_text())
+        want = [sum(metrics["horizons"][h]["components"][c]["rmse"] <= implied_rmse(*PAPER_TABLE2[name][h][c])
+                    for c in TABLE2_COMPONENTS) for h in ("full", "0.1")]
+        row = re.search(rf"<tr><td>{name}</td>(.*?)</tr>", head).group(1)
+        assert [int(n) for n in re.findall(r">(\d+) of 12<", row)] == want, name
+        model = json.loads((run_dir / name / "model.json").read_text())
+        terms = sum(int(np.sum(p["mask"])) for p in model["phases"].values())
+        assert f">{terms} (" in row
+    learned = json.loads((run_dir / "go1_sim" / "eval" / "metrics.json").read_text())["horizons"]["full"]
+    aslip = json.loads((run_dir / "go1_sim" / "aslip" / "metrics.json").read_text())["horizons"]["full"]
+    ratio = aslip["components"]["x"]["mae"] / learned["components"]["x"]["mae"]
+    assert (f"{ratio:.3g}×" if ratio < 1000 else f"{ratio:.0f}×") in head
+    assert "x 3.56×, z 2.38×" in head  # the paper's aSLIP / learned, beside
+
+
+def test_headline_counts_the_sim2real_targets_met(tmp_path):
+    from symrom.report.document import Table
+    from symrom.report.headline import headline_blocks, table2_counts
+    from symrom.report.run import Run
+
+    checks = {"source_z": True, "fine_tuned_z": True, "not_above_source": True, "flight_gravity": False,
+              "vs_target_alone": None, "scratch_ratio_x": 0.5}
+    run = Run(tmp_path, {"sim2real": {"targets": {"go1_proxy": {"engine": "pybullet", "checks": checks},
+                                                  "go1_proxy_mujoco": {"engine": "mujoco", "checks": {
+                                                      k: True for k in checks if k != "scratch_ratio_x"}}}}}, [])
+    table = next(b for b in headline_blocks(run) if isinstance(b, Table))
+    assert table.rows == [["go1_proxy", "pybullet", "3 of 5", "flight gravity; not checked: vs target alone"],
+                          ["go1_proxy_mujoco", "mujoco", "5 of 5", "none"]]
+    # Table 2's count: components at the paper's implied RMSE count, a diverged one (no RMSE) does not.
+    ref = {h: {c: implied_rmse(*PAPER_TABLE2["a1_sim"][h][c]) for c in TABLE2_COMPONENTS} for h in ("full", "0.1")}
+    comps = {h: {c: {"mean": 0.0, "std": 0.0, "mae": 0.0, "rmse": ref[h][c] * (1.0 if k < 7 else 1.5)}
+                 for k, c in enumerate(TABLE2_COMPONENTS)} for h in ref}
+    del comps["0.1"]["fl_hx"]
+    m = Metrics.from_dict({"n_jumps": 2, "horizons": {h: {"diverged_jumps": 0, "components": comps[h]} for h in ref}})
+    assert table2_counts("a1_sim", m) == {"full": 7, "0.1": 6}
+    assert table2_counts("nope", m) == {"full": None, "0.1": None}
+
+
+def test_horizon_figure_draws_the_papers_rmse(built, tmp_path, monkeypatch):
+    html, _, _ = built
+    assert html.count("and the paper&#x27;s implied RMSE (a bar in the horizon&#x27;s colour)") == 2 * 3  # alt, caption
+    rmse = {"Full": {c: 0.1 for c in TABLE2_COMPONENTS}, "0.1 s": {c: 0.01 for c in TABLE2_COMPONENTS}}
+    paper = {label: {c: implied_rmse(*PAPER_TABLE2["go1_sim"][h][c]) for c in TABLE2_COMPONENTS}
+             for label, h in (("Full", "full"), ("0.1 s", "0.1"))}
+    fig = _figure_of(monkeypatch, figures.horizon_figure, rmse, None, tmp_path / "h.png", paper=paper)
+    seen = 0
+    for ax, (_, comps) in zip(fig.axes, figures.HORIZON_PANELS):
+        lines = {ln.get_label(): ln for ln in ax.get_lines()}
+        for label in paper:
+            np.testing.assert_allclose(lines[f"paper, {label}"].get_ydata(), [paper[label][c] for c in comps])
+            # in the colour of our points at that horizon
+            assert lines[f"paper, {label}"].get_color() == lines[f"ours, {label}"].get_color()
+            seen += 1
+    assert seen == 6
+    fig = _figure_of(monkeypatch, figures.horizon_figure, rmse, None, tmp_path / "h2.png")
+    assert not [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label().startswith("paper")]
+
+
+def test_selection_figure_names_the_yardstick_its_score_divides_by(tmp_path, monkeypatch):
+    from symrom.evaluate.records import SELECTION
+    from symrom.report.run import Run
+    from symrom.report.selection import selection_blocks
+
+    row = {"encoder": "base_position", "latent_dim": 2, "library": "poly1", "threshold": 0.01, "refine": False,
+           "active_terms": 5, "score": 0.5, "horizons": {h: {"score": 0.5, "worst": 0.8, "diverged_jumps": 0}
+                                                         for h in ("full", "0.1")}}
+    for reference, want in ((None, "spread"), ({"full": {"x": 0.01}}, "paper's RMSE")):
+        (tmp_path / "s").mkdir(exist_ok=True)
+        (tmp_path / "s" / "selection.json").write_text(json.dumps(
+            {"config": {"reference": reference}, "rows": [row], "chosen": 0, "rule": "r", "seconds": 1}))
+        entry = ManifestEntry("go1_sim/selection", SELECTION, files={"table": "s/selection.json"}, of="go1_sim")
+        run = Run(tmp_path, {}, [entry])
+        fig = _figure_of(monkeypatch, selection_blocks, run, [entry], Context(run, tmp_path))
+        assert fig.axes[0].get_ylabel() == f"validation score (mean RMSE / {want})"

@@ -26,6 +26,8 @@ def run(tmp_path_factory):
     shutil.copy(reference_file("pronk"), d / "data" / "go1_proxy.h5")
     shutil.copy(reference_file("pronk", noise=True), d / "data" / "go1_randomized.h5")
     shutil.copy(reference_file("pronk"), d / "data" / "go1_proxy_mujoco.h5")
+    shutil.copy(reference_file("froggy"), d / "data" / "a1_randomized.h5")
+    shutil.copy(reference_file("froggy"), d / "data" / "a1_proxy_mujoco.h5")
     before = {p.name: p.stat().st_mtime for p in (d / "data").iterdir()}
     quick = ReproduceConfig.quick()
     # One train and one val jump per file: too few to judge a model's physics or its free prediction
@@ -54,7 +56,11 @@ def test_summary_follows_the_contract(run):
     sweep = on_disk["sweep"]
     assert sweep["latent_dims"] == [1, 2] and len(sweep["E_dec"]) == 2 and len(sweep["E_dec"][0]) == 2
     assert sweep["best_latent_dim"] in (1, 2) and len(sweep["L_mod"]) == 2
-    assert {p.name: p.stat().st_mtime for p in (d / "data").iterdir()} == before  # reused
+    after = {p.name: p.stat().st_mtime for p in (d / "data").iterdir()}
+    assert {k: after[k] for k in before} == before  # reused
+    # beside them, each target as its logs and as imported through the repair
+    assert set(after) - set(before) == {f"{t}{x}" for t in ("go1_proxy", "go1_proxy_mujoco", "a1_proxy_mujoco")
+                                        for x in (".csv", "_repaired.h5")}
     go1 = on_disk["experiments"]["go1_sim"]
     assert set(go1["paper_defaults"]["metrics"]["horizons"]) == {"full", "0.1"}
     from symrom.model.persistence import load_model
@@ -98,30 +104,47 @@ def test_manifest_lists_every_experiment_with_its_role(run):
         "before_finetune"]
 
 
-def test_sim2real_table_on_both_targets(run):
+def test_sim2real_table_on_every_target(run):
+    from symrom.data.io import read_dataset
     from symrom.experiments.reproduce import DEFAULT_METHOD, PROXY_METHODS, proxy_selection, sim2real_checks
 
     d, summary, _, cfg = run
     tolerance = proxy_selection(cfg).tolerance
     s2r = json.loads((d / "summary.json").read_text())["sim2real"]
-    assert s2r["sources"] == {"noisy": "go1_noisy", "randomized": "go1_randomized"}
-    assert set(s2r["targets"]) == {"go1_proxy", "go1_proxy_mujoco"}
+    assert s2r["sources"] == {"noisy": "go1_noisy", "randomized": "go1_randomized", "a1_randomized": "a1_randomized"}
+    assert set(s2r["targets"]) == {"go1_proxy", "go1_proxy_mujoco", "a1_proxy_mujoco"}
     for name, t in s2r["targets"].items():
         choice = json.loads((d / name / "finetune_choice.json").read_text())
-        assert choice["split"] == "val" and len(choice["rows"]) == 4 * len(PROXY_METHODS)  # 2 sources x 2 variants
+        n_sources = 2 if name.startswith("go1") else 1  # x 2 variants
+        assert choice["split"] == "val" and len(choice["rows"]) == 2 * n_sources * len(PROXY_METHODS)
+        # fitted and judged on the target imported through the repair: these clean logs come through as logged
+        logged, repaired = read_dataset(d / t["data_logged"]), read_dataset(d / t["data"])
+        assert t["data"] == f"data/{name}_repaired.h5" and t["repair"]["planted"] is None
+        assert t["repair"]["found"]["jumps"] == logged.n_jumps and t["repair"]["found"]["changed"] == 0
+        for k in ("t", "q", "dq", "tau", "contact"):
+            assert (getattr(repaired, k) == getattr(logged, k)).all(), k
+        assert (repaired.split == logged.split).all()
         assert t["chosen_source"] == choice["rows"][choice["chosen"]]["source"]
         tuned = [r for r in choice["rows"] if r["finetune"] == DEFAULT_METHOD and r["score"] is not None]
-        near = {r["source"] for r in tuned if r["score"] <= (1 + tolerance) * min(u["score"] for u in tuned)}
-        as_is = {r["source"]: r["score"] for r in choice["rows"] if r["finetune"] == "none"}
-        assert t["source_model"] in near  # fine-tuned, within the selection's tolerance of the best on val
-        if all(as_is.get(s) is not None for s in near):  # of those, the best as it is on val
-            assert as_is[t["source_model"]] == min(as_is[s] for s in near)
-        for col in ("source", "fine_tuned", "target_alone", "chosen"):
+        if not tuned:  # no default fine-tuning scored on val (one train jump here): the chosen row's source
+            assert t["source_model"] == t["chosen_source"]
+        else:
+            near = {r["source"] for r in tuned if r["score"] <= (1 + tolerance) * min(u["score"] for u in tuned)}
+            as_is = {r["source"]: r["score"] for r in choice["rows"] if r["finetune"] == "none"}
+            assert t["source_model"] in near  # fine-tuned, within the selection's tolerance of the best on val
+            if all(as_is.get(s) is not None for s in near):  # of those, the best as it is on val
+                assert as_is[t["source_model"]] == min(as_is[s] for s in near)
+        for col in ("logged", "source", "fine_tuned", "target_alone", "chosen"):
             e = t[col]
+            if col == "fine_tuned" and "refused" in e:  # refused on val (a train jump or two here): the reason kept
+                assert set(e) == {"refused"} and "val" in e["refused"]
+                assert json.loads((d / name / "fine_tuned" / "refused.json").read_text()) == e
+                continue
             assert {"x_rmse", "z_rmse", "diverged_jumps", "drifted_jumps", "flight_acc", "flight_ratio"} <= set(e)
-            metrics = json.loads((d / name / {"source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
-                                              "target_alone": "target_alone/eval", "chosen": "eval"}[col]
-                                  / "metrics.json").read_text())
+            folder = {"logged": f"sources_eval_logged/{t['source_model']}",
+                      "source": f"sources_eval/{t['source_model']}", "fine_tuned": "fine_tuned/eval",
+                      "target_alone": "target_alone/eval", "chosen": "eval"}[col]
+            metrics = json.loads((d / name / folder / "metrics.json").read_text())
             assert e["z_rmse"] == metrics["horizons"]["full"]["components"]["z"]["rmse"]
         assert t["checks"] == sim2real_checks(t)
 
@@ -150,4 +173,7 @@ def test_report_builds_from_the_run(run):
     assert "the go1_sim model (encoder: " in md_text
     assert "Model selection on the validation split" in md_text and "stability of each phase" in md_text
     assert "go1_proxy before fine-tuning" in md_text and "| exact |" in md_text and "| adam |" in md_text
-    assert "Sim-to-real: source, fine-tuned and target alone" in md_text and "| go1_proxy_mujoco | target alone |" in md_text
+    assert "Sim-to-real: logged, repaired and fine-tuned" in md_text
+    assert "| go1_proxy_mujoco | repaired: target alone |" in md_text
+    assert "| a1_proxy_mujoco | as logged: source as is (a1_randomized/" in md_text
+    assert "a1_proxy_mujoco: logged without faults; repaired 0 of 3 jumps" in md_text

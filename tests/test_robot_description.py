@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-from conftest import one_line_error
 from symrom.cli import app
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, leg_kinematics, robot_key, total_mass
 from symrom.robots.description import load_description

@@ -1,11 +1,14 @@
 """`symrom robot init` on robot models alone: the Menagerie-style MJCF test models (Go1, Go2, A1,
-ANYmal C) and URDFs give descriptions that load, whose kinematics are MuJoCo's, whose body model
-is MuJoCo's; models symrom cannot describe are refused in one line naming what is missing; an
-MJCF-only robot stands in the MuJoCo engine and is refused by PyBullet. (The motions on these
-models: tests/test_robot_motions.py.)"""
+ANYmal C), the mesh-free copies of MuJoCo Menagerie's eight quadrupeds (tests/robots/menagerie)
+and URDFs give descriptions that load, whose kinematics are MuJoCo's, whose body model is
+MuJoCo's; models symrom cannot describe are refused in one line naming what is missing (a key,
+missing mesh files); an MJCF-only robot stands in the MuJoCo engine and is refused by PyBullet;
+the script making the copies keeps all but the meshes. (The motions on these models:
+tests/test_robot_motions.py.)"""
 
 from __future__ import annotations
 
+import importlib.util
 import re
 import tomllib
 from pathlib import Path
@@ -13,14 +16,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from _menagerie import COPIES, FOLDER, init_copies, model_path
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-from conftest import one_line_error
 from symrom.cli import app
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.description import RobotDescriptionError, load_description, pybullet_data_path
 from symrom.robots.init import CHECK_TOL, RobotInitError, init_robot
-from symrom.robots.mjcf import BASE_INERTIA, FOOT_LINK, cache_dir
+from symrom.robots.mjcf import BASE_INERTIA, FOOT_LINK, cache_dir, colliding, foot_frames
 from symrom.robots.show import robot_summary
 from symrom.robots.stance import standing_joints, start_pose
 from symrom.sim.engines.registry import EngineRobotError, make_world
@@ -265,7 +269,8 @@ def test_format_2_keys_are_checked(written, tmp_path):
         (text.replace('body = "{leg}_calf"', 'geom = "{leg}_calf"'), "feet.point", "only with feet.body"),
         (text.replace('body = "{leg}_calf"', 'link = "{leg}_calf"'), "feet.link", "no URDF"),
         (text.replace('body = "{leg}_calf"', 'body = "{leg}_shin"'), "feet.body", "no body 'FR_shin'"),
-        (text.replace('hy = "{leg}_thigh_joint"', 'hy = "{leg}_upper_joint"'), "joints.hy", "no joint 'FR_upper_joint'"),
+        (text.replace('hy = "{leg}_thigh_joint"', 'hy = "{leg}_upper_joint"'), "joints.hy",
+         "no joint 'FR_upper_joint'"),
         (text.replace("format = 2", "format = 1"), "urdf", "format = 2"),
         (text.replace("knee = [-2.69653, -0.916298]", "knee = [[-2.7, -0.9], [-2.7, -0.9]]"), "stance.knee",
          "4 of them"),
@@ -352,3 +357,220 @@ def test_robot_init_on_the_command_line(tmp_path):
                                  "--set", "limits.torque"])
     one_line_error(r, "--set 'limits.torque'", "KEY=VALUE")
 
+
+
+# ------------------------------------------------------------------ MuJoCo Menagerie's quadrupeds
+@pytest.fixture(scope="module")
+def menagerie(tmp_path_factory):
+    """robot init on each mesh-free copy of a Menagerie quadruped, once: name -> RobotInit."""
+    return init_copies(tmp_path_factory.mktemp("menagerie"))
+
+
+def _feet_by_table(model, data, desc) -> np.ndarray:
+    """(4, 3) m, FR FL RR RL, world: MuJoCo's points of the feet the description's [feet] table
+    names (its geoms', sites' or bodies' points), read from MuJoCo's data alone."""
+    f = desc.feet
+    if f.kind == "geom":
+        return np.array([data.geom_xpos[model.geom(n).id] for n in f.names])
+    if f.kind == "site":
+        return np.array([data.site_xpos[model.site(n).id] for n in f.names])
+    pts = f.points or ((0.0, 0.0, 0.0),) * 4
+    return np.array([data.xpos[model.body(n).id] + data.xmat[model.body(n).id].reshape(3, 3) @ np.asarray(p)
+                     for n, p in zip(f.names, pts)])
+
+
+@pytest.mark.parametrize("name", list(COPIES))
+def test_robot_init_describes_each_menagerie_quadruped(menagerie, name):
+    """The legs, joints, feet, limits and mass of the published model; its kinematics MuJoCo's
+    to 1e-9 m over random joint angles (MuJoCo's feet read by the [feet] table, not symrom's
+    foot code); the leg IK stands it at its height with its knees in range."""
+    e, r = COPIES[name], menagerie[name]
+    desc = load_description(r.path)
+    doc = tomllib.loads(r.text)
+    assert tuple(doc["legs"].values()) == e["legs"] and (desc.feet.kind, doc["feet"][desc.feet.kind]) == e["feet"]
+    assert desc.torque_limit == e["torque"] * 4 and r.given == tuple(e.get("given", ()))
+    model = mujoco.MjModel.from_xml_path(str(model_path(name)))
+    base = model.body(desc.base_link).id
+    assert model.jnt_type[model.body_jntadr[base]] == mujoco.mjtJoint.mjJNT_FREE
+    assert desc.mass == pytest.approx(model.body_subtreemass[base], rel=1e-12)
+    data = mujoco.MjData(model)
+    qadr = [model.jnt_qposadr[model.joint(n).id] for n in desc.joint_names]
+    q = np.random.default_rng(11).uniform(-1.5, 1.5, size=(40, 12))
+    ours = leg_kinematics(desc.key).foot_positions(q)
+    worst = 0.0
+    for i in range(len(q)):
+        data.qpos[:] = 0.0
+        data.qpos[3] = 1.0  # the free base at the origin, unturned: the world is the base frame
+        data.qpos[qadr] = q[i] * desc.signs
+        mujoco.mj_kinematics(model, data)
+        worst = max(worst, np.abs(ours[i] - _feet_by_table(model, data, desc)).max())
+    assert worst < 1e-9 and r.kinematics_error <= CHECK_TOL, worst
+    q = start_pose(desc.key)
+    feet = leg_kinematics(desc.key).foot_positions(q[None, :12])[0]
+    np.testing.assert_allclose(feet[:, 2], -(desc.start_height + 5e-4 - desc.foot_radius), atol=1e-6)
+    lo, hi = desc.knee_range
+    assert np.all((q[2:12:3] >= lo) & (q[2:12:3] <= hi)) and desc.foot_radius > 0.0
+
+
+def test_menagerie_models_name_what_robot_init_cannot_infer(tmp_path):
+    """ANYmal B and C (knees free both ways, no keyframe) and Barkour v0 (servos with no force
+    limit) are refused in one line naming the key to give."""
+    for name, key in (("anymal_b", "stance.knee"), ("anymal_c", "stance.knee"), ("barkour_v0", "limits.torque")):
+        with pytest.raises(RobotInitError) as e:
+            init_robot(model_path(name), tmp_path / "x.toml")
+        assert e.value.key == key and f"give key {key!r}" in str(e.value) and "\n" not in str(e.value), str(e.value)
+    assert "(no range)" in str(pytest.raises(RobotInitError, init_robot, model_path("anymal_b"), tmp_path / "x.toml")
+                               .value)
+
+
+@pytest.mark.parametrize("name", list(COPIES))
+def test_each_menagerie_quadruped_stands_on_its_feet(menagerie, name):
+    """At symrom's start pose the geoms of each foot (spheres; Barkour vB's rounded ends around
+    its foot sites, whose radius is how far they reach past the site) meet the ground, pressed
+    into it by at most 2 mm, and nothing else of the robot is lower: MuJoCo's distances."""
+    desc = menagerie[name].description
+    spec = mujoco.MjSpec.from_file(str(desc.mjcf_path))
+    spec.worldbody.add_geom(name="ground", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1])
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    q = start_pose(desc.key)
+    data.qpos[:4] = (*q[12:15], 1.0)
+    data.qpos[[model.jnt_qposadr[model.joint(n).id] for n in desc.joint_names]] = q[:12] * desc.signs
+    mujoco.mj_forward(model, data)
+    ground = model.geom("ground").id
+    feet = [f.geoms for f in foot_frames(model, desc.feet)]
+    gap = [min(mujoco.mj_geomDistance(model, data, g, ground, 0.5, None) for g in geoms) for geoms in feet]
+    assert all(-0.002 <= d <= 0.0 for d in gap), gap
+    others = [g for g in range(model.ngeom) if g != ground and colliding(model, g) and not any(g in f for f in feet)]
+    assert min(mujoco.mj_geomDistance(model, data, g, ground, 0.5, None) for g in others) > 0.005
+
+
+def test_a_model_whose_mesh_files_are_missing_is_refused_in_one_line(tmp_path):
+    """The Go1 as published (its meshes named) with no assets folder beside it."""
+    text = model_path("go1").read_text()
+    text = text.replace('<material name="dark"', '<mesh class="go1" file="trunk.stl"/>\n    <mesh class="go1" '
+                        'file="hip.stl"/>\n    <material name="dark"')
+    text = text.replace("<freejoint/>", '<freejoint/>\n      <geom class="visual" mesh="trunk"/>', 1)
+    model = _variant(tmp_path, text)
+    with pytest.raises(RobotInitError) as e:
+        init_robot(model, tmp_path / "x.toml")
+    msg = str(e.value)
+    for needle in (str(model), "assets/trunk.stl, assets/hip.stl", "missing", "assets folder"):
+        assert needle in msg, (needle, msg)
+    r = CliRunner().invoke(app, ["robot", "init", str(model), "--out", str(tmp_path / "x.toml")])
+    one_line_error(r, "assets/trunk.stl", "missing")
+
+
+def test_a_servo_range_says_which_way_a_free_knee_bends(tmp_path):
+    """ANYmal C's knees are free both ways and it has no keyframe; servos whose control range lies
+    on one side of zero say the side (front knees back, hind knees forward)."""
+    text = model_path("anymal_c").read_text()
+    for leg, rng in (("LF", "-2.5 -0.2"), ("RF", "-2.5 -0.2"), ("LH", "0.2 2.5"), ("RH", "0.2 2.5")):
+        text = text.replace(f'<position class="affine" joint="{leg}_KFE" name="{leg}_KFE"/>',
+                            f'<position class="affine" joint="{leg}_KFE" name="{leg}_KFE" ctrlrange="{rng}"/>')
+    r = init_robot(_variant(tmp_path, text), tmp_path / "x.toml")
+    assert r.description.knee_ranges == ((-2.8, -0.3),) * 2 + ((0.3, 2.8),) * 2
+    assert "servo's ctrlrange" in r.text
+
+
+# ------------------------------------------------------------------ strip_meshes.py
+def _strip():
+    spec = importlib.util.spec_from_file_location("strip_meshes", FOLDER / "strip_meshes.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _obj(path: Path, vertices: np.ndarray) -> None:
+    """A convex mesh (OBJ) of the vertices' hull."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(vertices)
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices]
+    lines += ["f " + " ".join(str(i + 1) for i in tri) for tri in hull.simplices]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_strip_meshes_keeps_all_but_the_meshes(tmp_path):
+    """A model with a visual mesh, three colliding ones (a slab, a rod, a disc) and a texture
+    file: the copy drops the visual mesh and the texture, fits a box, a capsule (MuJoCo's own fit)
+    and a sphere (the disc's rim) in their bodies' frames, keeps every other line, and compiles
+    with no file beside it."""
+    src = tmp_path / "robot"
+    (src / "assets").mkdir(parents=True)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    _obj(src / "assets" / "slab.obj", corners * [0.05, 0.04, 0.03])
+    _obj(src / "assets" / "rod.obj", corners * [0.01, 0.012, 0.1])
+    a = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    ring = np.stack([0.02 * np.cos(a), 0.02 * np.sin(a), np.zeros_like(a)], axis=1)
+    _obj(src / "assets" / "disc.obj", np.concatenate([ring + [0, 0, 0.006], ring - [0, 0, 0.006]]))
+    _obj(src / "assets" / "shell.obj", corners * 0.1)
+    (src / "assets" / "skin.png").write_bytes(b"")
+    (src / "LICENSE").write_text("a licence\n")
+    xml = """<mujoco model="toy">
+  <compiler meshdir="assets" texturedir="assets"/>
+  <default>
+    <default class="toy">
+      <geom type="mesh" friction="0.7"/>
+      <default class="visual">
+        <geom contype="0" conaffinity="0" mesh="shell"/>
+      </default>
+    </default>
+  </default>
+  <asset>
+    <texture name="skin" type="2d" file="skin.png"/>
+    <material name="paint" texture="skin" rgba="1 0 0 1"/>
+    <mesh file="shell.obj"/>
+    <mesh file="slab.obj"/>
+    <mesh file="rod.obj"/>
+    <mesh file="disc.obj"/>
+  </asset>
+  <worldbody>
+    <body name="base" pos="0 0 0.5" childclass="toy">
+      <freejoint/>
+      <geom class="visual" material="paint"/>
+      <geom name="slab" mesh="slab" pos="0.1 0 0" quat="0.9238795 0 0.3826834 0" solimp="0.9 0.95 0.001"/>
+      <geom type="sphere" size="0.01" pos="0 0.2 0"/>
+      <body name="leg" pos="0 0 -0.1">
+        <joint name="hinge" axis="0 1 0"/>
+        <geom mesh="rod" pos="0 0 -0.1"/>
+        <geom mesh="disc" pos="0 0 -0.2" quat="0.7071068 0.7071068 0 0"/>
+        <site name="tip" pos="0 0 -0.22"/>
+      </body>
+    </body>
+  </worldbody>
+  <actuator>
+    <motor joint="hinge" ctrlrange="-1 1"/>
+  </actuator>
+</mujoco>
+"""
+    (src / "toy.xml").write_text(xml)
+    out = _strip().strip(src / "toy.xml", tmp_path / "copy")
+    text = out.read_text()
+    assert ((tmp_path / "copy" / "LICENSE").read_text() == "a licence\n"
+            and sorted(p.name for p in out.parent.iterdir()) == ["LICENSE", "toy.xml"])
+    kept = [line for line in xml.splitlines() if not re.search(r"mesh|skin|paint", line)]
+    copy_lines = text.splitlines()
+    assert all(line in copy_lines for line in kept)  # every other line as published
+    assert not re.search(r"<mesh|mesh=|<texture|texture=", text)  # the compiler's folders may stay
+    assert '<material name="paint" rgba="1 0 0 1"/>' in text
+    m = mujoco.MjModel.from_xml_path(str(out))  # no files beside it
+    G = mujoco.mjtGeom
+    assert m.ngeom == 4 and {G(t) for t in m.geom_type} == {G.mjGEOM_BOX, G.mjGEOM_CAPSULE, G.mjGEOM_SPHERE}
+    slab = m.geom("slab").id
+    np.testing.assert_allclose(np.sort(m.geom_size[slab]), [0.03, 0.04, 0.05], atol=1e-9)  # a box's own box
+    assert m.geom_friction[slab, 0] == 0.7 and np.allclose(m.geom_solimp[slab, :3], [0.9, 0.95, 0.001])
+    np.testing.assert_allclose(m.geom_pos[slab], [0.1, 0, 0], atol=1e-9)
+    # the rod: the capsule MuJoCo fits to it, where MuJoCo puts it
+    ref = mujoco.MjModel.from_xml_string(xml.replace('<geom mesh="rod"', '<geom type="capsule" mesh="rod"').replace(
+        'meshdir="assets"', f'meshdir="{src / "assets"}"').replace('texturedir="assets"', "")
+        .replace('<texture name="skin" type="2d" file="skin.png"/>', "").replace('texture="skin" ', ""))
+    leg = m.body("leg").id
+    cap = next(g for g in range(m.ngeom) if m.geom_type[g] == G.mjGEOM_CAPSULE)
+    rcap = next(g for g in range(ref.ngeom) if ref.geom_type[g] == G.mjGEOM_CAPSULE)
+    assert m.geom_bodyid[cap] == leg
+    np.testing.assert_allclose(m.geom_size[cap, :2], ref.geom_size[rcap, :2], rtol=1e-5)
+    np.testing.assert_allclose(m.geom_pos[cap], ref.geom_pos[rcap], atol=1e-6)
+    disc = next(g for g in range(m.ngeom) if m.geom_type[g] == G.mjGEOM_SPHERE and m.geom_bodyid[g] == leg)
+    assert m.geom_size[disc, 0] == pytest.approx(0.02, rel=1e-5)  # the disc's rim
+    np.testing.assert_allclose(m.geom_pos[disc], [0, 0, -0.2], atol=1e-6)

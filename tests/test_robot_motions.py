@@ -1,15 +1,19 @@
 """The motions on robots that state their actuators: the feed-forward of the effects a description
 states (damping, friction loss, armature), checked term by term against the ideal robot's
-torques; pronk and froggy jumps in MuJoCo on the four Menagerie-style test models as `robot init`
-writes them (their own joint damping, friction loss and armature); a dataset's wrench from the
-torques that reach the joints; the proxy's effects on top of the description's, uncompensated."""
+torques; pronk and froggy jumps in MuJoCo on the four Menagerie-style test models and on the
+mesh-free copies of Menagerie's eight quadrupeds as `robot init` writes them (their own joint
+damping, friction loss, armature, contacts and limits); froggy's longer push on legs weak for
+their size; a dataset's wrench from the torques that reach the joints; the proxy's effects on
+top of the description's, uncompensated."""
 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
+from _menagerie import COPIES, init_copies
 
 from symrom.names import JOINTS
 from symrom.robots import get_robot, leg_kinematics
@@ -17,7 +21,6 @@ from symrom.robots.description import FRICTION_SPEED, ActuatorEffects
 from symrom.robots.init import init_robot
 from symrom.robots.stance import start_pose
 from symrom.sim.controllers.actuators import Compensation, stance_acceleration
-from pathlib import Path
 
 MODELS = Path(__file__).parent / "robots"
 NAMES = ("go1", "go2", "a1", "anymal_c")
@@ -162,8 +165,8 @@ def test_froggy_adds_the_losses_and_the_pushs_armature(written, phase_time):
 
 
 def test_the_proxy_adds_hidden_effects_the_controllers_do_not_compensate(written):
-    from symrom.sim.proxy import ProxyConfig, apply_to_world
     from symrom.sim.engines.registry import make_world
+    from symrom.sim.proxy import ProxyConfig, apply_to_world
 
     robot = written["go1"]
     w = make_world("mujoco", robot)
@@ -197,6 +200,37 @@ def test_pronk_and_froggy_jump_each_test_robot_as_written(written, name, motion)
     one each; docs/simulation.md, "Your robot", has the attempts over six jumps)."""
     attempts = _attempts(written[name], motion, 2, seed=1, max_attempts=2)
     assert max(attempts) <= 2, attempts
+
+
+@pytest.fixture(scope="module")
+def menagerie(tmp_path_factory):
+    """robot init on each Menagerie copy (the keys it cannot infer given): name -> description path."""
+    return {n: str(r.path) for n, r in init_copies(tmp_path_factory.mktemp("menagerie")).items()}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("motion", ["pronk", "froggy"])
+@pytest.mark.parametrize("name", list(COPIES))
+def test_pronk_and_froggy_jump_each_menagerie_quadruped(menagerie, name, motion):
+    """Two checked jumps of each motion on each of Menagerie's quadrupeds as published (mesh-free),
+    at most four attempts each (seed 1: one each, Barkour v0's froggy four for its first:
+    docs/simulation.md, "Your robot", has them over six jumps)."""
+    attempts = _attempts(menagerie[name], motion, 2, seed=1, max_attempts=4)
+    assert max(attempts) <= 4, attempts
+
+
+@pytest.mark.slow
+def test_without_the_longer_push_weak_legs_do_not_froggy(menagerie, monkeypatch):
+    """The planted fault: froggy's push as long as the A1's on Barkour vB (18 N m for 14.5 kg,
+    0.43 of the A1's torque for its mass and leg length) never leaves the ground long enough."""
+    from symrom.sim.controllers import froggy
+    from symrom.sim.generation.runner import GenerationError
+
+    assert (froggy.scaled(froggy.FroggyParams(), menagerie["barkour_vb"]).t_push_all
+            > 1.4 * froggy.FroggyParams().t_push_all)
+    monkeypatch.setattr(froggy, "_PUSH", ())
+    with pytest.raises(GenerationError, match="no valid jump in 3 attempts"):
+        _attempts(menagerie["barkour_vb"], "froggy", 1, seed=1, max_attempts=3)
 
 
 @pytest.mark.slow

@@ -1,5 +1,6 @@
-"""The whole path on a robot symrom has never seen: `robot init` on a Menagerie-style model, then
-generate, train, evaluate and `symrom jump` from the description it wrote, with no code change;
+"""The whole path on a robot symrom has never seen: `robot init` on a Menagerie-style model (and on
+Menagerie's Barkour vB as published), then generate, train, evaluate and `symrom jump` from the
+description it wrote, with no code change;
 a model planning for another robot of its build (a Menagerie Go1 for a model of symrom's Go1)
 and refused for a robot of another build, in one line; a nominal apex no plan holds within the
 torque limits gives way to what the model reaches."""
@@ -11,18 +12,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _menagerie import model_path
+from conftest import one_line_error
+from test_plan import planted_model
 from typer.testing import CliRunner
 
-from conftest import one_line_error
 from symrom.cli import app
-from symrom.model.persistence import save_model
+from symrom.model.persistence import load_model, save_model
 from symrom.plan.dynamics import GRAVITY
 from symrom.plan.inputs import force_input_map
 from symrom.plan.jump import REACH_SHARE, make_planner, plan_jump, pronk_params
 from symrom.robots import get_robot
 from symrom.robots.init import init_robot
 from symrom.robots.stance import start_pose
-from test_plan import planted_model
 
 MODELS = Path(__file__).parent / "robots"
 
@@ -102,3 +104,30 @@ def test_the_whole_path_on_a_robot_from_its_model_alone(tmp_path):
     assert landing["robot"] == str(desc.resolve()) and landing["engine"] == "mujoco"
     assert landing["apex_rule"] == "at least nominal" and landing["target_reachable"]
     assert abs(landing["error_x"]) < 0.05, landing["error_x"]  # 2.1 cm short (2 training jumps)
+
+
+@pytest.mark.slow
+def test_the_whole_path_on_a_menagerie_quadruped(tmp_path):
+    """Menagerie's Barkour vB as published (mesh-free): feet as sites, knees bending forward, 18 N m
+    motors; robot init, generate (4 jumps), train (l = 2) and a jump to the middle of the training jumps' travel, all
+    through the command line with no key given."""
+    run = CliRunner().invoke
+    desc, data, model = (tmp_path / n for n in ("barkour.toml", "barkour.h5", "model"))
+    steps = [["robot", "init", str(model_path("barkour_vb")), "--out", str(desc)],
+             ["generate", "--robot", str(desc), "--motion", "pronk", "--jumps", "4", "--engine", "mujoco",
+              "--out", str(data)],
+             ["train", str(data), "--out", str(model), "--latent-dim", "2", "--encoder-components", "x,y,z",
+              "--decoded-weight", "0", "--alpha", "1e-3"],
+             ["jump", str(model / "model.json"), "--engine", "mujoco", "--target-x", None, "--out",
+              str(tmp_path / "jump")]]
+    for args in steps:
+        if args[0] == "jump":  # the middle of what the training jumps did, inside the planner's reach
+            lo, hi = load_model(model / "model.json").provenance.data.envelope["travel_x_m"]
+            target = round(0.5 * (lo + hi), 3)
+            args[args.index(None)] = str(target)
+        r = run(app, args)
+        assert r.exit_code == 0, (args[0], r.output)
+    landing = json.loads((tmp_path / "jump" / "landing.json").read_text())
+    assert landing["robot"] == str(desc.resolve()) and landing["settled"]
+    lo, hi = landing["reach"]["x_m"]
+    assert lo < target < hi and abs(landing["error_x"]) < 0.05, (landing["reach"], landing["error_x"])

@@ -11,8 +11,7 @@ from typer.testing import CliRunner
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.evaluate.usability import integrator_check, physics_check, rk4_map
-from symrom.experiments.select import (SelectionConfig, assess, choose, plan_steps, select, select_into,
-                                       set_aside_for)
+from symrom.experiments.select import SelectionConfig, assess, choose, plan_steps, select, select_into, set_aside_for
 from symrom.learn.training import TrainConfig, train
 from symrom.names import BASE_POS
 

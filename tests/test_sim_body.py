@@ -9,8 +9,16 @@ from scipy.spatial.transform import Rotation
 
 from symrom.robots import get_robot
 from symrom.sim.controllers import body
-from symrom.sim.controllers.body import (BODY_SOURCES, BodyModel, BodySource, LegGravity, RigidLinks,
-                                         UnknownBodySourceError, body_model, body_source)
+from symrom.sim.controllers.body import (
+    BODY_SOURCES,
+    BodyModel,
+    BodySource,
+    LegGravity,
+    RigidLinks,
+    UnknownBodySourceError,
+    body_model,
+    body_source,
+)
 
 
 class PlantedSource:

@@ -11,11 +11,11 @@ from scipy.spatial.transform import Rotation
 from symrom.robots import leg_kinematics
 from symrom.robots.stance import start_pose
 from symrom.sim.controllers import compiled
-from symrom.sim.engines import bullet
-from symrom.sim.engines.compiled import base_state
 from symrom.sim.controllers.froggy import FroggyController, distribute, sample_params
 from symrom.sim.controllers.mpc import ConvexMPC, continuous_dynamics, discretize
+from symrom.sim.engines import bullet
 from symrom.sim.engines.bullet import BulletWorld as World
+from symrom.sim.engines.compiled import base_state
 from symrom.sim.engines.world import euler_rate_matrix, matrix_to_rpy
 
 
@@ -199,7 +199,7 @@ def test_a_reused_client_simulates_as_a_fresh_one():
 
 def test_mpc_force_clipping_is_numpys_to_the_bit():
     rng = np.random.default_rng(4)
-    for i in range(300):
+    for _i in range(300):
         U = rng.normal(size=(10, 4, 3)) * 200.0
         special = rng.random(U.shape) < 0.2
         U[special] = rng.choice([0.0, -0.0, 250.0, -250.0, np.inf, -np.inf, np.nan], special.sum())

@@ -11,8 +11,10 @@ from dataclasses import replace
 import h5py
 import numpy as np
 import pytest
-
 from _simdata import tmp_path
+from typer.testing import CliRunner
+
+from symrom.cli import app
 from symrom.data.preprocess import foot_positions_world
 from symrom.robots import ActuatorEffects, get_robot
 from symrom.robots.description import RobotDescriptionError, load_description
@@ -22,8 +24,6 @@ from symrom.sim.diagnostics.forces import NoContactForceError, force_error
 from symrom.sim.engines.registry import ENGINES, UnknownEngineError, make_world
 from symrom.sim.engines.world import World, euler_rate_matrix
 from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate, run_record_path
-from symrom.cli import app
-from typer.testing import CliRunner
 
 STAND = np.tile([0.0, 0.8, -1.6], 4)
 

@@ -6,8 +6,8 @@ import json
 
 import numpy as np
 import pytest
-
 from _simdata import N_JUMPS, reference_file
+
 from symrom.data.io import read_dataset
 from symrom.robots import get_robot
 from symrom.sim.controllers import froggy
@@ -43,7 +43,7 @@ def test_file_layout(ds):
     assert ds.robot == "a1" and ds.motion == "froggy" and ds.source == "sim"
     assert ds.dt == 0.002 and ds.n_jumps == N_JUMPS["froggy"]
     assert ds.phase_names == ["contact", "partial", "flight"]
-    for j, s in _per_jump(ds):
+    for _j, s in _per_jump(ds):
         assert np.allclose(np.diff(ds.t[s]), 0.002)
         assert 900 <= ds.t[s].size <= 1500  # ~1200 samples per jump, as in the paper
     gen = ds.generator

@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from _simdata import tmp_path
+
 from symrom.robots import ROBOTS, leg_kinematics
 from symrom.robots.stance import nominal_feet
 from symrom.sim.controllers.flight import longest_run
-from symrom.sim.generation.checks import JumpChecks
-from symrom.sim.engines.registry import ENGINES
 from symrom.sim.controllers.froggy import FroggyParams, sample_params
+from symrom.sim.engines.registry import ENGINES
+from symrom.sim.generation.checks import JumpChecks
 from symrom.sim.generation.generate import GenerateConfig, generate
 
 pytestmark = pytest.mark.slow

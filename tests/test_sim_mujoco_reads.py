@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symrom.sim.engines.mujoco import MujocoWorld
 from symrom.sim.controllers.pronk import PronkController, PronkParams
+from symrom.sim.engines.mujoco import MujocoWorld
 
 FIELDS = ("q", "dq", "omega", "R", "foot_pos", "foot_vel")
 

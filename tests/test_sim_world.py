@@ -7,9 +7,9 @@ import pytest
 
 from symrom.data.preprocess import foot_positions_world
 from symrom.robots import get_robot
+from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.engines.bullet import BulletWorld as World
 from symrom.sim.engines.world import WorldConfig, euler_rate_matrix, matrix_to_rpy
-from symrom.robots.kinematics import rpy_to_matrix
 
 STAND = np.tile([0.0, 0.8, -1.6], 4)
 

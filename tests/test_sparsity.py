@@ -117,7 +117,8 @@ def test_sparsity_path_goes_from_dense_to_sparse_with_validation_errors(collinea
         assert terms == sorted(terms, reverse=True) and terms[0] > terms[-1]
         assert all(s["val_error"] is not None and s["val_error"] >= 0 for s in steps)
         # At the planted support the validation error is at its noise floor; far sparser, it is not.
-        at_truth = next(s for s in steps if s["active_terms"] == int((truth.Xi[model.phase_names.index(name)] != 0).sum()))
+        at_truth = next(s for s in steps
+                        if s["active_terms"] == int((truth.Xi[model.phase_names.index(name)] != 0).sum()))
         assert at_truth["val_error"] < 0.01 and steps[-1]["val_error"] > 10 * at_truth["val_error"]
 
 

@@ -7,15 +7,13 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
+from symrom.experiments.sweep import SweepConfig, bootstrap_jumps, l_mod, parse_latent_dims, run_sweep, summarise
 from symrom.testing import make_planted_dataset
-from symrom.experiments.sweep import (SweepConfig, bootstrap_jumps, l_mod, parse_latent_dims, run_sweep,
-                                      summarise)
-
-from conftest import one_line_error
 
 DIMS = (1, 2, 3, 4)
 SEEDS = (0, 1, 2)

@@ -98,7 +98,7 @@ class Backend(ABC):
         """Make the back end ready (a Ray back end connects); ``self``. ``map`` calls it too."""
         return self
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027 (optional: only back ends that acquire something override it)
         """Release what ``start`` acquired."""
 
     def __enter__(self) -> Backend:

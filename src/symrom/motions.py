@@ -80,7 +80,7 @@ class MotionEntry:
 MOTIONS: dict[str, MotionEntry] = {
     "froggy": MotionEntry("froggy", (STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE), partial_before_flight,
                           splits={"": (100, 40, 10)}, plugin="symrom.sim.controllers.froggy:MOTION",
-                          variants=("randomized",),
+                          variants=("proxy", "randomized"),
                           sequence=(STANCE_PHASE, PARTIAL_PHASE, FLIGHT_PHASE, STANCE_PHASE)),
     "pronk": MotionEntry("pronk", (STANCE_PHASE, FLIGHT_PHASE), contact_flight,
                          splits={"": (120, 30, 6), "proxy": (12, 2, 1)}, plugin="symrom.sim.controllers.pronk:MOTION",

@@ -17,6 +17,10 @@ Q_NAMES: tuple[str, ...] = JOINT_NAMES + BASE_NAMES
 WRENCH_NAMES: tuple[str, ...] = ("fx", "fy", "fz", "mx", "my", "mz")
 U_NAMES: tuple[str, ...] = tuple(f"tau_{n}" for n in JOINT_NAMES) + WRENCH_NAMES
 
+# Gravitational acceleration, m/s^2 (downwards): the simulators' g, and the one every model,
+# controller, planner, check and baseline uses.
+GRAVITY = 9.81
+
 # Phase names the motions share (``symrom.motions`` gives each motion's phases, in order).
 STANCE_PHASE = "contact"  # every foot down
 PARTIAL_PHASE = "partial"  # some feet down, before the first flight (froggy)

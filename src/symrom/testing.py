@@ -24,7 +24,7 @@ import numpy as np
 
 from symrom.data.dataset import Dataset, validate
 from symrom.model.library import Library
-from symrom.names import N_JOINTS, N_Q
+from symrom.names import GRAVITY, N_JOINTS, N_Q
 
 # Planted equations for l = 2, p = 1, by feature name; every phase damped so
 # that long rollouts stay bounded.
@@ -181,7 +181,7 @@ def make_slip_dataset(n_jumps: int = 6, n_samples: int = 300, k_s: float = 3000.
     Returns the dataset (robot ``slip``, no URDF) and ``{"k_s", "l_0", "m"}``.
     """
     rng = np.random.default_rng(seed)
-    g = np.array([0.0, 0.0, -9.81])
+    g = np.array([0.0, 0.0, -GRAVITY])
     n = n_samples
 
     def acc(b, p, u, c):  # (3,) each, c bool

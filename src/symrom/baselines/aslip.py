@@ -23,13 +23,22 @@ over growing windows, ``symrom.rollout.fitting``), started from the residual fit
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
+from functools import partial
 from typing import ClassVar
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from symrom.baselines.com import (COMPONENTS, GRAVITY, PARAMS_VERSION, com_system, flight_rows,
-                                  input_acceleration, robot_mass, stance_pivots)
+from symrom.baselines.com import (
+    COMPONENTS,
+    GRAVITY,
+    PARAMS_VERSION,
+    com_system,
+    flight_rows,
+    input_acceleration,
+    robot_mass,
+    stance_pivots,
+)
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS
 from symrom.rollout.fitting import RolloutFit, fit_to_rollouts
@@ -118,8 +127,18 @@ class ASlip:
 
     def rollout_system(self, ds: Dataset, jumps: np.ndarray) -> RolloutSystem:
         p = self.params
-        return com_system(ds, jumps, p.m, lambda d, x, v: aslip_acceleration(
+        sysm = com_system(ds, jumps, p.m, lambda d, x, v: aslip_acceleration(
             p, x, d["pivot"], d["u"], d["contact"]))
+        return replace(sysm, compiled=partial(_compiled_rk4, p))
+
+
+def _compiled_rk4(p: ASlipParams, x, v, drive, lens, resets, limit, dt, substeps):
+    """The aSLIP's compiled RK4 (``baselines.compiled.aslip_rk4``) in the form of a
+    ``RolloutSystem.compiled`` integrator."""
+    from symrom.baselines.compiled import aslip_rk4
+
+    return aslip_rk4(p.k_s / p.m, p.l_0, np.asarray(GRAVITY, float), x, v, drive["u"], drive["pivot"],
+                     np.asarray(drive["contact"], bool), np.asarray(lens, np.int64), resets, limit, dt, substeps)
 
 
 # ----------------------------------------------------------------------- fitting

@@ -15,11 +15,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from symrom import names
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS, FLIGHT_PHASE, WRENCH
 from symrom.rollout.system import RolloutSystem
 
-GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s^2, world frame
+GRAVITY = np.array([0.0, 0.0, -names.GRAVITY])  # m/s^2, the gravity vector in the world frame
 COMPONENTS: tuple[str, ...] = ("x", "y", "z")
 # A baseline's params.json (``to_dict``): 2 adds format_version, model, units and source to
 # every baseline; files without format_version (1) hold the aSLIP's k_s, l_0, m or a model's record.

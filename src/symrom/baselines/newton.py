@@ -27,8 +27,15 @@ from typing import ClassVar
 
 import numpy as np
 
-from symrom.baselines.com import (COMPONENTS, GRAVITY, PARAMS_VERSION, com_system, flight_rows, input_acceleration,
-                                  robot_mass)
+from symrom.baselines.com import (
+    COMPONENTS,
+    GRAVITY,
+    PARAMS_VERSION,
+    com_system,
+    flight_rows,
+    input_acceleration,
+    robot_mass,
+)
 from symrom.data.dataset import Dataset
 from symrom.names import BASE_POS
 from symrom.rollout.system import RolloutSystem

@@ -82,7 +82,7 @@ FLAGS: dict[str, str] = {
     "prior_weight": "--prior-weight", "tolerance": "--tolerance", "calibration_terms": "--calibration-terms",
     "mpc_solver": "--mpc-solver", "motion": "--motion", "robot": "--robot", "jump": "--jump", "frames": "--frames",
     "seeds": "--seeds", "lam": "--lambda", "control": "--control", "payload": "--payload", "friction": "--friction",
-    "motor_scale": "--motor-scale",
+    "motor_scale": "--motor-scale", "period": "--period", "repair": "--repair", "log_faults": "--log-faults",
 }
 _PARAMETER = re.compile(r"(?<![\w./-])([a-z][a-z0-9_]*)=(?:(True|False|None)|'([\w.,/+-]+)')?")
 

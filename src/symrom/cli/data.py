@@ -50,13 +50,18 @@ def generate_cmd(
     jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
-    proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk).")] = False,
+    proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk, and froggy "
+                                        "with a real froggy's long rear-only push).")] = False,
+    log_faults: Annotated[Optional[str], typer.Option("--log-faults", help="Log the jumps with a real robot's "
+                                                      "log faults: clock (a slow, wobbling loop) or velocities "
+                                                      "(velocities off); both with torques off, a height "
+                                                      "offset and a contact lag, drawn once from the seed.")] = None,
     randomize: Annotated[bool, typer.Option("--randomize", help="Domain-randomised source jumps: motion, "
                                             "masses, latency, friction, contact, joint damping, armature, "
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     mpc_solver: Annotated[Optional[str], typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
-                                                      "to 1e-3) or daqp (active set, exact, a third of the time); "
+                                                      "to 1e-3) or daqp (active set, exact, faster); "
                                                       "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
     split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) "
                                                  "of the jumps; default: the motion's paper split, scaled.")] = None,
@@ -71,7 +76,6 @@ def generate_cmd(
     import json
 
     from symrom.atomic import check_writable
-    from symrom.data.importers import split_counts
     from symrom.data.io import check_dataset_path
     from symrom.execution import check_workers
     from symrom.robots import get_robot
@@ -82,10 +86,15 @@ def generate_cmd(
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
     check_writable(out)
     check_workers(workers)
+    splits = None
+    if split is not None and jumps >= 1:
+        from symrom.data.importers import split_counts  # the import's modules only for --split
+
+        splits = split_counts(split, jumps)
     config = check_config(GenerateConfig(robot, motion, jumps, seed=seed, proxy=proxy, randomize=randomize,
                                          noise=NoiseConfig() if noise else None, engine=engine,
-                                         mpc_solver=mpc_solver,
-                                         splits=split_counts(split, jumps) if jumps >= 1 else None))
+                                         mpc_solver=mpc_solver, log_faults=log_faults,
+                                         splits=splits))
     runner = start_backend(backend, workers, address)
     label = f"{get_robot(config.robot).name} {motion} ({engine})"
     with progress_bar(label, total=jumps) as bar:
@@ -131,6 +140,7 @@ def import_cmd(
     no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
     positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     repair: Annotated[bool, typer.Option("--repair", help="Repair each jump from physics before the checks: clock or velocities (by the flight), contact lag, torque gain (by the weight), height offset (by the feet); a fault the data cannot determine is refused.")] = False,
+    period: Annotated[Optional[float], typer.Option("--period", help="CSV logs without a time column: the nominal period of their rows, s (e.g. 0.002); with --repair the true clock is found from the flight.")] = None,
     force: Force = False,
 ) -> None:
     from symrom.data.bags import load_mapping, parse_topics
@@ -148,7 +158,7 @@ def import_cmd(
                                  limits=PlausibilityLimits(torques=torques),
                                  physics=ConsistencyLimits() if physics else None, segment=segment,
                                  retime=retime_stale, diff_window=diff_window, topics=by_role or None,
-                                 repair=RepairLimits() if repair else None)
+                                 repair=RepairLimits() if repair else None, period=period)
     for is_warning, line in report.messages():
         (warn if is_warning else note)(flag_text(line))
     say(f"dataset: {out}  ({ds.summary()})")

@@ -4,13 +4,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
 from symrom.cli.common import Command, Force, app, flag_text, guarded, progress_bar, say, warn
 
-Reset = Annotated[Optional[list[float]], typer.Option(
+Reset = Annotated[list[float] | None, typer.Option(
     "--reset", help="Reset period(s) in s (repeatable; default 0.1).")]
 
 
@@ -34,8 +34,11 @@ def evaluate_cmd(
     split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
     reset: Reset = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda (the paper's) or rk4 (batch).")] = "lsoda",
-    plot_jump: Annotated[Optional[list[int]], typer.Option("--plot-jump", help="K-th jump of the evaluated split to plot, from 0 (repeatable; default 0).")] = None,
-    phases: Annotated[str, typer.Option("--phases", help="logged (the data's phase sequence) or predicted (the model's contact guards; rk4; adds the switching-time errors).")] = "logged",
+    plot_jump: Annotated[list[int] | None, typer.Option(
+        "--plot-jump", help="K-th jump of the evaluated split to plot, from 0 (repeatable; default 0).")] = None,
+    phases: Annotated[str, typer.Option(
+        "--phases", help="logged (the data's phase sequence) or predicted (the model's contact guards; rk4; "
+                         "adds the switching-time errors).")] = "logged",
     force: Force = False,
 ) -> None:
     """Roll the model out on a split (full horizon and periodic resets); write metrics, table, plots."""
@@ -54,11 +57,16 @@ def aslip_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
     out: Annotated[Path, typer.Option("--out", help="Output directory (metrics.json, params.json, table.md).")],
     split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
-    fit: Annotated[str, typer.Option("--fit", help="residual (acceleration residual) or rollout (CoM rollout error, from the residual fit).")] = "residual",
-    fixed: Annotated[bool, typer.Option("--fixed", help="Use the paper's k_s=250 N/m, l_0=0.32 m, m=12.01 kg (overridable) instead of fitting.")] = False,
-    k_s: Annotated[Optional[float], typer.Option("--k-s", help="Spring constant, N/m (with --fixed).")] = None,
-    l0: Annotated[Optional[float], typer.Option("--l0", help="Rest length, m (with --fixed).")] = None,
-    mass: Annotated[Optional[float], typer.Option("--mass", help="Body mass, kg (default: URDF total; paper's with --fixed).")] = None,
+    fit: Annotated[str, typer.Option(
+        "--fit", help="residual (acceleration residual) or rollout (CoM rollout error, "
+                      "from the residual fit).")] = "residual",
+    fixed: Annotated[bool, typer.Option(
+        "--fixed", help="Use the paper's k_s=250 N/m, l_0=0.32 m, m=12.01 kg (overridable) "
+                        "instead of fitting.")] = False,
+    k_s: Annotated[float | None, typer.Option("--k-s", help="Spring constant, N/m (with --fixed).")] = None,
+    l0: Annotated[float | None, typer.Option("--l0", help="Rest length, m (with --fixed).")] = None,
+    mass: Annotated[float | None, typer.Option(
+        "--mass", help="Body mass, kg (default: URDF total; paper's with --fixed).")] = None,
     reset: Reset = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda (the paper's) or rk4 (batch).")] = "lsoda",
     force: Force = False,
@@ -89,10 +97,11 @@ def newton_cmd(
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5).")],
     out: Annotated[Path, typer.Option("--out", help="Output directory (metrics.json, params.json, table.md).")],
     split: Annotated[str, typer.Option("--split", help="train, val or test.")] = "test",
-    mass: Annotated[Optional[float], typer.Option("--mass", help="Body mass, kg (default: the robot's total).")] = None,
+    mass: Annotated[float | None, typer.Option("--mass", help="Body mass, kg (default: the robot's total).")] = None,
     reset: Reset = None,
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch).")] = "lsoda",
-    fit: Annotated[bool, typer.Option("--fit", help="Fit b'' = c + A F/m (contact), c_f (flight) on the train split.")] = False,
+    fit: Annotated[bool, typer.Option(
+        "--fit", help="Fit b'' = c + A F/m (contact), c_f (flight) on the train split.")] = False,
     force: Force = False,
 ) -> None:
     """Evaluate Newton's law on the measured ground force, b'' = g + F/m, on a split (--fit: its

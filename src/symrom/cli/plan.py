@@ -4,7 +4,7 @@ open or closed loop, in a nominal or disturbed world)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -14,27 +14,35 @@ from symrom.cli.common import ENGINE_HELP, Command, Force, app, console, guarded
 @app.command("jump", cls=Command)
 @guarded
 def jump_cmd(
-    target_x: Annotated[float, typer.Option("--target-x", help="Forward landing distance from the start of the push, m.")],
+    target_x: Annotated[float, typer.Option(
+        "--target-x", help="Forward landing distance from the start of the push, m.")],
     out: Annotated[Path, typer.Option("--out", help="Output directory (landing.json, trajectory.json).")],
-    model_path: Annotated[Optional[Path], typer.Argument(
+    model_path: Annotated[Path | None, typer.Argument(
         help="The planner's model: model.json (learned) or an aSLIP params.json (aslip, from symrom aslip); "
              "point-mass needs none.")] = None,
-    robot: Annotated[Optional[str], typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml "
+    robot: Annotated[str | None, typer.Option("--robot", help="Robot: go1, a1, laikago or a description PATH.toml "
                                                  "(default: the learned model's robot, else go1).")] = None,
-    target_z: Annotated[Optional[float], typer.Option("--target-z", help="Apex height of the base, m (default: at least the motion's nominal apex).")] = None,
+    target_z: Annotated[float | None, typer.Option(
+        "--target-z", help="Apex height of the base, m (default: at least the motion's nominal apex).")] = None,
     planner: Annotated[str, typer.Option("--planner", help="learned, point-mass or aslip.")] = "learned",
     guards: Annotated[str, typer.Option("--guards", help="height (lift-off and touchdown heights) "
                                         "or learned (the model's own contact switches; learned planner).")] = "height",
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    control: Annotated[Optional[str], typer.Option(
+    control: Annotated[str | None, typer.Option(
         "--control", help="plan (the push planned once, open loop) or mpc (re-planned from the measured state at "
-                          "100 Hz); default: plan on the model's own robot, mpc on another robot of its build.")] = None,
-    motion: Annotated[Optional[str], typer.Option("--motion", help="pronk or froggy (default: the model's; point-mass and aslip: pronk).")] = None,
+                          "100 Hz); default: plan on the model's own robot, mpc on another robot "
+                          "of its build.")] = None,
+    motion: Annotated[str | None, typer.Option(
+        "--motion", help="pronk or froggy (default: the model's; point-mass and aslip: pronk).")] = None,
     payload: Annotated[float, typer.Option("--payload", help="A load fixed to the base, kg (a disturbance).")] = 0.0,
-    friction: Annotated[Optional[float], typer.Option("--friction", help="The ground's friction coefficient (a disturbance; default the engine's).")] = None,
-    motor_scale: Annotated[float, typer.Option("--motor-scale", help="Torque each motor delivers per unit of its command (a disturbance).")] = 1.0,
-    closest: Annotated[bool, typer.Option("--closest", help="Plan the closest reachable jump to a target out of reach (else refused).")] = False,
-    trajectory: Annotated[bool, typer.Option("--trajectory/--no-trajectory", help="Also write trajectory.json.")] = True,
+    friction: Annotated[float | None, typer.Option(
+        "--friction", help="The ground's friction coefficient (a disturbance; default the engine's).")] = None,
+    motor_scale: Annotated[float, typer.Option(
+        "--motor-scale", help="Torque each motor delivers per unit of its command (a disturbance).")] = 1.0,
+    closest: Annotated[bool, typer.Option(
+        "--closest", help="Plan the closest reachable jump to a target out of reach (else refused).")] = False,
+    trajectory: Annotated[bool, typer.Option(
+        "--trajectory/--no-trajectory", help="Also write trajectory.json.")] = True,
     force: Force = False,
 ) -> None:
     """Plan a jump to a target with a model (CasADi/IPOPT) and execute it in simulation, open or closed loop."""
@@ -43,7 +51,8 @@ def jump_cmd(
     from symrom.atomic import check_output_file
 
     if importlib.util.find_spec("casadi") is None:
-        raise ValueError("symrom jump plans with CasADi and IPOPT, which are not installed: pip install 'symrom[export]'")
+        raise ValueError("symrom jump plans with CasADi and IPOPT, which are not installed: "
+                         "pip install 'symrom[export]'")
     from symrom.plan.jump import JumpRequest, OutOfReach, run_jump
 
     check_output_file(out, force, inputs=() if model_path is None else (model_path,))
@@ -65,6 +74,7 @@ def jump_cmd(
     if ex.replans is not None and ex.replans.solve_time_s:
         times = sorted(ex.replans.solve_time_s)
         loop = f", {len(times)} re-plans ({1e3 * times[len(times) // 2]:.2f} ms median)"
-    say(f"{planner} {result.control} ({1e3 * ex.plan.solve_time_s:.1f} ms plan{loop}): landed at x = {ex.landing_x:.3f} m "
+    say(f"{planner} {result.control} ({1e3 * ex.plan.solve_time_s:.1f} ms plan{loop}): "
+        f"landed at x = {ex.landing_x:.3f} m "
         f"for a target of {target_x:.3f} m (error {100 * result.error_x:+.1f} cm), apex {ex.apex_z:.3f} m; "
         f"{out / 'landing.json'}")

@@ -4,11 +4,11 @@ and ``robot show`` (a description as symrom reads it)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from symrom.cli.common import Command, Force, Group, app, out_console, guarded, say
+from symrom.cli.common import Command, Force, Group, app, guarded, out_console, say
 
 robot_app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True,
                         help="Robot descriptions: write one from a robot model, show one as symrom reads it.")
@@ -35,10 +35,11 @@ def parse_sets(items: list[str] | None) -> dict:
 @robot_app.command("init", cls=Command)
 @guarded
 def robot_init_cmd(
-    model: Annotated[Path, typer.Argument(help="Robot model: an MJCF (.xml; e.g. a MuJoCo Menagerie model) or a URDF (.urdf).")],
+    model: Annotated[Path, typer.Argument(
+        help="Robot model: an MJCF (.xml; e.g. a MuJoCo Menagerie model) or a URDF (.urdf).")],
     out: Annotated[Path, typer.Option("--out", help="Robot description to write (.toml).")],
-    name: Annotated[Optional[str], typer.Option("--name", help="The robot's name (default: the model's).")] = None,
-    sets: Annotated[Optional[list[str]], typer.Option(
+    name: Annotated[str | None, typer.Option("--name", help="The robot's name (default: the model's).")] = None,
+    sets: Annotated[list[str] | None, typer.Option(
         "--set", help="KEY=VALUE: a description key the model cannot give (stance.knee, stance.height, "
                       "stance.joints, limits.torque, actuators.*, name), VALUE in TOML; repeatable.")] = None,
     force: Force = False,
@@ -54,13 +55,15 @@ def robot_init_cmd(
         raise RobotInitError(f"{e} (--set {e.key}=VALUE)", e.key) from None
     d = r.description
     say(f"wrote {r.path}: {d.name}, {d.mass:.3f} kg, feet {d.feet.kind if d.feet else 'link'}, "
-        f"kinematics within {r.kinematics_error:.1e} m of MuJoCo's" + (f"; given: {', '.join(r.given)}" if r.given else ""))
+        f"kinematics within {r.kinematics_error:.1e} m of MuJoCo's"
+        + (f"; given: {', '.join(r.given)}" if r.given else ""))
 
 
 @robot_app.command("show", cls=Command)
 @guarded
 def robot_show_cmd(
-    robot: Annotated[str, typer.Argument(help="A built-in robot (go1, a1, laikago) or a robot description file (.toml).")],
+    robot: Annotated[str, typer.Argument(
+        help="A built-in robot (go1, a1, laikago) or a robot description file (.toml).")],
 ) -> None:
     """Print a robot description as symrom reads it: legs, joints, feet, masses, limits, stance."""
     from rich.table import Table

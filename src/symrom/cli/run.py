@@ -25,7 +25,7 @@ def reproduce_cmd(
     address: Address = None,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     only: Annotated[Optional[str], typer.Option(
-        "--only", help="Run one part only: sim2real (with the SIM Go1 selection it needs).")] = None,
+        "--only", help="Run one part only: sim2real (with the SIM Go1 and SIM A1 selections it needs).")] = None,
     max_terms: Annotated[Optional[int], typer.Option(
         "--max-terms", help="Term budget of the SIM selections: refinements pruned to at most N active terms "
                             "(compact models; e.g. 60). Default: none.")] = None,

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from symrom.names import BASE_NAMES
+from symrom.names import BASE_NAMES, GRAVITY
 
 DEFAULT_TOPICS = {"joints": "/joint_states", "base": "/odom", "contacts": "/foot_contacts"}
 ROLES = tuple(DEFAULT_TOPICS)
@@ -286,7 +286,7 @@ def derived_contact(robot: str, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
     desc = get_robot(robot)
     fz = ground_reaction_forces(robot, q, tau, np.ones((q.shape[0], 4)))[:, :, 2]
-    down = fz > CONTACT_FORCE * desc.mass * 9.81
+    down = fz > CONTACT_FORCE * desc.mass * GRAVITY
     z = foot_positions_world(robot, q)[:, :, 2] - desc.foot_radius
     if np.median(q[:, 14]) > 0.5 * desc.start_height:  # an absolute base height: the feet's height counts
         down &= z < CONTACT_HEIGHT

@@ -169,7 +169,8 @@ def _listing(names: list[str]) -> str:
 
 
 def _column_map(path: Path, header: list[str], layout: Layout) -> dict[str, int]:
-    """Header position of each known column name; one LogError for all problems."""
+    """Header position of each known column name; one LogError for all problems (the time
+    column's absence is the caller's to judge: a log read at a nominal period has none)."""
     pos: dict[str, int] = {}
     seen: dict[str, str] = {}
     dupes, unknown = [], []
@@ -188,7 +189,7 @@ def _column_map(path: Path, header: list[str], layout: Layout) -> dict[str, int]
         first = ", ".join(repr(h.strip()) for h in header[:4])
         raise LogError(f"{path}: the header matches neither log layout (hardware: 'Time', "
                        f"'fr.hx Position', ...; plain: 't', 'fr_hx', ...); it starts {first}")
-    missing = [n for n in layout.required if n not in pos]
+    missing = [n for n in layout.required if n not in pos and n not in layout.t]
     for group in layout.optional_groups:
         present = [n for n in group if n in pos]
         if present and len(present) < len(group):
@@ -292,9 +293,17 @@ def _jumps_from_column(path: Path, ids: np.ndarray, t: np.ndarray, lines: list[i
     return local
 
 
-def read_log(path: str | os.PathLike) -> RawLog:
-    """Read one CSV log (either layout, see the module docstring) into a ``RawLog``."""
+def read_log(path: str | os.PathLike, period: float | None = None) -> RawLog:
+    """Read one CSV log (either layout, see the module docstring) into a ``RawLog``.
+
+    period: s, for a log without a time column (a controller that logs no timestamps): its
+    rows are read ``period`` apart, the loop's nominal period (``RawLog.period``), one jump
+    per file or per ``jump`` value; the repair then estimates the true clock from the flight
+    (``data.repair``). A log without a time column is refused without it; a log with one
+    ignores it."""
     path = Path(path)
+    if period is not None and not (math.isfinite(period) and period > 0):
+        raise ValueError(f"period={period!r}: must be a positive number of seconds")
     if path.is_dir():
         raise LogError(f"{path}: is a directory, expected a CSV file")
     kind = log_kind(path)
@@ -311,11 +320,25 @@ def read_log(path: str | os.PathLike) -> RawLog:
     def cols(names: tuple[str, ...]) -> np.ndarray:
         return data[:, [pos[n] for n in names]]
 
-    t = cols(layout.t)[:, 0]
-    if layout.jump and layout.jump[0] in pos:
+    timed = layout.t[0] in pos
+    if not timed and period is None:
+        raise LogError(f"{path}: {layout.name} log layout without a time column ({layout.t[0]!r}); give the "
+                       "nominal period of its rows in seconds (period=) to read them that far apart, and the "
+                       "repair (repair=) finds their true clock from the flight")
+    has_jump = bool(layout.jump) and layout.jump[0] in pos
+    if timed:
+        t = cols(layout.t)[:, 0]
+    else:  # the rows of each jump period apart: the time column _jumps_from_column needs
+        ids = cols(layout.jump)[:, 0] if has_jump else np.zeros(len(rows))
+        new_jump = np.r_[True, ids[1:] != ids[:-1]]
+        starts = np.flatnonzero(new_jump)
+        t = (np.arange(len(rows)) - np.repeat(starts, np.diff(np.r_[starts, len(rows)]))) * period
+    if has_jump:
         jump = _jumps_from_column(path, cols(layout.jump)[:, 0], t, lines, header[pos["jump"]].strip())
-    else:
+    elif timed:
         jump = _jumps_from_time(path, t, lines)
+    else:
+        jump = np.zeros(len(rows), np.int32)
     contact = cols(layout.contact)
     bad = np.argwhere((contact != 0) & (contact != 1))
     if bad.size:
@@ -329,7 +352,7 @@ def read_log(path: str | os.PathLike) -> RawLog:
     return RawLog(path=path, layout=layout.name, sha256=sha256_file(path), jump=jump, t=t - t0,
                   q=cols(layout.q), dq=cols(layout.dq), ddq=cols(layout.ddq) if has_acc else None,
                   tau=cols(layout.tau), contact=contact.astype(np.uint8), lines=np.asarray(lines),
-                  columns=names)
+                  columns=names, period=None if timed else float(period))
 
 
 # ----------------------------------------------------------------- splits, dt
@@ -497,11 +520,13 @@ def diff_samples(window: float, dt: float) -> int:
     return max(3, 2 * math.floor((window / dt - 1) / 2 + 0.5) + 1)
 
 
-def read_source(path: str | os.PathLike, robot: str, topics: dict[str, str] | None = None) -> RawLog:
-    """Any log symrom reads (``log_kind``): a CSV log, a ROS 1 or ROS 2 bag, an MCAP file."""
+def read_source(path: str | os.PathLike, robot: str, topics: dict[str, str] | None = None,
+                period: float | None = None) -> RawLog:
+    """Any log symrom reads (``log_kind``): a CSV log (``period``: ``read_log``'s, for one without a
+    time column), a ROS 1 or ROS 2 bag, an MCAP file."""
     kind = log_kind(path)
     if kind == "csv":
-        return read_log(path)
+        return read_log(path, period)
     from symrom.data.bags import read_bag
 
     return read_bag(path, robot, topics)
@@ -517,7 +542,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                 physics: ConsistencyLimits | None = ConsistencyLimits(), segment: str = "auto",
                 retime: bool = False, diff_window: float = DIFF_WINDOW,
                 topics: dict[str, str] | None = None,
-                repair: RepairLimits | None = None) -> tuple[Dataset, ImportReport]:
+                repair: RepairLimits | None = None, period: float | None = None) -> tuple[Dataset, ImportReport]:
     """Read logs (CSV, ROS 1/2 bags, MCAP; concatenated as consecutive jumps) into a checked,
     validated dataset; the dataset and what the import found and did (``ImportReport``, the
     typed view of the dataset's ``generator`` record).
@@ -549,6 +574,8 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     jump is in ``generator["repairs"]``. A fault the data cannot determine, where the jump
     fails the consistency checks as logged, raises ``repair.RepairError`` (``lenient`` keeps
     it as logged).
+    period: s, the nominal period of CSV logs without a time column (``read_log``; their
+    rows are read that far apart, recorded per file as ``time``), for the repair to retime.
     """
     robot = get_robot(robot).key
     get_motion(motion)
@@ -561,7 +588,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
     diff_samples(diff_window, DEFAULT_DT)  # refuse a bad window before any work
     if not paths:
         raise ValueError("no log files given")
-    logs = [read_source(p, robot, topics) for p in paths]
+    logs = [read_source(p, robot, topics, period) for p in paths]
     segments = []
     if segment == "auto":
         for lg in logs:
@@ -650,6 +677,7 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                    "layout": lg.layout, "rows": int(len(lg.t)), "jumps": lg.n_jumps,
                    "ddq": "logged" if lg.ddq is not None else how,
                    "checks": probs, "consistency": phys, "stale": st,
+                   **({"time": {"column": False, "period": lg.period}} if lg.period is not None else {}),
                    **({"topics": lg.topics} if lg.topics else {})}
                   for lg, probs, phys, st in zip(logs, checks, physical, stale)],
         "options": {"robot": robot, "motion": motion, "source": source, "split": split,
@@ -657,7 +685,8 @@ def import_logs(paths: list[str | os.PathLike], robot: str, motion: str = "pronk
                     "positions": positions, "limits": limits.to_dict(), "time_base": asdict(time_base),
                     "physics": None if physics is None else physics.to_dict(), "segment": segment,
                     "retime": retime, **({"topics": topics} if topics else {}),
-                    **({"repair": repair.to_dict()} if repair is not None else {})},
+                    **({"repair": repair.to_dict()} if repair is not None else {}),
+                    **({"period": period} if period is not None else {})},
         "torques": limits.torques,
         "dt": dt,
         "time_base": {"dt": dt, "rule": "given (dt)" if time_base.dt is not None

@@ -14,7 +14,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from symrom.data.dataset import Dataset, jump_bounds, validate
 from symrom.data.phases import label_phases
@@ -34,6 +33,8 @@ def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "sav
     smooth and robust to sensor noise; ``central``: NumPy's second-order central
     differences (one-sided at the ends), no smoothing.
     """
+    from scipy.signal import savgol_filter  # here: scipy.signal takes a second to import
+
     if method not in DIFF_METHODS:
         raise ValueError(f"unknown differentiation method {method!r}; choose from {DIFF_METHODS}")
     x = np.asarray(x, dtype=float)

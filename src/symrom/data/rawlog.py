@@ -29,7 +29,8 @@ class RawLog:
     header's name of each field's columns (``q``, ``dq``, ``tau``), for messages;
     ``topics``: a bag's topic of each role; ``ddq_dropped``: the jumps whose logged
     accelerations no longer hold (their time base or velocities repaired: ``data.repair``),
-    differentiated again by the import.
+    differentiated again by the import; ``period``: s, the nominal period a log without a time
+    column was read at (its ``t`` is then row x period), None where the log holds its times.
     """
 
     path: Path
@@ -46,6 +47,7 @@ class RawLog:
     columns: dict[str, tuple[str, ...]] | None = None
     topics: dict[str, str] | None = None
     ddq_dropped: set[int] = field(default_factory=set)
+    period: float | None = None
 
     @property
     def n_jumps(self) -> int:

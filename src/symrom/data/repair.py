@@ -7,9 +7,11 @@ what the ones before it repaired):
 
 1. the time base (``repair_clock.estimate_clock``): a wrong clock (a uniform scale, or a
    smooth monotone warp where the rate changes within the jump) told from wrong velocities
-   by the ballistic flight; the rows' times and each velocity group are repaired, and a
-   log's own accelerations of a repaired jump are dropped (differentiated again by the
-   import from the repaired velocities);
+   by the ballistic flight, and where one jump's flight fits both alike, by the flights of
+   the file's jumps together (``repair_clock.file_kind``: one logger, one kind of fault);
+   the rows' times and each velocity group are repaired, and a log's own accelerations of
+   a repaired jump are dropped (differentiated again by the import from the repaired
+   velocities);
 2. the contact flags (``repair_body.contact_lag``): a logger's lag of the flags behind the
    feet's heights and speeds, moved back;
 3. the torque gain (``repair_body.estimate_gain``) from the weight and the vertical
@@ -36,11 +38,12 @@ from symrom.data.consistency import ConsistencyLimits, time_scale, vertical_impu
 from symrom.data.rawlog import RawLog
 from symrom.data.repair_body import (ContactEstimate, GainEstimate, HeightEstimate, body_state, contact_lag,
                                      estimate_gain, estimate_height, grounded, shift_flags)
-from symrom.data.repair_clock import (VELOCITY_GROUPS, ClockEstimate, RepairError, RepairLimits, VelocityGain,
-                                      estimate_clock)
+from symrom.data.repair_clock import (VELOCITY_GROUPS, ClockEstimate, ClockFit, RepairError, RepairLimits,
+                                      VelocityGain, estimate_clock, file_kind)
 from symrom.names import BASE_POS
 
-REPAIR_VERSION = 1
+# 2: where one jump's flight fits a wrong clock and wrong velocities alike, the file's flights together decide
+REPAIR_VERSION = 2
 _Z = BASE_POS.start + 2
 __all__ = ["REPAIR_VERSION", "JumpRepair", "RepairError", "RepairLimits", "repair_log", "repairs_record"]
 
@@ -85,13 +88,15 @@ class JumpRepair:
         flight = ("no flight" if c.flight_g is None
                   else f"flight {c.flight_g:.3f} +- {c.flight_g_sd:.3f} g")
         ratio = f"positions change {c.ratio:.4f} +- {c.ratio_sd:.4f} times as fast as the velocities integrate to"
+        together = "; told by the file's flights together" if "flights together" in c.note else ""
         if c.finding == "clock":
             kind = f"a time warp, rate {c.rate_low:.3f}..{c.rate_high:.3f}" if c.warp else "a uniform scale"
-            parts.append(f"clock wrong ({kind}): duration x {c.scale:.4f} +- {c.scale_sd:.4f}, {flight} on it")
+            parts.append(f"clock wrong ({kind}{together}): duration x {c.scale:.4f} +- {c.scale_sd:.4f}, "
+                         f"{flight} on it")
         elif c.finding == "clock and velocities":
             parts.append(f"clock and velocities wrong: duration x {c.scale:.4f} +- {c.scale_sd:.4f}, {flight} on it")
         elif c.finding == "velocities":
-            parts.append(f"clock right ({flight}), velocities wrong ({ratio})")
+            parts.append(f"clock right ({flight}{together}), velocities wrong ({ratio})")
         elif c.finding == "undetermined":
             parts.append(f"time base undetermined ({ratio}; {c.note})")
         elif c.windows:
@@ -154,20 +159,36 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
     """
     physics_or_default = physics or ConsistencyLimits()
     derived = bool(lg.topics and str(lg.topics.get("contacts", "")).startswith("derived"))
+
+    def clock_of(j: int, kind: tuple[str, str] | None = None) -> ClockFit | RepairError:
+        a, b = lg.bounds()[j]
+        state = body_state(robot, lg.q[a:b], lg.dq[a:b])
+        try:
+            return estimate_clock(f"{lg.path}, jump {j}", lg.t[a:b], lg.q[a:b], lg.dq[a:b], lg.contact[a:b],
+                                  state.com_z, limits, physics_or_default.min_motion,
+                                  grounded(state, lg.contact[a:b], limits), kind)
+        except RepairError as e:
+            if not lenient:
+                raise
+            return e
+
+    # the time base of every jump first: where one jump's flight cannot tell a wrong clock from
+    # wrong velocities, the file's flights together may (one logger, one kind of fault)
+    fits = [clock_of(j) for j in range(lg.n_jumps)]
+    found, why = file_kind([f for f in fits if isinstance(f, ClockFit)], limits)
+    if found is not None:
+        fits = [clock_of(j, (found, why)) if isinstance(f, ClockFit) and f.clock.finding == "undetermined"
+                and f.evidence is not None else f for j, f in enumerate(fits)]
     out = []
     for j, (a, b) in enumerate(lg.bounds()):
         where = f"{lg.path}, jump {j}"
         t, q, dq = lg.t[a:b].copy(), lg.q[a:b].copy(), lg.dq[a:b].copy()
         tau, contact = lg.tau[a:b].copy(), lg.contact[a:b].copy()
         kept: list[str] = []
-        try:
-            state = body_state(robot, q, dq)
-            fit = estimate_clock(where, t, q, dq, contact, state.com_z, limits, physics_or_default.min_motion,
-                                 grounded(state, contact, limits))
-        except RepairError as e:
-            if not lenient:
-                raise
-            kept.append(str(e).split(": ", 1)[-1])
+        state = body_state(robot, q, dq)
+        fit = fits[j]
+        if isinstance(fit, RepairError):  # lenient: kept as logged
+            kept.append(str(fit).split(": ", 1)[-1])
             fit = None
         if fit is None:  # lenient: the time base kept as logged
             clock = ClockEstimate("undetermined", float("nan"), float("nan"), 0, "", 0.0, False, 1.0, 0.0, 1.0, 1.0,

@@ -46,9 +46,9 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.integrate import trapezoid
 
-from symrom.data.consistency import G
 from symrom.data.repair_clock import RepairLimits, loo_error, robust_fit
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
+from symrom.names import GRAVITY as G
 from symrom.robots import get_robot, leg_kinematics, mass_model
 from symrom.robots.kinematics import rpy_to_matrix
 

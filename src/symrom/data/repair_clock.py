@@ -50,9 +50,10 @@ import numpy as np
 from scipy.integrate import trapezoid
 from scipy.interpolate import BSpline
 
-from symrom.data.consistency import G, window_ratios
+from symrom.data.consistency import window_ratios
 from symrom.data.rawlog import LogError
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
+from symrom.names import GRAVITY as G
 
 # Velocity groups, each with its own gain: (name, q columns).
 VELOCITY_GROUPS = (("joints", JOINTS), ("base position", BASE_POS), ("base angles", BASE_RPY))
@@ -392,16 +393,47 @@ class ClockFit:
     velocities: tuple[VelocityGain, ...]
     times: np.ndarray | None
     undetermined: str | None  # the one-line reason, when a fault is found but not determined
+    evidence: tuple[float, float] | None = None  # the flight's z against a wrong clock and against wrong velocities
+
+
+# chi-square bound of n standardised flights that fit a hypothesis at ``RepairLimits.z`` (3: 99.73 %)
+def _fits(z2: float, n: int, z: float) -> bool:
+    from scipy.stats import chi2, norm
+
+    return z2 <= chi2.ppf(2 * norm.cdf(z) - 1, n)
+
+
+def file_kind(fits: list[ClockFit], limits: RepairLimits) -> tuple[str | None, str]:
+    """What the flights of one file's jumps say together about its time base, where one jump's
+    flight fits a wrong clock and wrong velocities alike (``estimate_clock``'s ``undetermined``):
+    ``clock`` or ``velocities`` when all the flights of the jumps with a fault (``evidence``)
+    fit that one at ``limits.z`` (a chi-square over them) and not the other, else None; and
+    the figures in words. One logger writes a file: a loop slower than its rate, or velocities
+    off, is its fault in every jump (how much may differ between jumps)."""
+    ev = [f.evidence for f in fits if f.evidence is not None]
+    if len(ev) < 2:
+        return None, ""
+    zc, zv = (float(sum(e[i] ** 2 for e in ev)) for i in (0, 1))
+    clock, vel = _fits(zc, len(ev), limits.z), _fits(zv, len(ev), limits.z)
+    words = (f"the file's {len(ev)} flights together: chi-square {zc:.3g} for a wrong clock, "
+             f"{zv:.3g} for wrong velocities")
+    if clock and not vel:
+        return "clock", words
+    if vel and not clock:
+        return "velocities", words
+    return None, words
 
 
 def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, contact: np.ndarray,
                    com_z: np.ndarray, limits: RepairLimits, min_motion: float,
-                   grounded: np.ndarray | None = None) -> ClockFit:
+                   grounded: np.ndarray | None = None, kind: tuple[str, str] | None = None) -> ClockFit:
     """The time base of one jump (module docstring): t (n,) logged s since its first row, q,
     dq (n, 18), contact (n, 4), com_z (n,) m the centre of mass's height; min_motion: the
     time-scale check's least RMS change per window; grounded (n, 4): the feet the heights and
     speeds put on the ground, whose flights stand in where the flags show none (a contact
-    sensor that never lets go). ``where``: 'FILE, jump J'."""
+    sensor that never lets go). ``where``: 'FILE, jump J'. kind: (``clock`` or ``velocities``,
+    why) the file's flights together say (``file_kind``), taken where this jump's flight fits
+    both alike."""
     groups = {name: _windows(t, q, dq, cols, limits, min_motion) for name, cols in VELOCITY_GROUPS}
     primary = next((g for g in ("joints", "base position") if groups[g].ratio.size >= 3), None)
     runs = flight_runs(contact, t, limits)
@@ -437,7 +469,8 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
     off = abs(level - 1.0) > limits.z * level_sd
     T_rho = rate.times(t)
     fg, fsd, frows = flight_fall(T_rho, com_z, runs, limits.flight_floor)  # kappa^2 on the rho clock
-    undetermined = None
+    undetermined = evidence = None
+    note_kind = ""
     kappa = 1.0
     kappa_sd = 0.0
     if not warp and not off:
@@ -453,6 +486,7 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
     else:
         z_clock = abs(fg - 1.0) / fsd
         z_vel = abs(fg - 1.0 / level ** 2) / fsd
+        evidence = (z_clock, float("inf") if warp else z_vel)  # a rate that changes within a jump: no velocity gain
         if warp:
             if z_clock <= limits.z:
                 finding = "clock"
@@ -462,6 +496,9 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
             finding = "clock"
         elif z_vel <= limits.z < z_clock:
             finding, kappa = "velocities", 1.0 / level
+        elif z_vel <= limits.z and z_clock <= limits.z and kind is not None:
+            finding, kappa = kind[0], (1.0 if kind[0] == "clock" else 1.0 / level)
+            note_kind = f"; the flight fits both alike, {kind[1]}: the {kind[0]}"
         elif z_vel <= limits.z and z_clock <= limits.z:
             finding = "undetermined"
             undetermined = (f"{where}: the {primary} change {level:.4g} times as fast as the velocities integrate "
@@ -483,6 +520,7 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
             scale = rate.scaled(kappa)
             note = (f"the flight falls at {fg / kappa ** 2:.4g} +- {fsd / kappa ** 2:.2g} g on the repaired clock"
                     + (f" (velocities off by {kappa:.4g})" if finding != "clock" else ""))
+    note += note_kind
     if from_feet and runs:
         note += " (the flights from the feet's heights: the flags show none)"
     applied = finding not in ("none", "undetermined", "velocities")
@@ -508,7 +546,7 @@ def estimate_clock(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray, con
         rates=tuple(float(x) for x in scale(np.array(knots))) if knots else (), scatter=scatter,
         flight_g=flight, flight_g_sd=flight_sd, flight_rows=frows, applied=applied, note=note)
     gains = velocity_gains(t, groups, scale, limits, finding)
-    return ClockFit(clock, gains, T, undetermined)
+    return ClockFit(clock, gains, T, undetermined, evidence)
 
 
 def velocity_gains(t: np.ndarray, groups: dict[str, _Windows], rate: Rate, limits: RepairLimits,

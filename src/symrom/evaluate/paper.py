@@ -15,6 +15,7 @@ baseline (Results, Go1 simulation).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 from symrom.names import TABLE2_COMPONENTS
 
@@ -84,3 +85,19 @@ def implied_rmse(mean: float, std: float) -> float:
 def paper_row(experiment: str, horizon: str) -> dict[str, tuple[float, float]] | None:
     """The paper's (mean, std) per component for ``experiment`` at ``horizon``, or None."""
     return PAPER_TABLE2.get(experiment, {}).get(horizon)
+
+
+def paper_rmse(experiment: str, horizon: str) -> dict[str, float] | None:
+    """The paper's implied RMSE per Table 2 component for ``experiment`` at ``horizon``, or None."""
+    row = paper_row(experiment, horizon)
+    return None if row is None else {c: implied_rmse(*row[c]) for c in TABLE2_COMPONENTS}
+
+
+def at_or_below_paper(experiment: str, horizon: str, rmse: Mapping[str, float | None]) -> list[str] | None:
+    """The Table 2 components (in Table 2's order) whose ``rmse`` (per component, in its unit;
+    None or absent: not scored) is at or below the paper's implied RMSE at ``horizon``; None when
+    the paper has no such row."""
+    ref = paper_rmse(experiment, horizon)
+    if ref is None:
+        return None
+    return [c for c in TABLE2_COMPONENTS if rmse.get(c) is not None and rmse[c] <= ref[c]]

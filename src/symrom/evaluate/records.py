@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-
 # metrics.json: 1 without the key (diverged jumps left out), 2 scores them, 3 adds drift
 METRICS_VERSIONS = (1, 2, 3)
 

@@ -15,8 +15,14 @@ import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from symrom.experiments.reproduce import (QUICK_SELECTION, DatasetSpec, ExperimentSpec, ReproduceConfig, reproduce,
-                                          sweep_line)
+from symrom.experiments.reproduce import (
+    QUICK_SELECTION,
+    DatasetSpec,
+    ExperimentSpec,
+    ReproduceConfig,
+    reproduce,
+    sweep_line,
+)
 
 DEMO_JUMPS = 12
 

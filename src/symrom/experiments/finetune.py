@@ -129,7 +129,7 @@ class FineTuneResult:
 
     def to_dict(self) -> dict[str, Any]:
         a = self.attempts[-1]
-        return {"version": 1, "check": asdict(self.check), "attempts": self.attempts,
+        return {"version": FINETUNE_VERSION, "check": asdict(self.check), "attempts": self.attempts,
                 "prior_weight": a["prior_weight"], "score_before": self.attempts[0]["score_before"],
                 "score_after": a["score"], "diverged_before": self.attempts[0]["diverged_before"],
                 "diverged_after": a["diverged"], "phases_refit": list(self.record.phases_refit),
@@ -140,6 +140,8 @@ class FineTuneResult:
                 "rule": RULE}
 
 
+# finetune.json (``FineTuneResult.to_dict``)
+FINETUNE_VERSION = 1
 RULE = ("score: mean over the 18 components of val RMSE / spread, averaged over the full horizon and 0.1 s "
         "resets; accepted if no more diverged val jumps than the source and a score at most the tolerance "
         "above the source's; else the prior weight is raised tenfold")
@@ -185,7 +187,7 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     score0, div0 = val_score(before, spread)
     attempts = []
     weight = check.config.prior_weight
-    for k in range(check.max_raises + 1):
+    for _k in range(check.max_raises + 1):
         say(f"fine-tuning (prior weight {weight:g})")
         tuned = finetune(model, ds, config=replace(check.config, prior_weight=weight))
         after, _ = evaluate_model(tuned, ds, "val", HORIZONS, options)

@@ -14,7 +14,7 @@ and 0.1 s resets). The grid spans
 - the sparsity: thresholds of the ``explained`` measure, from dense to sparse
   (a term explaining less than 0.1 % ... 3 % of its latent acceleration's spread goes);
 - the rollout-aware refinement, tried on ``refine_top`` candidates of the
-  exact grid (it costs a thousand times more than an exact fit): the best by
+  exact grid (it rolls the model out many times; an exact fit solves once): the best by
   score, those diverging at the full horizon ranked by their 0.1 s score; with
   a reference, first the sparsest that meet it with 0.1 s resets (the
   refinement is what may make them meet it over the full jump too). A
@@ -598,7 +598,8 @@ def selection_rule(cfg: SelectionConfig) -> str:
                   + f", and only candidates within {cfg.max_terms} terms compete (all if none stands)")
     elif cfg.compact_terms is not None:
         budget = (f"; refinements of candidates with more than {cfg.compact_terms} terms also pruned to "
-                  f"{cfg.compact_terms}" + (f" ({', '.join(cfg.polish)} then refined again alone)" if cfg.polish else "")
+                  f"{cfg.compact_terms}"
+                  + (f" ({', '.join(cfg.polish)} then refined again alone)" if cfg.polish else "")
                   + ", the pruned models competing with the rest")
     checks = ("; a candidate must keep the data's momentum balance (physics: never set aside), have every mode "
               "carried by the planner's and the rollouts' RK4 steps (integrator) and, rolled out free from each "

@@ -47,12 +47,11 @@ over the new flight rows of the model's decoded base acceleration in z, m/s^2
 from __future__ import annotations
 
 import numpy as np
-from scipy.constants import g as STANDARD_GRAVITY  # m/s^2
 
 from symrom.data.dataset import Dataset
 from symrom.model.autoencoder import LinearAutoencoder
 from symrom.model.hybrid import HybridModel, ModelDataError
-from symrom.names import FLIGHT_PHASE, Q_NAMES
+from symrom.names import FLIGHT_PHASE, GRAVITY, Q_NAMES
 
 FLIGHT_TOLERANCE = 0.05  # of g: the flight residual that would move gravity by more than 5 %
 FLIGHT_T = 3.0  # standard errors (over jumps) the flight residual must also exceed
@@ -95,7 +94,7 @@ def flight_residual(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows
     per_jump = np.array([resid[jumps == j].mean() for j in np.unique(jumps)])
     m = float(per_jump.mean())
     se = float(per_jump.std(ddof=1) / np.sqrt(per_jump.size)) if per_jump.size > 1 else float("inf")
-    limit = FLIGHT_TOLERANCE * STANDARD_GRAVITY
+    limit = FLIGHT_TOLERANCE * GRAVITY
     # se None for a single jump (no spread to judge by; the model file holds no infinity)
     return {"mean": m, "se": se if np.isfinite(se) else None, "jumps": int(per_jump.size), "limit": limit,
             "t_limit": FLIGHT_T, "contradicted": bool(abs(m) > limit and abs(m) > FLIGHT_T * se)}
@@ -112,7 +111,7 @@ def flight_gravity(model: HybridModel, ds: Dataset, rows: np.ndarray) -> dict | 
         return None
     theta, _, _ = latent_terms(model, model.autoencoder, ds, r)
     acc = float(np.mean(theta @ model.Xi[model.phase_names.index(FLIGHT_PHASE)] @ model.autoencoder.W_d[Z]))
-    return {"model": acc, "data": float(np.mean(ds.ddq[r, Z])), "ratio": -acc / STANDARD_GRAVITY}
+    return {"model": acc, "data": float(np.mean(ds.ddq[r, Z])), "ratio": -acc / GRAVITY}
 
 
 def calibrate(model: HybridModel, ae: LinearAutoencoder, ds: Dataset, rows: np.ndarray,

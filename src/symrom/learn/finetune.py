@@ -47,8 +47,8 @@ have, so that the jump leaves the ground with the speed the data show. The
 record holds the calibration (the refinement's start) and the refinement's
 (``regressor``, ``phases_rolled_out``). Without non-flight rows it is
 ``calibrate``. It is the default: on both sim-to-real targets' val jumps it
-scores better than ``calibrate`` from every source (docs/results.md), in
-seconds more (about 20 s for 12 Go1 jumps with the val check).
+scores better than ``calibrate`` from every source (docs/results.md), at the cost of
+the rollouts of its refinement.
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.learn.adam import Adam
+from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.learn.estimator import data_hash, phase_data, trajectories
 from symrom.learn.plugins import PluginConfigError, regressor_from_dict
 from symrom.learn.regressors.base import Coefficients, RegressionProblem
@@ -66,11 +67,9 @@ from symrom.learn.regressors.prior import FineTune
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.model.autoencoder import LinearAutoencoder
-from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
 from symrom.model.hybrid import HybridModel, ModelDataError
 from symrom.model.provenance import FineTuneRecord, freeze
 from symrom.names import FLIGHT_PHASE
-
 
 FINETUNE_METHODS = ("calibrate", "acceleration", "rollout", "calibrate_rollout")
 ROLLOUT_METHODS = ("rollout", "calibrate_rollout")  # the methods that refine on rollouts (``Refine``)

@@ -33,8 +33,15 @@ import numpy as np
 
 from symrom.data.dataset import Dataset
 from symrom.learn.adam import Adam, AdamConfig, Progress
-from symrom.learn.encoders import (SCALINGS, AdamAutoencoder, PCAEncoder, check_components, fit_decoder,
-                                   principal_encoder, varimax)
+from symrom.learn.encoders import (
+    SCALINGS,
+    AdamAutoencoder,
+    PCAEncoder,
+    check_components,
+    fit_decoder,
+    principal_encoder,
+    varimax,
+)
 from symrom.learn.estimator import SymbolicROM, contact_rows, data_hash
 from symrom.learn.regressors.base import Regressor
 from symrom.learn.regressors.stlsq import STLSQ, check_measure

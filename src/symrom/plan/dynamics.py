@@ -29,9 +29,8 @@ import numpy as np
 
 from symrom.baselines.aslip import ASlipParams
 from symrom.model.hybrid import HybridModel
-from symrom.names import BASE_POS, FLIGHT_PHASE, N_Q, STANCE_PHASE
+from symrom.names import BASE_POS, FLIGHT_PHASE, GRAVITY, N_Q, STANCE_PHASE
 
-GRAVITY = 9.81  # m/s^2
 _X, _Z = BASE_POS.start, BASE_POS.start + 2  # indices of base x and z in q
 
 

@@ -190,7 +190,8 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
         params = params or froggy_scaled(FroggyParams(), robot)
         yaw = 0.0
     push = PlannedPush(robot, yaw, plan_fn, attitude, motion, feedback)
-    ctrl = PronkController(robot, params, push=push) if motion == "pronk" else FroggyController(robot, params, push=push)
+    ctrl = (PronkController(robot, params, push=push) if motion == "pronk"
+            else FroggyController(robot, params, push=push))
     world = make_world(engine, robot, config)
     if not disturbances.none:
         world = DisturbedWorld(world, disturbances)

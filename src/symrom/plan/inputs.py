@@ -26,7 +26,6 @@ from symrom.names import BASE_RPY, JOINTS, N_LEGS, N_Q
 from symrom.robots import leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 
-
 ALL_LEGS = tuple(range(N_LEGS))
 
 

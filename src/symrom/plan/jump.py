@@ -166,7 +166,8 @@ class JumpReach:
     def to_dict(self) -> dict:
         return {"x_m": [self.x_min, self.x_max], "z_m": [self.z_min, self.z_max], "apex_for_x_m": self.apex,
                 "model_bounds": {"x_m": list(self.model[:2]), "z_m": list(self.model[2:])},
-                "training_data": None if self.data is None else {"x_m": list(self.data[:2]), "z_m": list(self.data[2:])}}
+                "training_data": None if self.data is None
+                else {"x_m": list(self.data[:2]), "z_m": list(self.data[2:])}}
 
 
 @dataclass
@@ -258,8 +259,9 @@ class RobotPlanner:
             z_min, z_max = max(z_min, data[2]), min(z_max, data[3])
         if x_min > x_max or z_min > z_max:
             raise PlanModelError(f"the {self.kind} model's bounds ({model[0]:.3f}-{model[1]:.3f} m forward, apex "
-                                 f"{model[2]:.3f}-{model[3]:.3f} m) and its training jumps ({data[0]:.3f}-{data[1]:.3f} m, "
-                                 f"apex {data[2]:.3f}-{data[3]:.3f} m) leave no jump it can plan")
+                                 f"{model[2]:.3f}-{model[3]:.3f} m) and its training jumps "
+                                 f"({data[0]:.3f}-{data[1]:.3f} m, apex {data[2]:.3f}-{data[3]:.3f} m) "
+                                 f"leave no jump it can plan")
         return JumpReach(x_min, x_max, z_min, z_max, model, data,
                          None if target_z is None else float(np.clip(target_z, full.z_min, full.z_max)))
 
@@ -482,7 +484,8 @@ def aim(planner: RobotPlanner, target_x: float, target_z: float | None = None,
     inside = reach.holds(x, z)
     if not inside:
         if not closest:
-            raise OutOfReach(f"the target {what} is out of the {planner.kind} planner's reach: {reach.describe()}", reach)
+            raise OutOfReach(f"the target {what} is out of the {planner.kind} planner's reach: {reach.describe()}",
+                             reach)
         x = float(np.clip(x, reach.x_min, reach.x_max))
         z = None if z is None else float(np.clip(z, reach.z_min, reach.z_max))
     # both together: the plan from the crouch at rest must reach them
@@ -571,9 +574,9 @@ class JumpRequest:
     robot, the planner (``PLANNERS``) and its model file (model.json for ``learned``, an aSLIP
     params.json for ``aslip``, none for ``point-mass``), the guards (``GUARDS``), the engine,
     the control (``CONTROLS``; None: ``plan`` on the model's own robot, ``mpc`` on another robot
-    of its build, where the model's forces do not carry over open loop), the motion (None: the model's, else the pronk), the world's
-    disturbances (payload kg, ground friction or None, motor scale) and whether an
-    out-of-reach target gets the closest reachable jump (else it is refused)."""
+    of its build, where the model's forces do not carry over open loop), the motion (None: the
+    model's, else the pronk), the world's disturbances (payload kg, ground friction or None, motor
+    scale) and whether an out-of-reach target gets the closest reachable jump (else it is refused)."""
 
     target_x: float
     target_z: float | None = None

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from symrom.names import STANCE_PHASE
-from symrom.plan.dynamics import GRAVITY, PlanDynamics
+from symrom.names import GRAVITY, STANCE_PHASE
+from symrom.plan.dynamics import PlanDynamics
 from symrom.plan.guards import Guards, HeightGuards
 
 
@@ -279,7 +279,8 @@ class JumpPlanner:
                       "ipopt.max_iter": cfg.max_iter, "ipopt.linear_solver": "mumps"}
         self._solver = ca.nlpsol("jump", "ipopt", {"x": X, "p": P, "f": J, "g": ca.vertcat(*g)}, self._opts)
         self._readout = ca.Function("readout", [X, P], [x_td, z_apex, dyn.velocity(S[:, N - 1]),
-                                    ca.horzcat(dyn.position(s0), *[dyn.position(S[:, c]) for c in range(S.shape[1])]).T])
+                                    ca.horzcat(dyn.position(s0),
+                                               *[dyn.position(S[:, c]) for c in range(S.shape[1])]).T])
         # what the reach problem is built from (``reach``)
         self._reach_parts = (X, P, ca.vertcat(*g), x_td, z_apex, effort)
         self._reach_solver = None

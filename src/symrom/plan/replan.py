@@ -29,7 +29,7 @@ import casadi as ca
 import daqp
 import numpy as np
 
-from symrom.plan.dynamics import GRAVITY
+from symrom.names import GRAVITY
 from symrom.plan.problem import JumpPlanner, Plan, _rk4
 
 
@@ -87,8 +87,8 @@ class ReplanStats:
     apex_z: list[float] = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"t_s": self.t, "solve_time_s": self.solve_time_s, "solve_cpu_s": self.solve_cpu_s, "status": self.status,
-                "landing_x_m": self.landing_x, "apex_z_m": self.apex_z}
+        return {"t_s": self.t, "solve_time_s": self.solve_time_s, "solve_cpu_s": self.solve_cpu_s,
+                "status": self.status, "landing_x_m": self.landing_x, "apex_z_m": self.apex_z}
 
 
 class Replanner:

@@ -76,7 +76,8 @@ def baseline_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> lis
             + "."))
         params = {e.name: run.json(e, "params") for e, _ in have if "params" in e.files}
         rows = [[e.title or e.name, f"{k} [{UNITS[k]}]" if k in UNITS else k, text]
-                for e, _ in have for k, v in (params.get(e.name) or {}).items() if (text := _number_text(v))]
+                for e, _ in have for k, v in (params.get(e.name) or {}).items()
+                if k != "format_version" and (text := _number_text(v))]  # the file's version, not a parameter
         if rows:
             blocks.append(Table(["baseline", "parameter", "value"], rows,
                                 caption="Baseline parameters; "
@@ -113,5 +114,5 @@ def _figure(learned_entry: ManifestEntry, baselines: list[tuple[ManifestEntry, d
                               ds.phase[a:b], ds.phase_names, ctx.fig_dir / f"baselines_{ctx.slug(learned_entry)}.png",
                               title=f"{learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): CoM position, "
                                     "learned vs baselines")
-    return [Figure(path, f"CoM x and z of {learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): truth, learned model"
-                         + (", " + ", ".join(preds) if preds else " (no baseline rollout to draw)"))]
+    return [Figure(path, f"CoM x and z of {learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): truth, "
+                         "learned model" + (", " + ", ".join(preds) if preds else " (no baseline rollout to draw)"))]

@@ -93,9 +93,10 @@ def _h(text: str) -> str:
     return html.escape(str(text), quote=True)
 
 
-# A number, a mean±std, a list of numbers, a count with a remark ("0 (12/12 ≤ paper)"), or a mark.
-_NUM = re.compile(r"^[-−+]?(\d[\d.,]*(e[-−+]?\d+)?%?)(\s*[±,]\s*[-−+]?\d[\d.]*(e[-−+]?\d+)?)*"
-                  r"(\s\(.*\))?$|^[✓✗—★]$", re.I)
+# A number, a mean±std, a list of numbers, a ratio ("2.5×"), a count with a remark
+# ("0 (12/12 ≤ paper)"), a count out of a total ("10 of 12"), or a mark.
+_NUM = re.compile(r"^[-−+]?(\d[\d.,]*(e[-−+]?\d+)?[%×]?)(\s*[±,]\s*[-−+]?\d[\d.]*(e[-−+]?\d+)?)*"
+                  r"(\s\(.*\))?$|^\d+ of \d+$|^[✓✗—★]$", re.I)
 
 
 def is_numeric(cell) -> bool:

@@ -22,7 +22,7 @@ import numpy as np
 
 from symrom.atomic import write_with
 from symrom.data.dataset import Dataset
-from symrom.evaluate.plots import shade_phases, plot_jump
+from symrom.evaluate.plots import plot_jump, shade_phases
 from symrom.names import Q_NAMES, TABLE2_COMPONENTS
 from symrom.rollout.integrate import Rollout
 
@@ -207,10 +207,13 @@ HORIZON_STYLES = (dict(color="C3", marker="o", mfc="none"), dict(color="C0", mar
 
 
 def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, float] | None,
-                   path: str | os.PathLike, title: str = "") -> Path:
+                   path: str | os.PathLike, title: str = "",
+                   paper: dict[str, dict[str, float]] | None = None) -> Path:
     """RMSE per Table-2 component for each horizon (``{label: {component: rmse}}``) beside
     the reconstruction floor (decode-encode of the true configurations; a rollout with
-    exact latent dynamics errs by it), log scale, one panel per unit."""
+    exact latent dynamics errs by it) and, where given, the paper's implied RMSE per horizon
+    (``{label: {component: rmse}}``, the labels of ``rmse``: drawn as a short bar in the
+    horizon's colour, beside its point); log scale, one panel per unit (rad or m)."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), gridspec_kw={"width_ratios": [6, 3, 3]})
     for ax, (unit, comps) in zip(axes, HORIZON_PANELS):
@@ -220,8 +223,12 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
                     label="reconstruction floor", zorder=2)
         for k, (label, vals) in enumerate(rmse.items()):
             y = [np.nan if vals.get(c) is None else vals[c] for c in comps]
-            ax.plot(x + 0.12 * (k - (len(rmse) - 1) / 2), y, ls="none", ms=6, label=f"RMSE, {label}", zorder=3,
-                    **HORIZON_STYLES[k % len(HORIZON_STYLES)])
+            style = HORIZON_STYLES[k % len(HORIZON_STYLES)]
+            dx = x + 0.12 * (k - (len(rmse) - 1) / 2)
+            ax.plot(dx, y, ls="none", ms=6, label=f"ours, {label}", zorder=3, **style)
+            if paper and label in paper:
+                ax.plot(dx, [paper[label].get(c, np.nan) for c in comps], ls="none", marker="_", ms=11, mew=2.5,
+                        color=style["color"], alpha=0.75, label=f"paper, {label}", zorder=4)
         ax.set_xticks(x, comps)
         ax.set_yscale("log")
         ax.set_title(unit, fontsize=10)
@@ -234,11 +241,13 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
     return _save(fig, path)
 
 
-def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLike, title: str = "") -> Path:
+def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLike, title: str = "",
+                     yardstick: str = "spread") -> Path:
     """Validation score (lower is better) vs active terms of every candidate row of a
     selection table (``selection.json``): a colour per encoder, open markers for the
     refined ones, rejected candidates (a diverged validation jump) at the top with
-    their 0.1 s score, the chosen one starred."""
+    their 0.1 s score, the chosen one starred; ``yardstick`` names what the score divides each
+    component's RMSE by (the y label: the spread, or the paper's implied RMSE)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.2))
     encoders = list(dict.fromkeys(r["encoder"] for r in rows))
@@ -261,7 +270,7 @@ def selection_figure(rows: list[dict], chosen: int | None, path: str | os.PathLi
         ax.axhline(top, color="0.6", ls=":", lw=1)
         ax.text(ax.get_xlim()[1], top, " rejected (diverged)", va="bottom", ha="right", fontsize=8, color="0.4")
     ax.set_xlabel("active terms (all phases)")
-    ax.set_ylabel("validation score (mean RMSE / spread)")
+    ax.set_ylabel(f"validation score (mean RMSE / {yardstick})")
     ax.set_xscale("log")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, ncol=2, frameon=False)

@@ -17,6 +17,7 @@ from symrom.atomic import OutputExistsError, atomic_dir, check_writable, write_t
 from symrom.report.common import data_blocks, experiments_blocks, run_blocks
 from symrom.report.context import Context
 from symrom.report.document import Para, Section, render_html, render_markdown
+from symrom.report.headline import headline_blocks
 from symrom.report.roles import build_sections
 from symrom.report.run import load_run
 from symrom.report.sim2real import sim2real_blocks
@@ -55,15 +56,19 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None 
     run = load_run(run_dir)
     title = "symrom report: symbolic reduced-order models of quadruped jumping"
     with atomic_dir(files_dir, force=True) as fig_dir:
+        say("headline")
+        head = headline_blocks(run)
+        secs = [Section("headline", "Headline").add(*head)] if head else []
         say("experiments")
-        secs = [Section("experiments", "Experiments of this run").add(*experiments_blocks(run, html_path.parent))]
         secs += build_sections(run, Context(run, fig_dir))
         targets = run.summary.get("sim2real", {}).get("targets")
         if targets:
-            secs.append(Section("sim2real", "Sim-to-real: source, fine-tuned and target alone").add(
+            secs.append(Section("sim2real", "Sim-to-real: logged, repaired and fine-tuned").add(
                 *sim2real_blocks(targets)))
         say("data and provenance")
-        secs += [Section("data", "Data summary").add(*data_blocks(run, html_path.parent)),
+        secs += [Section("experiments", "Experiments of this run and their files").add(
+                     *experiments_blocks(run, html_path.parent)),
+                 Section("data", "Data summary").add(*data_blocks(run, html_path.parent)),
                  Section("run", "Commands, versions and seeds").add(*run_blocks(run))]
         built = f"Built {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by symrom {__version__}."
         if run.kind == "model folder":

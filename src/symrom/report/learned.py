@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import textwrap
 
-from symrom.evaluate.paper import PAPER_LABELS, implied_rmse, paper_row
+from symrom.evaluate.paper import PAPER_LABELS, implied_rmse, paper_rmse, paper_row
 from symrom.evaluate.records import ManifestEntry, Metrics
 from symrom.names import Q_UNITS, TABLE2_COMPONENTS
 from symrom.report import figures
@@ -119,11 +119,16 @@ def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
         if floor is not None:
             rmse = {horizon_label(k): {c: h.stat(c, "rmse") for c in TABLE2_COMPONENTS}
                     for k, h in metrics.horizons.items() if h.components}
+            paper = {horizon_label(k): ref for k in metrics.horizons
+                     if e.paper and (ref := paper_rmse(e.paper, k)) is not None} or None
             path = figures.horizon_figure(rmse, floor, ctx.fig_dir / f"horizons_{ctx.slug(e)}.png",
-                                          title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)")
+                                          title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)",
+                                          paper=paper)
+            beside = (" and the paper's implied RMSE (a bar in the horizon's colour)" if paper else "")
             blocks.append(Figure(path, f"{e.name}: RMSE of each Table 2 component at each horizon beside the "
-                                       "reconstruction floor (decode∘encode of the true configurations); a point "
-                                       "on the floor is as close as any latent model with this encoder can get"))
+                                       f"reconstruction floor{beside}; the floor is decode∘encode of the true "
+                                       "configurations: a point on it is as close as any latent model with this "
+                                       "encoder can get"))
         how = ("; a diverged jump is scored up to the time it diverged" if metrics.scores_diverged
                else "; diverged jumps are left out of the statistics") if metrics.any_diverged else ""
         blocks.append(Para(f"Diverged {metrics.split} jumps — {diverged_text(metrics)}{how}.",

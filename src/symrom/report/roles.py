@@ -55,9 +55,8 @@ INTROS: dict[str, str] = {
               "(the note under each table names it and when). "
               "Each experiment's table is split into its joints and its base pose.",
     "predictions": "Truth (black) and the learned model's prediction of the front-left and rear-right joint "
-                   "angles and the CoM pose, full horizon (red, dashed, drawn on top) and with 0.1 s resets (wide, pale "
-                   "blue); shaded spans mark "
-                   "the phases other than the first.",
+                   "angles and the CoM pose, full horizon (red, dashed, drawn on top) and with 0.1 s resets "
+                   "(wide, pale blue); shaded spans mark the phases other than the first.",
 }
 
 

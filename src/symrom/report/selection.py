@@ -56,12 +56,15 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
             blocks.append(Para(f"{e.name}: no selection table; skipped.", note=True))
             continue
         rows, chosen = table["rows"], table.get("chosen")
-        blocks.append(Para(f"{len(rows)} candidate models in {table.get('seconds', 0):.0f} s. Rule: {table.get('rule', '')}."))
+        blocks.append(Para(f"{len(rows)} candidate models in {table.get('seconds', 0):.0f} s. "
+                           f"Rule: {table.get('rule', '')}."))
         if chosen is None:
-            blocks.append(Para("No candidate survived: every one diverged on a validation jump or broke the data's momentum "
-                                 "balance.", note=True))
+            blocks.append(Para("No candidate survived: every one diverged on a validation jump or broke the data's "
+                               "momentum balance.", note=True))
+        by_paper = (table.get("config") or {}).get("reference") is not None  # scored against the paper's RMSE
         path = figures.selection_figure(rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
-                                        title=f"{e.of or e.name}: validation score vs active terms")
+                                        title=f"{e.of or e.name}: validation score vs active terms",
+                                        yardstick="paper's RMSE" if by_paper else "spread")
         blocks.append(Figure(path, f"{e.of or e.name}: every candidate of the selection (lower is better)"))
         blocks.append(Table(HEADER, [_row(rows[i], i == chosen) for i in best_rows(rows, chosen)],
                             caption="The best candidate per encoder and latent dimension, and the chosen one "

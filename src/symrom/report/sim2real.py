@@ -1,6 +1,7 @@
-"""The sim-to-real section: per target, the source as it is, fine-tuned and trained on the target
-alone, side by side on the target's test jumps (``summary.json``'s ``sim2real``), and the
-targets checked on them.
+"""The sim-to-real section: per target, the source as it is on the target's jumps as logged and as
+repaired, fine-tuned on the repaired jumps and trained on them alone, side by side on the
+target's test jumps (``summary.json``'s ``sim2real``), what the repair found beside what the
+logger planted, and the targets checked.
 
 ``sim2real_rows`` gives the table's cells once; ``sim2real_blocks`` makes the report's
 section of them, ``sim2real_markdown`` the text the CLI prints.
@@ -10,8 +11,9 @@ from __future__ import annotations
 
 from symrom.report.document import Para, Table
 
-COLUMNS = (("source", "source as is"), ("fine_tuned", "fine-tuned"), ("target_alone", "target alone"),
-           ("chosen", "chosen on val"))
+COLUMNS = (("logged", "as logged: source as is"), ("source", "repaired: source as is"),
+           ("fine_tuned", "repaired + fine-tuned"), ("target_alone", "repaired: target alone"),
+           ("chosen", "repaired: chosen on val"))
 HEADER = ["target", "model", "full x RMSE [m]", "full z RMSE [m]", "flight z acc. [m/s^2] (data)",
           "vs -g", "diverged", "drifted"]
 CHECKS = (("source_z", "source z RMSE <= {source_z_le} m"),
@@ -30,8 +32,10 @@ def sim2real_rows(targets: dict[str, dict]) -> list[list[str]]:
     rows = []
     for name, t in targets.items():
         for key, label in COLUMNS:
+            if key not in t:  # a run made before the targets were logged with faults
+                continue
             e = t.get(key) or {}
-            what = label + (f" ({t['source_model']})" if key in ("source", "fine_tuned") else "")
+            what = label + (f" ({t['source_model']})" if key in ("logged", "source", "fine_tuned") else "")
             if key == "fine_tuned":
                 what += f", {t.get('method', '')}" + (f" (prior weight {t['prior_weight']:g})"
                                                        if t.get("prior_weight") is not None else "")
@@ -46,6 +50,40 @@ def sim2real_rows(targets: dict[str, dict]) -> list[list[str]]:
                          _num(e.get("flight_ratio"), ".3f"), str(e.get("diverged_jumps", "-")),
                          str(e.get("drifted_jumps", "-"))])
     return rows
+
+
+def _faults(f: dict) -> str:
+    """A target's log faults as planted (``generator.log_faults``), in words."""
+    clock = f"loop {f['clock']:.3f}x its period" + (f" +- {100 * f['clock_wobble']:.1f} %" if f["clock_wobble"] else "")
+    sensor = "" if f.get("sensor_scale") is None else f" (its sensor x {f['sensor_scale']:.3f} under it)"
+    return (f"{clock}, velocities x {f['velocity_gain']:.3f}, torques x {f['torque_gain']:.3f}{sensor}, "
+            f"z {1e3 * f['height_offset']:+.1f} mm, contacts {f['contact_lag']} row(s) late")
+
+
+def repair_lines(targets: dict[str, dict]) -> list[str]:
+    """One line per target: the log faults its logger planted and what the repair found (medians
+    and ranges over its jumps; the repair knows nothing of the planted ones)."""
+    out = []
+    for name, t in targets.items():
+        r = t.get("repair")
+        if r is None:
+            continue
+        f = r["found"]
+
+        def rng(key: str, scale: float = 1.0, spec: str = ".3f") -> str:
+            v = f.get(key)
+            if v is None:
+                return "-"
+            m, lo, hi = (scale * v[k] for k in ("median", "min", "max"))
+            return format(m, spec) + ("" if lo == hi else f" ({format(lo, spec)}..{format(hi, spec)})")
+
+        findings = ", ".join(f"{n} {k}" for k, n in f["findings"].items())
+        found = (f"repaired {f['changed']} of {f['jumps']} jumps ({findings}): duration x {rng('clock_scale')}, "
+                 f"velocities / {rng('velocity_gain')}, torques / {rng('torque_gain')}, "
+                 f"z {rng('height_offset', 1e3, '+.1f')} mm, contact lag {rng('contact_lag', 1.0, '.0f')} row(s)")
+        planted = "logged without faults" if r["planted"] is None else "planted: " + _faults(r["planted"])
+        out.append(f"{name}: {planted}; {found}")
+    return out
 
 
 def check_lines(targets: dict[str, dict]) -> list[str]:
@@ -65,14 +103,17 @@ def check_lines(targets: dict[str, dict]) -> list[str]:
 
 def sim2real_blocks(targets: dict[str, dict]) -> list:
     """The report's blocks: the table and the targets' lines."""
-    return [Para("Each target's test jumps: the source whose default fine-tuning scores best on the target's val "
-                 "jumps, as it is; fine-tuned "
-                 "on the target's 12 train jumps by the default method, as `symrom finetune` does it (its "
-                 "prior weight raised while the val score rises); a model trained on those jumps alone "
-                 "with the same settings; the candidate chosen on val among every source and fine-tuning "
-                 "(the experiment's model). Flight z acceleration: the model's decoded mean on the test flight "
-                 "rows (the data's own beside it), and its ratio to -g."),
+    return [Para("Each target is logged as a real robot's logs are (a slow or wobbling loop, or velocities off; "
+                 "a torque sensor reading part of the load; a height offset; a contact lag) and imported "
+                 "through the repair from physics, which knows nothing of them. On its test jumps: the source "
+                 "whose default fine-tuning scores best on the target's val jumps, as it is, on the jumps as "
+                 "logged and as repaired; fine-tuned on the target's 12 repaired train jumps by the default "
+                 "method, as `symrom finetune` does it (its prior weight raised while the val score rises); a "
+                 "model trained on those jumps alone with the same settings; the candidate chosen on val among "
+                 "every source and fine-tuning (the experiment's model). Flight z acceleration: the model's "
+                 "decoded mean on the test flight rows (the data's own beside it), and its ratio to -g."),
             Table(HEADER, sim2real_rows(targets), caption="Sim-to-real, side by side"),
+            *(Para(line) for line in repair_lines(targets)),
             *(Para(line) for line in check_lines(targets))]
 
 
@@ -80,4 +121,4 @@ def sim2real_markdown(targets: dict[str, dict]) -> str:
     """The table and the targets' lines as Markdown text."""
     lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
     lines += ["| " + " | ".join(r) + " |" for r in sim2real_rows(targets)]
-    return "\n".join(lines + [""] + check_lines(targets))
+    return "\n".join(lines + [""] + repair_lines(targets) + check_lines(targets))

@@ -7,9 +7,12 @@ found from its kinematic tree and joint axes, not from names:
 - the legs: the limbs hanging from the base, each a chain of three hinges whose axes, at
   zero joint angles in the base frame, are the base's x (hip abduction) then y, y (hip
   flexion, knee); ordered FR FL RR RL by their hips' positions (x fore, y left);
-- the feet: the point of each leg farthest from its knee axis among the sphere geoms,
-  sites and bodies below the knee (a URDF's: its links), named as a geom, a site or a body
-  (with the point in the body's frame when the geom is unnamed);
+- the feet: the point of each leg farthest from its knee axis among the colliding spheres' centres,
+  the origins of other colliding geoms small beside their distance from the knee (a mesh
+  foot's: ``FOOT_SIZE``, not a shank's), the sites and the bodies below the knee (a
+  URDF's: its links), named as a geom, a site or a body (with the point in the body's frame
+  when the geom is unnamed); the radius: a sphere's there, else how far the foot's geoms reach
+  beyond the point (``mjcf.reach``);
 - the signs: +1 where a joint's axis points along symrom's (hx +x, hy and kn +y), else -1;
 - the torque limits: the actuators' ``forcerange``, a torque motor's ``ctrlrange``, the
   joints' ``actuatorfrcrange`` (a URDF's ``effort``); joint damping, armature and friction
@@ -17,7 +20,8 @@ found from its kinematic tree and joint axes, not from names:
 - the stance: a keyframe (``home``, ``stand``, ``standing``, ``default``, or the only one)
   with its feet on the ground, else the leg IK at the Go1's standing height in proportion
   to leg length; the knee range: the model's where it is one-sided, else the side the
-  keyframe bends the knees to.
+  keyframe bends the knees to, else the side of a position servo's ``ctrlrange`` or of the
+  joint's reference angle (``ref``); a knee free both ways with none of these is refused.
 
 Every value is written with a comment saying where it came from. What cannot be inferred is
 refused (``RobotInitError``, one line naming it and the description key to give, which
@@ -37,14 +41,31 @@ import numpy as np
 
 from symrom.atomic import atomic_path, check_output_file
 from symrom.names import LEG_JOINTS, LEGS, N_LEGS
-from symrom.robots.description import (PYBULLET_DATA, RobotDescription, RobotDescriptionError, load_description,
-                                       pybullet_data_path)
+from symrom.robots.description import (
+    PYBULLET_DATA,
+    RobotDescription,
+    RobotDescriptionError,
+    load_description,
+    pybullet_data_path,
+)
 from symrom.robots.kinematics import LegKinematics
-from symrom.robots.mjcf import (BaseFrame, Feet, RobotModelError, actuated, colliding, compile_model, foot_frames,
-                                name_of, subtree, torque_bound, zero_pose)
+from symrom.robots.mjcf import (
+    BaseFrame,
+    Feet,
+    RobotModelError,
+    actuated,
+    colliding,
+    compile_model,
+    foot_frames,
+    name_of,
+    subtree,
+    torque_bound,
+    zero_pose,
+)
 
 AXIS_COS = math.cos(math.radians(10.0))  # a joint axis within 10 degrees of the base's x or y plays that role
 MIN_FOOT = 0.05  # m: a foot is at least this far from its knee axis
+FOOT_SIZE = 0.2  # a foot geom other than a sphere is within this share of its distance from the knee in size
 STAND_RATIO = 0.3165 / 0.426  # the Go1's standing height over its leg length (go1.toml)
 KEYFRAMES = ("home", "stand", "standing", "default")  # keyframe names taken for the stance, in this order
 KNEE_SIDE = (0.3, 2.8)  # rad: the built-ins' knee range |bounds|, on the side a keyframe bends to
@@ -259,8 +280,12 @@ def _foot(m, path: Path, data, bf: BaseFrame, leg: _Leg, label: str, urdf: bool)
     for b in below[1:]:
         cands.append((bf.point(data.xpos[b]), "body", name_of(m, "body", b), b, np.zeros(3)))
     if not urdf:
-        for g in range(m.ngeom):
-            if m.geom_bodyid[g] in below and colliding(m, g) and m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+        knee_at = data.xanchor[knee]
+        for g in range(m.ngeom):  # a sphere's centre; another compact shape's (a mesh foot's) its frame's origin
+            if m.geom_bodyid[g] not in below or not colliding(m, g) or m.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
+                continue
+            sphere = m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE
+            if sphere or m.geom_rbound[g] <= FOOT_SIZE * np.linalg.norm(data.geom_xpos[g] - knee_at):
                 cands.append((bf.point(data.geom_xpos[g]), "geom", name_of(m, "geom", g), int(m.geom_bodyid[g]),
                               m.geom_pos[g].copy()))
         for s in range(m.nsite):
@@ -277,7 +302,7 @@ def _foot(m, path: Path, data, bf: BaseFrame, leg: _Leg, label: str, urdf: bool)
     P = cands[int(np.argmax(dist))][0]
     at = [c for c in cands if np.linalg.norm(c[0] - P) < 1e-6]
     foot = {}
-    for p, kind, name, body, local in at:
+    for _p, kind, name, body, local in at:
         if name and kind not in foot:
             foot[kind] = (name, name_of(m, "body", body), local)
         if kind != "body" and name_of(m, "body", body) and "body+point" not in foot:
@@ -305,7 +330,7 @@ def _token_sets(names: list[str]) -> list[list[str]]:
     if p + s > short:
         s = short - p
     out = []
-    for pp, ss in ((p, s), _boundary(names, p, s)):
+    for pp, ss in (_boundary(names, p, s), (p, s)):  # whole words first: 'front_right', not 'front_righ'
         toks = [n[pp:len(n) - ss] for n in names]
         if all(toks) and len(set(toks)) == len(toks) and toks not in out:
             out.append(toks)
@@ -583,16 +608,39 @@ def _knee_ranges(m, path: Path, legs: list[_Leg], labels: list[str], jname: list
             knees.append((_num(lo), _num(hi)))
             note = "rad: the knee joints' range in the model, in symrom's signs"
             continue
-        if kq is None or abs(kq[3 * k + 2]) < 0.05:
+        side, whence = _knee_side(m, j, s, None if kq is None else kq[3 * k + 2], key)
+        if side == 0:
             why = "the model has no standing keyframe" if kq is None else "the keyframe holds it straight"
-            raise _err(path, f"knee joint {jname[k][2]!r} of leg {label} may bend either way (range "
-                             f"[{lo:.3g}, {hi:.3g}] rad) and {why}: cannot tell which way it bends; give key "
-                             f"'stance.knee' ([lower, upper] rad, or one per leg FR FL RR RL)", "stance.knee")
-        a, b = (-KNEE_SIDE[1], -KNEE_SIDE[0]) if kq[3 * k + 2] < 0 else KNEE_SIDE
+            rng = f"range [{lo:.3g}, {hi:.3g}] rad" if m.jnt_limited[j] else "no range"
+            raise _err(path, f"knee joint {jname[k][2]!r} of leg {label} may bend either way ({rng}), {why} "
+                             f"and no servo range or reference angle says which: give key 'stance.knee' "
+                             f"([lower, upper] rad, or one per leg FR FL RR RL)", "stance.knee")
+        a, b = (-KNEE_SIDE[1], -KNEE_SIDE[0]) if side < 0 else KNEE_SIDE
         knees.append((_num(max(a, lo)), _num(min(b, hi))))
-        note = (f"rad: the built-ins' range, on the side keyframe {m.key(key).name!r} bends the knees to "
-                f"(the model's range is both ways)")
+        note = f"rad: the built-ins' range, on the side {whence} bends the knees to (the model's range is both ways)"
     return knees, note
+
+
+def _knee_side(m, joint: int, sign: int, key_angle: float | None, key: int | None) -> tuple[int, str]:
+    """Which way (-1, +1, in symrom's signs; 0: cannot tell) knee hinge ``joint`` bends, and what
+    says so: the keyframe's angle ``key_angle`` (symrom's signs), else a position servo's
+    ``ctrlrange`` on one side of zero, else the joint's reference angle."""
+    import mujoco
+
+    if key_angle is not None and abs(key_angle) >= 0.05:
+        return (1 if key_angle > 0 else -1), f"keyframe {m.key(key).name!r}"
+    for a in range(m.nu):
+        servo = (m.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_JOINT and m.actuator_trnid[a, 0] == joint
+                 and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_AFFINE and m.actuator_biasprm[a, 1] < 0
+                 and m.actuator_ctrllimited[a])
+        if servo:
+            lo, hi = sorted(sign * np.asarray(m.actuator_ctrlrange[a], dtype=float))
+            if hi <= 0 or lo >= 0:
+                return (1 if lo >= 0 else -1), f"the position servo's ctrlrange of {name_of(m, 'joint', joint)!r}"
+    ref = sign * float(m.qpos0[m.jnt_qposadr[joint]])
+    if abs(ref) >= 0.05:
+        return (1 if ref > 0 else -1), "the joint's reference angle (ref)"
+    return 0, ""
 
 
 def _load(p: Path, model: Path) -> RobotDescription:

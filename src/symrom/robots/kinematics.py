@@ -91,7 +91,7 @@ class LegKinematics:
 
     def _stack_chains(self) -> tuple | None:
         """The four chains as arrays over legs, when they share one structure (the usual
-        case): evaluating all legs at once costs a quarter of the Python overhead."""
+        case): all legs are then evaluated at once, one NumPy call per link instead of four."""
         shape = [[el.axis is None for el in ch] for ch in self.chains]
         if any(s != shape[0] for s in shape):
             return None

@@ -80,7 +80,7 @@ class MassModel:
         self.mass = float(self.masses.sum())
         # below[c]: the links a joint c carries (those with c on their path to the base)
         below = np.zeros((N_JOINTS, len(nodes)), bool)
-        for i, n in enumerate(nodes):
+        for i, _n in enumerate(nodes):
             k = i
             while k >= 0:
                 if nodes[k].col >= 0:

@@ -35,7 +35,7 @@ from symrom.names import LEGS
 FOOT_LINK = "symrom_foot_{leg}"  # the link (URDF) or frame body (MuJoCo world) of a foot; leg: names.LEGS
 BASE_INERTIA = "symrom_base_inertia"  # the derived URDF's link holding the base body's mass and inertia
 FOOT_KINDS = ("link", "body", "geom", "site")  # what a description's [feet] may name
-DERIVATION = 1  # the derived URDF's version: part of its cache key
+DERIVATION = 2  # the derived URDF's version: part of its cache key
 CACHE_ENV = "SYMROM_CACHE_DIR"  # shared with the generated code's cache (model/codegen.py)
 _SAME_POINT = 1e-6  # m: a geom this near a foot's point is the foot's own
 _NO_LIMIT = np.inf
@@ -88,14 +88,39 @@ def _one_line(e: Exception) -> str:
     return "; ".join(s.strip() for s in str(e).splitlines() if s.strip())
 
 
+def missing_files(spec, root: Path) -> list[str]:
+    """The files an MJCF's assets name (meshes, textures, height fields, skins) that are not
+    there, as the model names them; ``root``: the model's folder."""
+    out = []
+    for kind, folder in (("meshes", spec.meshdir), ("textures", spec.texturedir), ("hfields", spec.meshdir),
+                         ("skins", spec.meshdir)):
+        for a in getattr(spec, kind):
+            files = [f for f in ([a.file] if isinstance(a.file, str) else list(a.file)) if f]
+            for f in files:
+                if not any((base / f).is_file() for base in (root / folder, root)):
+                    out.append(str(Path(folder) / f) if folder else f)
+    return out
+
+
 def compile_model(path: str | os.PathLike):
     """The compiled ``MjModel`` of an MJCF or, for a ``.urdf``, of a URDF as MuJoCo reads it
     (fixed links kept as bodies, visual geoms and collision meshes whose files are missing
-    dropped, impossible inertias balanced). ``RobotModelError`` if MuJoCo cannot read it."""
+    dropped, impossible inertias balanced). ``RobotModelError`` if MuJoCo cannot read it (an
+    MJCF whose mesh or texture files are missing: naming them)."""
     mujoco = _mujoco()
     path = Path(path)
     try:
         spec = mujoco.MjSpec.from_file(str(path))
+    except ValueError as e:
+        raise RobotModelError(f"{path}: MuJoCo cannot read it ({_one_line(e)})") from None
+    if path.suffix.lower() != ".urdf":
+        missing = missing_files(spec, path.parent)
+        if missing:
+            more = f" and {len(missing) - 3} more" if len(missing) > 3 else ""
+            raise RobotModelError(f"{path}: files it names are missing ({', '.join(missing[:3])}{more}; relative "
+                                  f"to {path.parent}): MuJoCo cannot read it without them; keep the model's folder "
+                                  f"whole (a Menagerie model: its assets folder beside its XML)")
+    try:
         if path.suffix.lower() == ".urdf":
             spec.compiler.fusestatic = False  # the foot links must stay bodies
             spec.compiler.discardvisual = True
@@ -173,11 +198,54 @@ def _sphere(model, g: int) -> bool:
 
 def _geoms_at(model, body: int, point: np.ndarray) -> tuple[list[int], float]:
     """The colliding geoms of ``body`` centred at ``point`` (body frame; all its colliding geoms
-    when none is) and the radius of the first sphere among those centred there (0 if none)."""
+    when none is) and the foot's radius: that of the first sphere centred there, else how far
+    those geoms reach beyond the point (``reach``)."""
     own = [g for g in range(model.ngeom) if model.geom_bodyid[g] == body and colliding(model, g)]
     at = [g for g in own if np.linalg.norm(model.geom_pos[g] - point) < _SAME_POINT]
-    radius = next((float(model.geom_size[g, 0]) for g in at if _sphere(model, g)), 0.0)
-    return (at or own), radius
+    radius = next((float(model.geom_size[g, 0]) for g in at if _sphere(model, g)), None)
+    return (at or own), (reach(model, at or own, point) if radius is None else radius)
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    R = np.empty(9)
+    _mujoco().mju_quat2Mat(R, np.asarray(q, dtype=float))
+    return R.reshape(3, 3)
+
+
+def _support(model, g: int, d: np.ndarray) -> float:
+    """How far geom ``g`` extends along the unit direction d (3,), in its body's frame (m from the
+    body's origin); -inf for a plane or height field."""
+    mujoco = _mujoco()
+    t, size, p = model.geom_type[g], model.geom_size[g], model.geom_pos[g]
+    dl = _quat_matrix(model.geom_quat[g]).T @ d  # d in the geom's frame
+    G = mujoco.mjtGeom
+    if t == G.mjGEOM_SPHERE:
+        return p @ d + size[0]
+    if t == G.mjGEOM_CAPSULE:
+        return p @ d + size[1] * abs(dl[2]) + size[0]
+    if t == G.mjGEOM_CYLINDER:
+        return p @ d + size[1] * abs(dl[2]) + size[0] * np.hypot(dl[0], dl[1])
+    if t == G.mjGEOM_BOX:
+        return p @ d + float(np.abs(dl) @ size)
+    if t == G.mjGEOM_ELLIPSOID:
+        return p @ d + float(np.linalg.norm(size * dl))
+    if t == G.mjGEOM_MESH:
+        m = model.geom_dataid[g]
+        a, n = model.mesh_vertadr[m], model.mesh_vertnum[m]
+        return p @ d + float((model.mesh_vert[a:a + n] @ dl).max())
+    return -np.inf
+
+
+def reach(model, geoms, point: np.ndarray) -> float:
+    """A foot's radius where no sphere is centred at its point (3,) (body frame): how far the
+    ``geoms`` reach beyond it, away from the body's origin (the knee, for a shank), m; 0 when they
+    do not (or the point is the origin). A capsule's or a disc's rounded end around the point
+    gives its radius."""
+    n = float(np.linalg.norm(point))
+    if n < _SAME_POINT or not len(geoms):
+        return 0.0
+    d = np.asarray(point, dtype=float) / n
+    return max(0.0, max(_support(model, g, d) for g in geoms) - n)
 
 
 def foot_frames(model, feet: Feet) -> list[FootFrame]:
@@ -186,7 +254,9 @@ def foot_frames(model, feet: Feet) -> list[FootFrame]:
     link/body: the body (at ``feet.points`` in it, else its origin), touching the ground with
     its colliding geoms centred at that point (a link: all of them, as a URDF foot link holds
     its sphere alone); geom: that geom; site: the site's body at the site, with the body's
-    geoms centred there. ``RobotModelError`` (key ``feet.<kind>``) naming a missing element."""
+    geoms centred there. The radius: a sphere's centred there, else how far the foot's geoms
+    reach beyond the point (``reach``: a capsule's end, a mesh). ``RobotModelError`` (key
+    ``feet.<kind>``) naming a missing element."""
     key = f"feet.{feet.kind}"
     out = []
     for k, name in enumerate(feet.names):
@@ -204,7 +274,7 @@ def foot_frames(model, feet: Feet) -> list[FootFrame]:
             out.append(FootFrame(i, name, point, tuple(geoms), radius))
         elif kind == "geom":
             body = int(model.geom_bodyid[i])
-            radius = float(model.geom_size[i, 0]) if _sphere(model, i) else 0.0
+            radius = float(model.geom_size[i, 0]) if _sphere(model, i) else reach(model, [i], model.geom_pos[i])
             out.append(FootFrame(body, name_of(model, "body", body), model.geom_pos[i].copy(), (i,), radius))
         else:
             body = int(model.site_bodyid[i])
@@ -327,7 +397,8 @@ def urdf_text(model, base: str, joint_names: tuple[str, ...], feet: Feet, name: 
         c = bf.point(data.xipos[b]) - origin[b]
         I = model.body_inertia[b]
         inertial = (f'<inertial><origin xyz="{_v(c)}" rpy="{_v(matrix_to_rpy(R))}"/>'
-                    f'<mass value="{_f(model.body_mass[b])}"/><inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
+                    f'<mass value="{_f(model.body_mass[b])}"/>'
+                    f'<inertia ixx="{_f(I[0])}" iyy="{_f(I[1])}" izz="{_f(I[2])}" ixy="0" ixz="0" iyz="0"/></inertial>')
         if b == b0:
             # PyBullet takes a base's principal axes for its frame (its inverse dynamics then read gravity
             # in them): the base link holds no mass; its body's inertia hangs on a fixed child.
@@ -434,5 +505,5 @@ def derived_urdf(mjcf: str | os.PathLike, base: str, joint_names: tuple[str, ...
 
 __all__ = ["BASE_INERTIA", "CACHE_ENV", "FOOT_KINDS", "FOOT_LINK", "BaseFrame", "Feet", "FootFrame",
            "RobotModelError", "actuated", "cache_dir", "colliding", "compile_model", "derived_urdf", "element_id",
-           "foot_frames", "matrix_to_rpy", "model_hash", "name_of", "subtree", "torque_bound", "urdf_text",
-           "zero_pose"]
+           "foot_frames", "matrix_to_rpy", "missing_files", "model_hash", "name_of", "reach", "subtree",
+           "torque_bound", "urdf_text", "zero_pose"]

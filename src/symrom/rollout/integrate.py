@@ -41,11 +41,12 @@ METHODS = ("lsoda", "rk4")
 # process or in the disk cache, ``symrom.compiled.has_build``) or when the rollout's
 # work pays for compiling it (``GENERATED_PAYS_STEPS``), else by the compiled term-table
 # kernel (no compilation per model); lsoda with the NumPy right-hand side; generated: the
-# model's own compiled code for both (about a second to compile per model, then the
-# fastest); table: the term-table kernel; numpy: the reference.
+# model's own compiled code for both (compiled once per model, then the fastest); table: the
+# term-table kernel; numpy: the reference.
 BACKENDS = ("auto", "table", "generated", "numpy")
-# RK4 steps from which compiling the generated code (about 1 s) pays under ``auto``: it
-# saves about 2.5e-7 s a step over the term table (docs/benchmarks.md, rollouts).
+# RK4 steps from which compiling the generated code pays under ``auto``: its compile time
+# over what it saves per step against the term table (both measured in docs/benchmarks.md,
+# "Rollouts").
 GENERATED_PAYS_STEPS = 4_000_000
 # scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
 # solver compiled (needs the model's generated code).
@@ -250,7 +251,8 @@ def _integrate(sysm: RolloutSystem, options: RolloutOptions, dt: float,
                                               state[None, d:])
                         return np.concatenate([state[d:], a[0]])
 
-                    args = (lambda k: (k,))
+                    def args(k):
+                        return (k,)
                 X, V, d = integrate_lsoda(rhs, args, x, v, resets, limit[i],
                                           dt, options.max_steps, options.rtol, options.atol)
             Xs.append(X)

@@ -445,3 +445,119 @@ class DisturbedWorld:
 
     def close(self) -> None:
         self.world.close()
+
+
+# ------------------------------------------------------------------ a real log's faults
+
+@dataclass(frozen=True)
+class LogFaults:
+    """What a real robot's logger does to its log (``symrom generate --log-faults``): the
+    faults ``symrom import --repair`` finds from physics (``data.repair``). One robot's
+    (drawn once per dataset, ``sample_log_faults``); a jump's own part is its phase.
+
+    clock: true seconds per logged second, the rows written a constant period apart (a
+    control loop slower than its nominal rate, > 1); clock_wobble: the loop's rate changes
+    within a jump by this fraction (one sine over the jump, its phase per jump);
+    velocity_gain: logged over true velocities, every group (a unit, a filter);
+    torque_gain: logged over true torques (a current sensor that reads part of the load);
+    height_offset: m added to the logged base height (an estimator's offset); contact_lag:
+    rows the contact flags are written late. ``LogFaults()`` is a log without faults.
+    """
+
+    clock: float = 1.0
+    clock_wobble: float = 0.0
+    velocity_gain: float = 1.0
+    torque_gain: float = 1.0
+    height_offset: float = 0.0
+    contact_lag: int = 0
+
+    @property
+    def none(self) -> bool:
+        """Whether the log is written without faults."""
+        return self == LogFaults()
+
+
+@dataclass(frozen=True)
+class LogFaultRanges:
+    """Uniform ranges (low, high) a robot's ``LogFaults`` are drawn from; contact_lag: the
+    largest lag in rows (drawn 0 .. it)."""
+
+    clock: tuple[float, float] = (1.0, 1.0)
+    clock_wobble: tuple[float, float] = (0.0, 0.0)
+    velocity_gain: tuple[float, float] = (1.0, 1.0)
+    torque_gain: tuple[float, float] = (0.5, 0.85)
+    height_offset: tuple[float, float] = (-0.03, 0.03)
+    contact_lag: int = 1
+
+
+# A real quadruped's logs, by what is wrong with its time base: ``clock``, a loop 4-8 % slower
+# than its nominal rate whose rate changes by 2-6 % within a jump (the real A1 froggy logs: no
+# timestamps, a period estimated per jump, a rate drifting 0.93-1.06 within it); ``velocities``,
+# a right clock with velocities 4-8 % low (the real Go1 log: 1/1.06). Both: a torque sensor
+# reading half to 85 % of the load (the Go1's 0.56), a height estimate off by up to 3 cm (its
+# 21.7 mm, the A1's 28 mm), flags up to a row late. Faults of this size are determined by one
+# jump's flight (a 3 % clock is not: the flight's g is known to about 2 %).
+LOG_FAULTS = {
+    "clock": LogFaultRanges(clock=(1.04, 1.08), clock_wobble=(0.02, 0.06)),
+    "velocities": LogFaultRanges(velocity_gain=(0.92, 0.96)),
+}
+
+
+def sample_log_faults(rng: np.random.Generator, ranges: LogFaultRanges) -> LogFaults:
+    """One robot's log faults drawn from ``ranges`` (``LOG_FAULTS``)."""
+    r, u = ranges, rng.uniform
+    return LogFaults(clock=float(u(*r.clock)), clock_wobble=float(u(*r.clock_wobble)),
+                     velocity_gain=float(u(*r.velocity_gain)), torque_gain=float(u(*r.torque_gain)),
+                     height_offset=float(u(*r.height_offset)), contact_lag=int(rng.integers(0, r.contact_lag + 1)))
+
+
+def logged_times(duration: float, dt: float, faults: LogFaults, phase: float) -> np.ndarray:
+    """The true times (n,) s of the rows a faulty loop writes ``dt`` s apart by its clock over a
+    jump of ``duration`` true s: row k+1 is taken dt * rate after row k, the rate
+    ``clock (1 + clock_wobble sin(2 pi t_k / duration + phase))`` of the logged time t_k = k dt."""
+    if faults.clock == 1.0 and faults.clock_wobble == 0.0:
+        return np.arange(int(np.floor(duration / dt + 1e-9)) + 1) * dt
+    n_max = int(duration / (dt * faults.clock * (1 - faults.clock_wobble))) + 2
+    t_log = (np.arange(n_max) + 0.5) * dt
+    rate = faults.clock * (1.0 + faults.clock_wobble * np.sin(2 * np.pi * t_log / duration + phase))
+    T = np.r_[0.0, np.cumsum(dt * rate)]
+    return T[T <= duration + 1e-12]
+
+
+def apply_log_faults(log: dict[str, np.ndarray], faults: LogFaults, dt: float, phase: float = 0.0
+                     ) -> dict[str, np.ndarray]:
+    """The log a faulty logger writes of the true jump ``log`` (its rows ``dt`` s apart, keys as
+    ``generation.runner.run_jump``'s: t, q, dq, tau, contact, foot_pos, contact_force).
+
+    The rows are taken at ``logged_times`` and written ``dt`` apart (t = k dt): q and dq by a
+    cubic spline through the true rows (exact at them), the torques, feet and contact forces
+    linearly, the flags as the last true row at or before; then the velocities times
+    ``velocity_gain``, the torques times ``torque_gain``, ``height_offset`` added to the base's
+    (and the feet's) height, the flags moved ``contact_lag`` rows late. A log without faults
+    is returned as it is."""
+    if faults.none:
+        return log
+    t = log["t"]
+    if faults.clock == 1.0 and faults.clock_wobble == 0.0:  # the rows as they were taken
+        out = {k: v.copy() for k, v in log.items()}
+    else:
+        from scipy.interpolate import CubicSpline
+
+        T = logged_times(float(t[-1] - t[0]), dt, faults, phase) + t[0]
+        out = {"t": t[0] + np.arange(T.size) * dt}
+        for k in ("q", "dq"):
+            out[k] = CubicSpline(t, log[k], axis=0)(T)
+        for k in ("tau", "foot_pos", "contact_force"):
+            flat = log[k].reshape(t.size, -1)
+            out[k] = np.stack([np.interp(T, t, c) for c in flat.T], axis=1).reshape((T.size,) + log[k].shape[1:])
+        prev = np.clip(np.searchsorted(t, T + 1e-9 * dt, side="right") - 1, 0, t.size - 1)
+        for k in log:  # the flags (and anything else the log holds): the last true row at or before
+            out.setdefault(k, log[k][prev].copy())
+    out["dq"] = out["dq"] * faults.velocity_gain
+    out["tau"] = out["tau"] * faults.torque_gain
+    out["q"][:, BASE_POS.start + 2] += faults.height_offset
+    out["foot_pos"][:, :, 2] += faults.height_offset
+    if faults.contact_lag:
+        lag = faults.contact_lag
+        out["contact"] = np.r_[np.repeat(out["contact"][:1], lag, axis=0), out["contact"][:-lag]]
+    return out

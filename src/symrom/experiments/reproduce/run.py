@@ -19,7 +19,7 @@ from symrom.evaluate.paper import PAPER_TABLE2
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import run_learned, selected
-from symrom.experiments.reproduce.sim2real import SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
+from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
 from symrom.experiments.reproduce.solvers import run_solvers
 from symrom.experiments.reproduce.steps import config_facts, ensure_dataset, selected_config
 from symrom.experiments.reproduce.sweep import run_sweep_step
@@ -96,33 +96,35 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
               only: str | None = None) -> dict:
     """Run every experiment into ``run``; write and return ``summary.json``'s content.
 
-    only: ``sim2real`` runs just the sim-to-real part (with the SIM Go1 selection its settings
-    come from; the datasets it needs), resumable as the rest; the summary then holds that part.
+    only: ``sim2real`` runs just the sim-to-real part (with the SIM Go1 and SIM A1 selections its
+    settings come from; the datasets it needs), resumable as the rest; the summary then holds
+    that part.
     """
     if only is not None and only not in PARTS:
         raise ValueError(f"only={only!r}: not a part of the run; one of: {', '.join(PARTS)}")
     say = say or (lambda msg, transient=False: None)
     t0 = time.perf_counter()
     run.mkdir(parents=True, exist_ok=True)
-    needed = {"go1_sim", *SIM2REAL_SOURCES.values(), *SIM2REAL_TARGETS}
+    settings_of = {t.settings for t in SIM2REAL}  # the SIM experiments whose settings sim-to-real uses
+    needed = {e.data for e in cfg.experiments if e.name in settings_of} | set(SIM2REAL_SOURCES.values()) | set(
+        SIM2REAL_TARGETS)
     specs = [s for s in cfg.datasets if only is None or s.name in needed]
     data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
     summary: dict = {"experiments": {}}
     if only is None:
         for exp in cfg.experiments:
             summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
-        have_sim = "go1_sim" in summary["experiments"]
     else:
-        sim = next((e for e in cfg.experiments if e.name == "go1_sim"), None)
-        have_sim = sim is not None
-        if have_sim:
-            say("go1_sim: selecting the settings on the validation split (the sim-to-real settings)")
-            selected(run, sim, read_dataset(data["go1_sim"]), cfg, say)
-    settings = selected_config(load_model(run / "go1_sim" / "model.json")) if have_sim else None
+        for exp in cfg.experiments:
+            if exp.name in settings_of:
+                say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
+                selected(run, exp, read_dataset(data[exp.data]), cfg, say)
+    settings = {exp.name: selected_config(load_model(run / exp.name / "model.json")) for exp in cfg.experiments
+                if exp.name in settings_of and (run / exp.name / "model.json").is_file()}
     go1 = summary["experiments"].get("go1_sim")
     if go1 is not None and cfg.compare_solvers:
-        go1["solvers"] = run_solvers(run, data["go1_sim"], settings, cfg, say)
-    if settings is not None:
+        go1["solvers"] = run_solvers(run, data["go1_sim"], settings["go1_sim"], cfg, say)
+    if settings:
         entries, tables = run_sim2real(run, data, settings, cfg, say)
         if "go1_proxy" in entries:  # the paper's Table 2 row
             summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
@@ -153,13 +155,32 @@ def sweep_line(sweep: dict, chosen: dict[str, int] | None = None) -> str:
 
 def summary_lines(summary: dict) -> list[str]:
     """A run's summary in words: per experiment its latent dimension, library terms, active terms and
-    diverged test jumps; then the sweep's best latent dimension, told apart from the models'."""
+    diverged test jumps; per sim-to-real target its source as logged, repaired and fine-tuned
+    (``sim2real_line``); then the sweep's best latent dimension, told apart from the models'."""
     lines = []
     for name, exp in summary["experiments"].items():
         metrics = Metrics.from_dict(exp["metrics"])
         lines.append(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
                      f"{exp['active_terms']}, diverged {metrics.full.diverged_jumps}/{metrics.n_jumps}")
+    for name, t in summary.get("sim2real", {}).get("targets", {}).items():
+        lines.append(sim2real_line(name, t))
     if "sweep" in summary:
         lines.append(sweep_line(summary["sweep"], {k: e["latent_dim"] for k, e in summary["experiments"].items()
                                                   if k in ("go1_sim",)}))
     return lines
+
+
+def sim2real_line(name: str, table: dict) -> str:
+    """One target's sim-to-real in one line: the full-horizon x / z RMSE of the source on its test
+    jumps as logged and as repaired, and repaired + fine-tuned, beside the target-alone model."""
+    def xz(key: str) -> str:
+        e = table.get(key)
+        if not e or "refused" in e or e.get("x_rmse") is None:
+            return "-" if not e or "refused" not in e else "refused"
+        return f"{e['x_rmse']:.3f} / {e['z_rmse']:.3f} m" + (f" ({e['diverged_jumps']} diverged)"
+                                                           if e["diverged_jumps"] else "")
+
+    met = [k for k in ("source_z", "fine_tuned_z", "not_above_source", "flight_gravity", "vs_target_alone")
+           if table.get("checks", {}).get(k)]
+    return (f"{name}: x / z RMSE as logged {xz('logged')}, repaired {xz('source')}, repaired + fine-tuned "
+            f"{xz('fine_tuned')}, target alone {xz('target_alone')}; {len(met)} of 5 targets met")

@@ -33,7 +33,7 @@ def ensure_dataset(run: Path, spec: DatasetSpec, cfg: ReproduceConfig, say: Say)
     say(f"generating {spec.name} ({spec.jumps} jumps of {spec.robot} {spec.motion})")
     gc = GenerateConfig(spec.robot, spec.motion, spec.jumps, seed=cfg.seed + spec.seed, proxy=spec.proxy,
                         randomize=spec.randomize, noise=NoiseConfig() if spec.noise else None,
-                        engine=spec.engine or cfg.engine, splits=spec.splits)
+                        engine=spec.engine or cfg.engine, splits=spec.splits, log_faults=spec.log_faults)
     generate(gc, path, backend=cfg.execution(), resume=True,
              progress_callback=lambda done, total, info: say(
                  f"generating {spec.name}: {done}/{total} jumps", transient=True))

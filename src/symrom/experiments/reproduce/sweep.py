@@ -20,7 +20,8 @@ def run_sweep_step(run: Path, data: Path, cfg: ReproduceConfig, say: Say) -> dic
     ds = read_dataset(data)
     sc = SweepConfig(latent_dims=tuple(cfg.sweep_dims), seeds=cfg.sweep_seeds, lam=cfg.sweep_lambda,
                      workers=cfg.workers)
-    result = run_sweep(ds, sc, d, progress=lambda done, total, info: say(f"sweep: {done}/{total} cells", transient=True),
+    result = run_sweep(ds, sc, d,
+                       progress=lambda done, total, info: say(f"sweep: {done}/{total} cells", transient=True),
                        backend=cfg.execution())
     enc = d / "encoders"
     enc.mkdir(parents=True, exist_ok=True)

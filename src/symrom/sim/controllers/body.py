@@ -24,9 +24,8 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
+from symrom.names import GRAVITY
 from symrom.robots import get_robot, robot_key
-
-GRAVITY = 9.81
 
 # name -> "module:class" of a BodySource (constructed with the robot's key); imported when asked for
 BODY_SOURCES: dict[str, str] = {"urdf": "symrom.sim.controllers.urdf_body:UrdfBody"}

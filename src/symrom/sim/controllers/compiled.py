@@ -13,6 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from symrom.names import GRAVITY
 from symrom.robots.compiled import legs_one
 
 njit = numba.njit(cache=True)
@@ -190,7 +191,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     to_base[0, 0], to_base[1, 1], to_base[2, 2] = 1.0, 1.0, 1.0
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
         to_base = R.T @ Y
-    weight = mass * 9.81
+    weight = mass * GRAVITY
     shift = 0.0
     kp, kd, z_leg = np.empty(4), np.empty(4), np.empty(4)
     for k in range(4):

@@ -47,7 +47,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from symrom.names import JOINTS, N_LEGS
+from symrom.names import GRAVITY, JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.stance import leg_length, nominal_feet, start_pose
 from symrom.sim.controllers import compiled
@@ -55,7 +55,7 @@ from symrom.sim.controllers.actuators import Compensation, stance_acceleration
 from symrom.sim.controllers.flight import longest_run
 from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.engines.world import RobotState, World
-from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy
+from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sample_robot
 
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
@@ -119,6 +119,8 @@ REFERENCE_ROBOT = "a1"  # the robot the parameters were tuned on
 # How each parameter scales with the robot (``scaled``): m mass ratio, l leg-length ratio.
 _LENGTHS = ("stand_height", "crouch_height", "crouch_shift", "push_rise")
 _TIMES = ("t_settle", "t_crouch", "t_hold", "t_push_all", "t_push_rear", "t_after_land", "max_time", "raibert")
+_PUSH = ("t_push_all", "t_push_rear")  # the push: longer on legs weak for their size
+WEAK = 0.6  # legs with less than this share of the A1's torque capacity push longer (``scaled``)
 _STIFF = ("kp_stance", "kp_push", "kp_swing", "kp_land")  # N/m
 _DAMP = ("kd_stance", "kd_push", "kd_swing", "kd_land")  # N s/m
 
@@ -145,14 +147,20 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
     Mini Cheetah then lands nose-down past the tilt check). A robot whose legs are weaker for its size
     than the A1's (``torque_capacity``, ratio c < 1) gets its thrust times sqrt(c): the
     push then stays within what its motors give for longer (the controller scales each
-    leg's torques into the limits). The A1's are returned unchanged."""
+    leg's torques into the limits). Below 0.6 of the A1's (``WEAK``: Menagerie's Barkour vB,
+    ANYmal B and C) both parts of the push also last 1 / sqrt(c) times as long, so the push's
+    impulse stays: with the A1's timing those leave the ground at half the speed the flight
+    needs. Stronger legs keep it (the Mini Cheetah's landing is tuned on it). The A1's are
+    returned unchanged."""
     m, l = scales(robot)
     if (m, l) == (1.0, 1.0):
         return params
     root = float(np.sqrt(l))
-    m_thrust = m * float(np.sqrt(min(1.0, torque_capacity(robot) / torque_capacity(REFERENCE_ROBOT))))
+    c = min(1.0, torque_capacity(robot) / torque_capacity(REFERENCE_ROBOT))
+    m_thrust = m * float(np.sqrt(c))
+    stretch = 1.0 / float(np.sqrt(c)) if c < WEAK else 1.0
     f = {n: getattr(params, n) * l for n in _LENGTHS}
-    f |= {n: getattr(params, n) * root for n in _TIMES}
+    f |= {n: getattr(params, n) * root * (stretch if n in _PUSH else 1.0) for n in _TIMES}
     f |= {n: getattr(params, n) * m / l for n in _STIFF}
     f |= {n: getattr(params, n) * m / root for n in _DAMP}
     f |= {"push_speed": params.push_speed * root, "force_all": params.force_all * m_thrust,
@@ -163,36 +171,80 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
 
 @dataclass(frozen=True)
 class FroggyRanges:
-    """Uniform ranges (low, high) of a ``randomized`` froggy jump, for the A1 (then ``scaled``):
-    crouch_height m, crouch_pitch rad, push_speed m/s, angle rad, t_hold, t_push_all and
-    t_push_rear s (the rear-only phase's length), force_all N (force_rear: 0.5-0.7 of it).
-    Wider than the nominal jumps' on every side."""
+    """Uniform ranges (low, high) of a drawn froggy jump, for the A1 (then ``scaled``):
+    crouch_height, crouch_shift m, crouch_pitch rad, push_speed m/s, angle rad, t_hold,
+    t_push_all and t_push_rear s (the rear-only push's length), force_all N (force_rear:
+    ``rear_share`` of it), k_att N m/rad, d_att N m s/rad, kp_push N/m. ``FroggyRanges()``
+    draws ``FroggyParams()``'s jump."""
 
-    crouch_height: tuple[float, float] = (0.175, 0.2)
-    crouch_pitch: tuple[float, float] = (0.12, 0.28)
-    push_speed: tuple[float, float] = (1.1, 1.5)
-    angle: tuple[float, float] = (0.25, 0.5)
-    t_hold: tuple[float, float] = (0.03, 0.15)
-    t_push_all: tuple[float, float] = (0.055, 0.09)
-    t_push_rear: tuple[float, float] = (0.05, 0.11)
-    force_all: tuple[float, float] = (230.0, 330.0)
-    rear_share: tuple[float, float] = (0.5, 0.7)
+    crouch_height: tuple[float, float] = (0.19, 0.19)
+    crouch_pitch: tuple[float, float] = (0.2, 0.2)
+    push_speed: tuple[float, float] = (1.3, 1.3)
+    angle: tuple[float, float] = (0.4, 0.4)
+    t_hold: tuple[float, float] = (0.08, 0.08)
+    t_push_all: tuple[float, float] = (0.07, 0.07)
+    t_push_rear: tuple[float, float] = (0.07, 0.07)
+    force_all: tuple[float, float] = (250.0, 250.0)
+    rear_share: tuple[float, float] = (0.6, 0.6)
+    crouch_shift: tuple[float, float] = (0.02, 0.02)
+    k_att: tuple[float, float] = (150.0, 150.0)
+    d_att: tuple[float, float] = (8.0, 8.0)
+    kp_push: tuple[float, float] = (200.0, 200.0)
+
+    def draw(self, rng: np.random.Generator, **fixed) -> FroggyParams:
+        """One jump's parameters (the A1's) drawn from the ranges, in the fields' order; ``fixed``:
+        other ``FroggyParams`` fields as given."""
+        u = rng.uniform
+        v = {f: float(u(*getattr(self, f))) for f in ("crouch_height", "crouch_pitch", "push_speed", "angle",
+                                                     "t_hold", "t_push_all", "t_push_rear", "force_all")}
+        v["force_rear"] = v["force_all"] * float(u(*self.rear_share))
+        v |= {f: float(u(*getattr(self, f))) for f in ("crouch_shift", "k_att", "d_att", "kp_push")}
+        return FroggyParams(**v, **fixed)
 
 
-RANDOMIZED_MOTION = FroggyRanges()
+# A real froggy's jump (the A1's jumps by Nguyen et al.'s controller): the front feet leave the
+# ground early in a long, slow push (a crouch shifted back over the rear feet, the take-off line
+# 47-54 degrees from vertical, the rear feet pushing with about the whole thrust), and the rear
+# feet hold the ground for 0.25-0.35 s while the body turns nose-up by 0.15-0.45 rad, where
+# ``FroggyParams()``'s jumps spend about 0.07 s on the rear feet and turn nose-down. Measured on
+# the A1 in MuJoCo on the proxy's worlds (``proxy.PROXY_RANGES``, one robot per draw): 43 of 60
+# draws land, their rear-only phase 0.25-0.35 s (median 0.29 s) (docs/simulation.md).
+REAL_MOTION = FroggyRanges(
+    crouch_height=(0.18, 0.19), crouch_shift=(0.105, 0.122), crouch_pitch=(-0.12, 0.0), push_speed=(0.55, 0.72),
+    t_hold=(0.06, 0.1), t_push_all=(0.06, 0.08), t_push_rear=(0.3, 0.37), force_all=(210.0, 260.0),
+    rear_share=(0.95, 1.1), angle=(0.82, 0.95), k_att=(100.0, 140.0), d_att=(6.0, 8.5), kp_push=(300.0, 420.0))
+
+# Domain-randomised source jumps, of two kinds drawn with equal chance: ``FroggyParams()``'s quick
+# push (the rear feet alone for 0.04-0.1 s, nose-down crouch) and a real froggy's long one
+# (``REAL_MOTION`` widened on every side), each over ranges its draws land in on the randomised
+# worlds (``proxy.RANDOMIZED_RANGES``); a draw that does not land is replaced by a fresh one
+# (``generation.runner.DRAWN_ATTEMPTS``).
+RANDOMIZED_QUICK = FroggyRanges(
+    crouch_height=(0.175, 0.2), crouch_pitch=(0.12, 0.2), push_speed=(1.1, 1.4), angle=(0.25, 0.45),
+    t_hold=(0.03, 0.15), t_push_all=(0.055, 0.09), t_push_rear=(0.055, 0.11), force_all=(260.0, 330.0),
+    rear_share=(0.55, 0.7))
+RANDOMIZED_LONG = FroggyRanges(
+    crouch_height=(0.172, 0.19), crouch_shift=(0.1, 0.125), crouch_pitch=(-0.13, 0.02), push_speed=(0.45, 0.8),
+    t_hold=(0.03, 0.15), t_push_all=(0.055, 0.09), t_push_rear=(0.29, 0.38), force_all=(200.0, 320.0),
+    rear_share=(0.9, 1.12), angle=(0.8, 0.97), k_att=(95.0, 145.0), d_att=(5.5, 9.0), kp_push=(260.0, 440.0))
+RANDOMIZED_MOTION = (RANDOMIZED_QUICK, RANDOMIZED_LONG)
 
 
 def sample_randomized(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> FroggyParams:
-    """A domain-randomised froggy jump: the motion from ``RANDOMIZED_MOTION`` and the world
-    from ``proxy.RANDOMIZED_RANGES``; scaled to ``robot``."""
-    r, u = RANDOMIZED_MOTION, rng.uniform
-    force_all = float(u(*r.force_all))
-    return scaled(FroggyParams(
-        crouch_height=float(u(*r.crouch_height)), crouch_pitch=float(u(*r.crouch_pitch)),
-        push_speed=float(u(*r.push_speed)), angle=float(u(*r.angle)), t_hold=float(u(*r.t_hold)),
-        t_push_all=float(u(*r.t_push_all)), t_push_rear=float(u(*r.t_push_rear)), force_all=force_all,
-        force_rear=force_all * float(u(*r.rear_share)), t_after_land=float(u(1.0, 1.2)),
-        proxy=sample_proxy(rng, RANDOMIZED_RANGES), randomized=True), robot)
+    """A domain-randomised froggy jump: the motion from one of ``RANDOMIZED_MOTION``'s kinds
+    (equal chance) and the world from ``proxy.RANDOMIZED_RANGES``; scaled to ``robot``."""
+    ranges = RANDOMIZED_MOTION[int(rng.random() < 0.5)]
+    params = ranges.draw(rng, t_after_land=float(rng.uniform(1.0, 1.2)))
+    return scaled(replace(params, proxy=sample_proxy(rng, RANDOMIZED_RANGES), randomized=True), robot)
+
+
+def sample_real(rng: np.random.Generator, robot: str = REFERENCE_ROBOT,
+                proxy_robot: ProxyConfig | None = None) -> FroggyParams:
+    """A hardware-like froggy jump (the ``proxy`` variant, ``source = proxy``): the motion of a
+    real froggy (``REAL_MOTION``) on the proxy's world (``proxy.PROXY_RANGES``; the hardware
+    constants of ``proxy_robot``, one per dataset, and the per-jump rest); scaled to ``robot``."""
+    params = REAL_MOTION.draw(rng, t_after_land=float(rng.uniform(1.0, 1.2)))
+    return scaled(replace(params, proxy=sample_proxy(rng, robot=proxy_robot)), robot)
 
 
 def sample_params(rng: np.random.Generator, robot: str = REFERENCE_ROBOT) -> FroggyParams:
@@ -493,7 +545,7 @@ class FroggyController:
         # Stance targets are body-fixed (their offsets give the body its attitude stiffness);
         # in flight they are level (yaw-only frame), so the legs hang plumb for landing.
         to_base = s.R.T @ yaw_matrix(s.q[17]) if self.phase == "flight" else np.eye(3)
-        weight = self.mass * 9.81
+        weight = self.mass * GRAVITY
         height = p.stand_height
         shift = 0.0
         kp = np.full(N_LEGS, p.kp_stance)
@@ -589,13 +641,19 @@ class FroggyChecks:
 @dataclass(frozen=True)
 class FroggyMotion(PlainMotion):
     """The froggy plug-in (registry entry ``froggy``): rear-only push right before the flight;
-    variant ``randomized``: domain-randomised source jumps (``sample_randomized``)."""
+    variant ``randomized``: domain-randomised source jumps (``sample_randomized``); ``proxy``: a
+    real froggy's jumps on a hardware-like robot (``sample_real``)."""
 
     checks: FroggyChecks = FroggyChecks()
 
     def sample_params(self, rng: np.random.Generator, robot: str, variant: str | None,
                       dataset_rng: np.random.Generator | None = None) -> FroggyParams:
+        if variant == "proxy":  # one robot per dataset, as pronk's proxy
+            return sample_real(rng, robot, sample_robot(dataset_rng) if dataset_rng is not None else None)
         return sample_randomized(rng, robot) if variant == "randomized" else sample_params(rng, robot)
+
+    def source(self, params: FroggyParams) -> str:
+        return "sim" if params.proxy is None or params.randomized else "proxy"
 
     def make_controller(self, robot: str, params: FroggyParams, mpc_solver: str = "osqp") -> FroggyController:
         """A froggy controller (a Cartesian PD: no MPC, ``mpc_solver`` is not used)."""

@@ -28,8 +28,8 @@ of two solvers (``MPCConfig.solver``):
   stops at its tolerances (1e-3), a few newtons from the optimum.
 - ``daqp``: the dual active-set solver DAQP on the condensed form (forces only,
   ``H`` (12 h, 12 h) dense), warm-started with the last solve's active set. It
-  returns the optimum to DAQP's tolerances (1e-6), in a third of OSQP's time
-  per solve here (docs/engines.md): with the yaw fixed, ``H = 2 (D^T W D + alpha I)`` needs only the
+  returns the optimum to DAQP's tolerances (1e-6), in fewer and cheaper iterations
+  (timed in docs/engines.md, "Speed"): with the yaw fixed, ``H = 2 (D^T W D + alpha I)`` needs only the
   moment arms per solve (``D`` block diagonal, the input map's six rows that move),
   ``W`` being kept per yaw (``CondensedForm``).
 """
@@ -38,14 +38,18 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import numpy as np
 import daqp
-import osqp
+import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from symrom.names import GRAVITY
 from symrom.sim.controllers.compiled import clip_forces, condensed_qp
+
+if TYPE_CHECKING:
+    import osqp
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
@@ -65,7 +69,7 @@ class MPCConfig:
     (forces are tens of N, so 1e-3 changes nothing a robot would feel);
     check_termination: OSQP checks them every that many iterations (its default, 25).
     Warm-started from the previous solve, a solve meets the tolerances within 10-30
-    iterations, so checking every 5 makes it about 2.5 times faster; but it then stops
+    iterations, so checking every 5 stops it sooner; but it then stops
     at another point within the tolerances, which changes the landings (the median peak
     knee torque of 24 Go1 jumps moves by -6 %), so the default keeps the data as they were.
     """
@@ -386,6 +390,8 @@ class ConvexMPC:
         q = np.zeros(self._nx + self._nu)
         np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
         if self._solver is None:
+            import osqp  # here: only the osqp solver needs it
+
             self._solver = osqp.OSQP()
             M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),
                               shape=self._M_template.shape)
@@ -473,6 +479,6 @@ class ConvexMPC:
 
 
 def srb_state(rpy: np.ndarray, p_com: np.ndarray, omega: np.ndarray, v_com: np.ndarray,
-              gravity: float = 9.81) -> np.ndarray:
+              gravity: float = GRAVITY) -> np.ndarray:
     """Pack the MPC state (13,) from rpy (3,) rad, CoM p (3,) m, omega (3,) rad/s, v (3,) m/s."""
     return np.concatenate([rpy, p_com, omega, v_com, [gravity]])

@@ -67,12 +67,12 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
+from symrom.names import BASE_POS, BASE_RPY, GRAVITY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import get_robot, leg_kinematics
 from symrom.robots.compiled import legs_one
 from symrom.robots.stance import leg_length, standing_joints, start_pose
 from symrom.sim.controllers.actuators import Compensation
-from symrom.sim.controllers.body import GRAVITY, LegGravity, body_model
+from symrom.sim.controllers.body import LegGravity, body_model
 from symrom.sim.controllers.compiled import pronk_stance_torque as stance_torque
 from symrom.sim.controllers.motion import PlainMotion, PushCommand
 from symrom.sim.controllers.mpc import ConvexMPC, MPCConfig, rot_z, srb_state

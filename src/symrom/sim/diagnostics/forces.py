@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from symrom.data.dataset import Dataset
+from symrom.names import GRAVITY
 from symrom.robots import get_robot
-from symrom.sim.controllers.body import GRAVITY
 
 AXES = ("x", "y", "z")
 

@@ -15,8 +15,8 @@ Every module of symrom imports PyBullet as ``from symrom.sim.engines.bullet impo
 
 ``client()`` and ``release(cid)`` hand out and take back DIRECT clients: a
 released client is emptied (``resetSimulation``) and kept for the next request
-of the process. Connecting anew costs ~15 ms (the allocator gives Bullet's ~30 MB
-back to the system at each disconnect), a tenth of a jump's simulation.
+of the process: connecting anew costs a noticeable share of a jump's simulation (the
+allocator gives Bullet's memory back to the system at each disconnect; docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -32,8 +32,13 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.engines.compiled import base_state
-from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
-                                      standing_configuration)
+from symrom.sim.engines.world import (
+    RobotState,
+    WorldConfig,
+    check_ground_contact,
+    euler_rate_matrix,
+    standing_configuration,
+)
 
 
 def _import_quietly():

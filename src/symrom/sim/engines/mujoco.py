@@ -49,8 +49,13 @@ from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_ke
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.mjcf import foot_frames
 from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state, settle_mujoco
-from symrom.sim.engines.world import (RobotState, WorldConfig, check_ground_contact, euler_rate_matrix,
-                                      standing_configuration)
+from symrom.sim.engines.world import (
+    RobotState,
+    WorldConfig,
+    check_ground_contact,
+    euler_rate_matrix,
+    standing_configuration,
+)
 
 SOLREF = (0.005, 1.0)  # s, damping ratio: ground contact as stiff as a 1 kHz step resolves well
 CONTACT_MARGIN = 0.001  # m: a foot this near the ground counts as touching it (no force before it does)

@@ -66,5 +66,5 @@ def make_world(engine: str, robot: str, config: WorldConfig = WorldConfig(),
     return engine_class(check_engine(engine, robot))(robot, config, effects=effects)
 
 
-__all__ = ["DEFAULT_ENGINE", "ENGINES", "NEEDS_URDF", "EngineRobotError", "UnknownEngineError", "check_engine", "engine_class", "engine_module",
-           "engine_names", "make_world"]
+__all__ = ["DEFAULT_ENGINE", "ENGINES", "NEEDS_URDF", "EngineRobotError", "UnknownEngineError", "check_engine",
+           "engine_class", "engine_module", "engine_names", "make_world"]

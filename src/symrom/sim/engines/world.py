@@ -33,7 +33,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_Q
+from symrom.names import BASE_POS, BASE_RPY, GRAVITY, JOINTS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription
 
 
@@ -52,7 +52,7 @@ class WorldConfig:
 
     physics_hz: int = 1000
     log_hz: int = 500
-    gravity: float = 9.81
+    gravity: float = GRAVITY
     lateral_friction: float = 0.8
     spinning_friction: float = 0.01
     rolling_friction: float = 0.0

@@ -18,6 +18,7 @@ from symrom.names import BASE_POS, BASE_RPY
 from symrom.robots import get_robot
 from symrom.sim.controllers.flight import longest_run, runs
 
+
 @dataclass(frozen=True)
 class JumpChecks:
     """What every kept jump must show (from its logged samples).

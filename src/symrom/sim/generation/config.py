@@ -23,12 +23,16 @@ from symrom.sim.generation.checks import JumpChecks
 # per-jump effects per jump; its jumps change), the randomized variant (all per jump); the A1's
 # and Go1's nominal and noisy PyBullet jumps bitwise those of 3; 5: the MPC's QP solver is a
 # choice (``mpc_solver``), DAQP by default in MuJoCo (its pronk jumps change), OSQP in PyBullet
-# (its jumps bitwise those of 4)
-GENERATOR_VERSION = 5
+# (its jumps bitwise those of 4); 6: froggy's randomised jumps draw two kinds of push (a quick one and
+# a real froggy's long one; its data change), froggy has a hardware-like variant (``proxy``), a drawn
+# variant replaces a draw that does not land up to ``runner.DRAWN_ATTEMPTS`` times, and a file may be
+# logged with a real robot's log faults (``log_faults``); nominal, noisy and proxy pronk jumps and
+# nominal froggy jumps bitwise those of 5
+GENERATOR_VERSION = 6
 
 # The MPC's QP solver when a config names none, per engine. PyBullet keeps OSQP: every PyBullet
 # dataset behind the documented results was made with it, and stays reproducible bit for bit.
-# MuJoCo takes DAQP, exact and a third of OSQP's time per solve (docs/engines.md, "Speed").
+# MuJoCo takes DAQP: exact, and cheaper per solve (timed in docs/engines.md, "Speed").
 MPC_SOLVER = {"pybullet": "osqp", "mujoco": "daqp"}
 
 
@@ -67,11 +71,15 @@ class GenerateConfig:
     n_jumps; seed; proxy: the motion's hardware-like variant; randomize: its
     domain-randomised variant (``randomized``; not with proxy); noise: the noisy
     variant or None; world, checks: physics and the kept-jump checks;
-    max_attempts: tries per jump before generation fails; engine: the physics engine
+    max_attempts: tries per jump before generation fails (a drawn variant, proxy or randomized,
+    has at least ``runner.DRAWN_ATTEMPTS``: a draw that fails is replaced); engine: the physics engine
     (``symrom.sim.engines.registry.ENGINES``); splits: (train, val, test) jump counts, None for the
     motion's (``generate.split_counts``); mpc_solver: the QP solver of a motion's MPC
     (``symrom.sim.controllers.mpc.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
-    None for the engine's (``MPC_SOLVER``), which is what the file records.
+    None for the engine's (``MPC_SOLVER``), which is what the file records; log_faults: the
+    jumps are logged with a real robot's log faults (``symrom.sim.proxy.LogFaults``: a slow or
+    wobbling loop, velocities and torques off, a height offset, a contact lag), one robot's
+    drawn once from the seed (``runner.log_faults_of``) and applied to each kept jump.
     """
 
     robot: str
@@ -87,6 +95,7 @@ class GenerateConfig:
     randomize: bool = False
     splits: tuple[int, int, int] | None = None
     mpc_solver: str | None = None
+    log_faults: str | None = None
 
     def __post_init__(self) -> None:
         if self.mpc_solver is None:  # an unknown engine is refused by ``generate.check_config``
@@ -100,6 +109,8 @@ class GenerateConfig:
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["noise"] = None if self.noise is None else asdict(self.noise)
+        if self.log_faults is None:  # the record (and fingerprint) of a file without them, as before
+            del d["log_faults"]
         return d
 
     def fingerprint(self) -> str:

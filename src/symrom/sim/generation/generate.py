@@ -21,7 +21,7 @@ import os
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,8 +38,8 @@ from symrom.sim.controllers.mpc import QP_SOLVERS
 from symrom.sim.engines.registry import EngineRobotError, UnknownEngineError, check_engine, engine_module
 from symrom.sim.generation.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.generation.parts import jsonable, part_path, parts_dir, read_part, write_part
-from symrom.sim.generation.runner import GenerationError, jump_seed, run_checked_jump
-from symrom.sim.proxy import ROBOT_FIELDS
+from symrom.sim.generation.runner import GenerationError, jump_seed, log_faults_of, run_checked_jump
+from symrom.sim.proxy import LOG_FAULTS, ROBOT_FIELDS
 
 __all__ = ["GenerateConfig", "GenerationError", "NoiseConfig", "build_dataset", "generate", "jump_seed",
            "motion_available", "parts_dir", "run_record_path", "split_counts", "split_labels"]
@@ -110,6 +110,8 @@ def build_dataset(cfg: GenerateConfig, logs: list[dict[str, np.ndarray]], record
              else np.repeat(np.array(SPLITS, dtype=object), counts))
     if cfg.variant == "proxy":  # one robot: its hardware constants, once (each jump's record has them too)
         generator["proxy_robot"] = proxy_robot(records)
+    if cfg.log_faults is not None:  # the robot's logger, once (each jump's record has them with its phase)
+        generator["log_faults"] = asdict(log_faults_of(cfg))
     if cfg.robot not in ROBOTS:  # a description file: keep its text with the data
         generator["robot_description"] = get_robot(cfg.robot).source.read_text()
     return assemble(robot=cfg.robot, motion=cfg.motion, source=records[0]["source"], jump=jump,
@@ -172,6 +174,9 @@ def check_config(cfg: GenerateConfig) -> GenerateConfig:
         raise GenerationError(str(e)) from None
     if cfg.proxy and cfg.randomize:
         raise GenerationError("proxy=True and randomize=True are two variants; choose one")
+    if cfg.log_faults is not None and cfg.log_faults not in LOG_FAULTS:
+        raise GenerationError(f"log_faults={cfg.log_faults!r}: not a kind of log faults; one of: "
+                              f"{', '.join(LOG_FAULTS)}")
     for flag, variant in (("proxy=True", "proxy"), ("randomize=True", "randomized")):
         if cfg.variant == variant and variant not in entry.variants:
             offered = [m for m, e in MOTIONS.items() if variant in e.variants]

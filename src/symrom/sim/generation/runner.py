@@ -23,7 +23,7 @@ from symrom.sim.generation.checks import check_jump
 from symrom.sim.generation.config import GenerateConfig, NoiseConfig
 from symrom.sim.generation.episode import BasePush, run_episode
 from symrom.sim.generation.parts import LOG_KEYS, jsonable
-from symrom.sim.proxy import ProxyWorld
+from symrom.sim.proxy import LOG_FAULTS, LogFaults, ProxyWorld, apply_log_faults, sample_log_faults
 
 
 class GenerationError(RuntimeError):
@@ -39,6 +39,20 @@ def dataset_seed(seed: int) -> np.random.SeedSequence:
     """The seed of what all jumps of a file share (the proxy's robot): the generation seed
     alone (a spawn key of one entry, never a jump's)."""
     return np.random.SeedSequence(seed, spawn_key=(0,))
+
+
+def faults_seed(seed: int) -> np.random.SeedSequence:
+    """The seed of a file's log faults (one robot's, ``log_faults_of``): the generation seed
+    alone, apart from the proxy robot's (``dataset_seed``), so drawing them changes nothing else."""
+    return np.random.SeedSequence(seed, spawn_key=(1,))
+
+
+def log_faults_of(cfg: GenerateConfig) -> LogFaults:
+    """The log faults of ``cfg``'s robot (``LOG_FAULTS[cfg.log_faults]``, drawn once from its
+    seed), or none."""
+    if cfg.log_faults is None:
+        return LogFaults()
+    return sample_log_faults(np.random.default_rng(faults_seed(cfg.seed)), LOG_FAULTS[cfg.log_faults])
 
 
 def _noisy(s: RobotState, noise: NoiseConfig, rng: np.random.Generator) -> RobotState:
@@ -120,16 +134,32 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
     return arrays, info
 
 
+# A drawn jump (the ``randomized`` and ``proxy`` variants draw the motion's parameters and the
+# world from ranges) that the controller cannot land is replaced by a fresh draw from the same
+# ranges, each recorded as a retry: at least this many draws, so that a run of them never stops
+# at the ranges' landing rates (docs/simulation.md: at the lowest, 0.7 of the randomised froggy's
+# draws land; 100 failures in a row then have a chance below 1e-50).
+DRAWN_ATTEMPTS = 100
+
+
+def attempts(cfg: GenerateConfig) -> int:
+    """The most tries of one jump: ``cfg.max_attempts``, at least ``DRAWN_ATTEMPTS`` for a drawn variant."""
+    return cfg.max_attempts if cfg.variant is None else max(cfg.max_attempts, DRAWN_ATTEMPTS)
+
+
 def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarray], dict]:
-    """Run jump ``jump`` until it passes the checks (at most ``cfg.max_attempts`` tries).
+    """Run jump ``jump`` until it passes the checks (at most ``attempts(cfg)`` tries).
 
     Returns the log and a JSON-ready record: jump, attempt, spawn_key, failed
-    attempts with reasons, params, source.
+    attempts with reasons, params, source. With ``cfg.log_faults`` the checked jump is
+    returned as a faulty logger writes it (``proxy.apply_log_faults``; its wobble's phase
+    drawn from the jump seed's third child), the faults in the record's ``log_faults``.
     """
     motion = load_motion(cfg.motion)
     dt = cfg.world.dt * cfg.world.log_every
     failures = []
-    for attempt in range(cfg.max_attempts):
+    tries = attempts(cfg)
+    for attempt in range(tries):
         log, info = run_jump(cfg, jump_seed(cfg.seed, jump, attempt))
         if "stopped" in info:  # failed for certain while it ran; the other checks were not run
             bad = [info["stopped"]]
@@ -139,7 +169,14 @@ def run_checked_jump(cfg: GenerateConfig, jump: int) -> tuple[dict[str, np.ndarr
         if not bad:
             record = {"jump": jump, "attempt": attempt, "spawn_key": [jump, attempt],
                       "retries": failures, "samples": int(log["t"].shape[0]), **info}
+            if cfg.log_faults is not None:  # the checked true jump, as a faulty logger writes it
+                faults = log_faults_of(cfg)
+                phase = float(np.random.default_rng(np.random.SeedSequence(
+                    cfg.seed, spawn_key=(jump, attempt, 2))).uniform(0.0, 2 * np.pi))
+                log = apply_log_faults(log, faults, dt, phase)
+                record["log_faults"] = {**asdict(faults), "phase": phase, "true_samples": record["samples"]}
+                record["samples"] = int(log["t"].shape[0])
             return log, record
         failures.append({"attempt": attempt, "reasons": bad})
-    raise GenerationError(f"jump {jump}: no valid jump in {cfg.max_attempts} attempts "
+    raise GenerationError(f"jump {jump}: no valid jump in {tries} attempts "
                           f"(last: {'; '.join(failures[-1]['reasons'])})")
