@@ -39,13 +39,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from symrom.data.dataset import Dataset, jump_bounds
-from symrom.names import BASE_POS, FLIGHT_PHASE
+from symrom.names import BASE_POS, FLIGHT_PHASE, GRAVITY  # GRAVITY: the allowance's scale without flight rows
 
 STEP_TOLERANCE = 0.1  # largest |R(h lambda) - exp(h lambda)| / max(1, |exp(h lambda)|) of a carried mode
 STATES = 32  # states per phase where the modes are taken (evenly spaced over its rows)
 FLIGHT_SHARE = 0.05  # the flight's z acceleration within this share of the data's
 NOISE_SE = 3.0  # standard errors of the data's phase mean a model's mean may differ by (beyond FLIGHT_SHARE)
-GRAVITY = 9.81  # m/s^2: the scale of the allowance of data without flight rows
 AXES = {"x": BASE_POS.start, "z": BASE_POS.start + 2}  # decoded base axes checked: index into q
 
 
