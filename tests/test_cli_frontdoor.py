@@ -8,13 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.cli.common import flag_text
 from symrom.data.io import read_dataset, write_dataset
 from symrom.testing import make_planted_dataset
-from conftest import one_line_error
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()

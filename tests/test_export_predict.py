@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from symrom.data.preprocess import input_from_torques
-from symrom.learn.training import TrainConfig, train
 from symrom.export import export
+from symrom.learn.training import TrainConfig, train
 
 
 @pytest.fixture(scope="module")

@@ -4,10 +4,10 @@ import json
 
 import numpy as np
 import pytest
+from conftest import as_format
 
 from symrom.learn.guards import fit_guards
 from symrom.learn.training import TrainConfig, train
-from conftest import as_format
 from symrom.model.guards import Guard, feature_names, first_switch, switch
 from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
 
@@ -22,7 +22,7 @@ def _planted_hops(n_jumps: int, seed: int):
     for _ in range(n_jumps):
         push = rng.uniform(14.0, 20.0)
         x, v, p, k_in, rows = 0.2, 0.0, 0, 0, []
-        for k in range(400):
+        for _k in range(400):
             nu = push if p == 0 else 0.0
             if p == 0 and k_in * DT >= 0.02 and x >= 0.30:
                 p, k_in = 1, 0

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import at_times, jump, proxy_go1, sim_go1, write_hardware, write_plain
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.consistency import stale_mask
 from symrom.data.importers import LogError, diff_samples, import_logs

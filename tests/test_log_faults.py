@@ -10,10 +10,10 @@ from functools import cache
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
-
 from _logs import jump, sim_go1
 from _simdata import tmp_path
+from scipy.interpolate import CubicSpline
+
 from symrom.data.importers import import_logs, write_plain_csv
 from symrom.data.repair import RepairLimits
 from symrom.sim.controllers.flight import longest_run
@@ -119,7 +119,7 @@ def test_the_hardware_like_a1_froggy_holds_its_rear_feet_as_a_real_one_and_its_s
         assert 0.25 <= rear_s <= 0.4 and -ds.q[a:b, 16].min() >= 0.15, (rear_s, ds.q[a:b, 16].min())
     write_plain_csv(ds, tmp_path / "a1.csv", accelerations=False)
     rep, _ = import_logs([tmp_path / "a1.csv"], robot="a1", motion="froggy", segment="off", repair=RepairLimits())
-    for (a, b), r, rec in zip(rep.jump_bounds(), rep.generator["repairs"]["jumps"], ds.generator["jumps"]):
+    for r, rec in zip(rep.generator["repairs"]["jumps"], ds.generator["jumps"]):
         assert r["clock"]["finding"] == "clock", r["line"]
         true_duration = (rec["log_faults"]["true_samples"] - 1) * 0.002
         assert abs(r["clock"]["scale"] * (rec["samples"] - 1) * 0.002 / true_duration - 1) < 0.01

@@ -97,6 +97,7 @@ def test_a_diverging_path_is_reported(fitted):
 def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path):
     import json
 
+    from conftest import one_line_error
     from typer.testing import CliRunner
 
     from symrom.cli import app
@@ -104,7 +105,6 @@ def test_evaluate_with_predicted_phases_reports_switching_times(fitted, tmp_path
     from symrom.evaluate.metrics import evaluate_model
     from symrom.evaluate.switching import predicted_rollout
     from symrom.model.persistence import model_to_dict, save_model
-    from conftest import one_line_error
 
     model, ds, j = fitted
     jumps = ds.jumps_in("test")

@@ -7,13 +7,23 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from _simdata import tmp_path
+
 from symrom.names import BASE_POS, JOINTS
 from symrom.robots import ActuatorEffects
 from symrom.sim.engines.registry import make_world
-from symrom.sim.proxy import (JUMP_FIELDS, PROXY_RANGES, RANDOMIZED_RANGES, ROBOT_FIELDS, ProxyConfig, ProxyWorld,
-                              for_engine, robot_constants, sample_proxy, sample_robot)
+from symrom.sim.proxy import (
+    JUMP_FIELDS,
+    PROXY_RANGES,
+    RANDOMIZED_RANGES,
+    ROBOT_FIELDS,
+    ProxyConfig,
+    ProxyWorld,
+    for_engine,
+    robot_constants,
+    sample_proxy,
+    sample_robot,
+)
 
 ENGINES = ("pybullet", "mujoco")
 KNEE = 2  # FR knee
@@ -157,8 +167,8 @@ def test_randomized_variant_recorded_and_reproducible():
         generate(replace(cfg, proxy=True), tmp_path("rand_c.h5"), force=True)
     # froggy's randomised jumps vary the length of the rear-only phase: a quick push and a real
     # froggy's long one (each kind's ranges covering the hardware-like froggy's on every side)
-    from symrom.sim.controllers.froggy import (MOTION as FROGGY, RANDOMIZED_LONG, RANDOMIZED_QUICK, REAL_MOTION,
-                                               FroggyParams, FroggyRanges)
+    from symrom.sim.controllers.froggy import MOTION as FROGGY
+    from symrom.sim.controllers.froggy import RANDOMIZED_LONG, RANDOMIZED_QUICK, REAL_MOTION, FroggyParams, FroggyRanges
 
     nominal, drawn = FroggyParams(), FroggyRanges().draw(np.random.default_rng(0))
     assert all(getattr(drawn, f) == pytest.approx(getattr(nominal, f)) for f in nominal.__dataclass_fields__

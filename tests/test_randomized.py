@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from _simdata import tmp_path
+
 from symrom.sim.controllers.flight import longest_run
 from symrom.sim.controllers.froggy import RANDOMIZED_LONG, RANDOMIZED_QUICK
 from symrom.sim.generation.generate import GenerateConfig, generate

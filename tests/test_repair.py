@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
-
 from _logs import jump, on_clock, proxy_go1, sim_a1_froggy, sim_go1, write_plain, write_ros2
 from conftest import one_line_error
+from typer.testing import CliRunner
+
 from symrom.cli import app
 from symrom.data.importers import import_logs, read_log
 from symrom.data.io import read_dataset
@@ -401,7 +401,7 @@ def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_a
                    "a1_untimed.csv", "without a time column ('t')", "--period", "--repair")
     lg = read_log(path, period=0.002)
     assert lg.period == 0.002 and lg.n_jumps == ds.n_jumps
-    for j, (a, b) in enumerate(lg.bounds()):
+    for a, b in lg.bounds():
         np.testing.assert_array_equal(lg.t[a:b], np.arange(b - a) * 0.002)
     recs = repair_log(lg, "a1", REPAIR)
     for j, rec in enumerate(recs):

@@ -7,11 +7,10 @@ import shutil
 from dataclasses import replace
 
 import pytest
-
 from _simdata import reference_file
+
 from symrom.experiments.reproduce import ReproduceConfig, reproduce
 from symrom.learn.training import AdamConfig
-
 
 
 @pytest.fixture(scope="module")

@@ -5,13 +5,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
 from symrom.data.io import write_dataset
-from symrom.experiments.select import (SelectionConfig, choose, parse_library, select, selection_rule,
-                                      to_refine)
-from conftest import one_line_error
+from symrom.experiments.select import SelectionConfig, choose, parse_library, select, selection_rule, to_refine
 
 GRID = SelectionConfig(encoders=("all", "base_position"), latent_dims=(2,), libraries=("poly1+trig+inputs",),
                        thresholds=(1e-3, 1e-2), refine_top=1)

@@ -11,7 +11,7 @@ import functools
 import re
 import sys
 from collections.abc import Callable
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -48,7 +48,7 @@ Force = Annotated[bool, typer.Option("--force", help="Overwrite an existing outp
 BackendName = Annotated[str, typer.Option(
     "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
                       "pip install 'symrom\\[ray]').")]
-Address = Annotated[Optional[str], typer.Option(
+Address = Annotated[str | None, typer.Option(
     "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
                       "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
                       "instance on this machine.")]

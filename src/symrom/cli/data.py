@@ -4,12 +4,27 @@ jump), ``forces`` (torque-derived against the engine's ground force)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from symrom.cli.common import (ENGINE_HELP, WORKERS_HELP, Address, BackendName, Command, Force, app, console,
-                               flag_text, guarded, note, progress_bar, say, start_backend, warn)
+from symrom.cli.common import (
+    ENGINE_HELP,
+    WORKERS_HELP,
+    Address,
+    BackendName,
+    Command,
+    Force,
+    app,
+    console,
+    flag_text,
+    guarded,
+    note,
+    progress_bar,
+    say,
+    start_backend,
+    warn,
+)
 
 _IMPORT_HELP = """Import robot logs into a checked dataset file.
 
@@ -52,7 +67,7 @@ def generate_cmd(
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
     proxy: Annotated[bool, typer.Option("--proxy", help="Hardware-like robot (source=proxy; pronk, and froggy "
                                         "with a real froggy's long rear-only push).")] = False,
-    log_faults: Annotated[Optional[str], typer.Option("--log-faults", help="Log the jumps with a real robot's "
+    log_faults: Annotated[str | None, typer.Option("--log-faults", help="Log the jumps with a real robot's "
                                                       "log faults: clock (a slow, wobbling loop) or velocities "
                                                       "(velocities off); both with torques off, a height "
                                                       "offset and a contact lag, drawn once from the seed.")] = None,
@@ -60,12 +75,12 @@ def generate_cmd(
                                             "masses, latency, friction, contact, joint damping, armature, "
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    mpc_solver: Annotated[Optional[str], typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
+    mpc_solver: Annotated[str | None, typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
                                                       "to 1e-3) or daqp (active set, exact, faster); "
                                                       "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
-    split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) "
+    split: Annotated[str | None, typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) "
                                                  "of the jumps; default: the motion's paper split, scaled.")] = None,
-    workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
+    workers: Annotated[int | None, typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
     backend: BackendName = "local",
@@ -79,8 +94,14 @@ def generate_cmd(
     from symrom.data.io import check_dataset_path
     from symrom.execution import check_workers
     from symrom.robots import get_robot
-    from symrom.sim.generation.generate import (GenerateConfig, NoiseConfig, check_config, check_output, generate,
-                                     run_record_path)
+    from symrom.sim.generation.generate import (
+        GenerateConfig,
+        NoiseConfig,
+        check_config,
+        check_output,
+        generate,
+        run_record_path,
+    )
 
     check_dataset_path(out)
     check_output(out, resume, force)  # fail before connecting or drawing the progress bar
@@ -125,7 +146,7 @@ def import_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy): its registry entry sets the phase rule.")] = "pronk",
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
-    split: Annotated[Optional[str], typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of the jumps after segmentation; default all train.")] = None,
+    split: Annotated[str | None, typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of the jumps after segmentation; default all train.")] = None,
     diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
     diff_window: Annotated[float, typer.Option("--diff-window", help="Differentiation (savgol) window, s: 0.018 is 9 samples at 500 Hz, 19 at 1 kHz.")] = 0.018,
     lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values and failed physical checks per file instead of refusing the import.")] = False,
@@ -133,14 +154,14 @@ def import_cmd(
     physics: Annotated[bool, typer.Option("--physics/--no-physics", help="Check the logs against physics (time scale, vertical momentum, stance foot height).")] = True,
     segment: Annotated[str, typer.Option("--segment", help="auto: cut a jump holding several flights into one jump per flight; off: keep jumps as logged.")] = "auto",
     retime_stale: Annotated[bool, typer.Option("--retime-stale", help="Replace stale (repeated) rows by interpolation between the fresh rows, each kept at its own time.")] = False,
-    topics: Annotated[Optional[str], typer.Option("--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
-    mapping: Annotated[Optional[Path], typer.Option("--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
-    dt: Annotated[Optional[float], typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's period); other jumps are resampled.")] = None,
+    topics: Annotated[str | None, typer.Option("--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
+    mapping: Annotated[Path | None, typer.Option("--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
+    dt: Annotated[float | None, typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's period); other jumps are resampled.")] = None,
     max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
     no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
     positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
     repair: Annotated[bool, typer.Option("--repair", help="Repair each jump from physics before the checks: clock or velocities (by the flight), contact lag, torque gain (by the weight), height offset (by the feet); a fault the data cannot determine is refused.")] = False,
-    period: Annotated[Optional[float], typer.Option("--period", help="CSV logs without a time column: the nominal period of their rows, s (e.g. 0.002); with --repair the true clock is found from the flight.")] = None,
+    period: Annotated[float | None, typer.Option("--period", help="CSV logs without a time column: the nominal period of their rows, s (e.g. 0.002); with --repair the true clock is found from the flight.")] = None,
     force: Force = False,
 ) -> None:
     from symrom.data.bags import load_mapping, parse_topics
@@ -177,8 +198,8 @@ def show_cmd(
     """Render frames of one logged jump (replayed in PyBullet or MuJoCo) as PNG files."""
     from symrom.atomic import check_writable
     from symrom.data.io import read_dataset
-    from symrom.sim.engines.registry import check_engine
     from symrom.sim.diagnostics.render import render_jump
+    from symrom.sim.engines.registry import check_engine
 
     check_engine(engine)
     if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:

@@ -4,12 +4,26 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from symrom.cli.common import (WORKERS_HELP, Address, BackendName, Command, Force, app, console, flag_text, guarded,
-                               progress_bar, say, start_backend, warn, warn_all)
+from symrom.cli.common import (
+    WORKERS_HELP,
+    Address,
+    BackendName,
+    Command,
+    Force,
+    app,
+    console,
+    flag_text,
+    guarded,
+    progress_bar,
+    say,
+    start_backend,
+    warn,
+    warn_all,
+)
 
 # train's options that --select does not use (it chooses them on the val split)
 SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "seed", "encoder_components",
@@ -44,9 +58,9 @@ def train_cmd(
     poly_order: Annotated[int, typer.Option("--poly-order", help="Polynomial order p of the library.")] = 1,
     solver: Annotated[str, typer.Option("--solver", help="exact (closed form) or adam (torch).")] = "exact",
     threshold: Annotated[float, typer.Option("--threshold", help="Sparsity threshold on |Xi|.")] = 0.01,
-    epochs: Annotated[Optional[int], typer.Option("--epochs", help="adam: epochs (default 501).")] = None,
+    epochs: Annotated[int | None, typer.Option("--epochs", help="adam: epochs (default 501).")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed (adam initialisation).")] = 0,
-    encoder_components: Annotated[Optional[str], typer.Option(
+    encoder_components: Annotated[str | None, typer.Option(
         "--encoder-components", help="Comma-separated q components the encoder reads, e.g. x,y,z "
                                      "(default: all 18).")] = None,
     decoded_weight: Annotated[float, typer.Option(
@@ -57,25 +71,25 @@ def train_cmd(
     measure: Annotated[str, typer.Option(
         "--measure", help="What --threshold applies to: coefficient (|Xi|, the paper), contribution "
                           "or explained (scale-free).")] = "coefficient",
-    collinearity: Annotated[Optional[float], typer.Option(
+    collinearity: Annotated[float | None, typer.Option(
         "--collinearity", help="Leave out terms whose |correlation| with a simpler one exceeds this "
                                "on a phase's rows, e.g. 0.995 (default: keep all).")] = None,
     encoder_scaling: Annotated[str, typer.Option(
         "--encoder-scaling", help="none, or spread: standardise components before step (a).")] = "none",
-    encoder_base_latents: Annotated[Optional[int], typer.Option(
+    encoder_base_latents: Annotated[int | None, typer.Option(
         "--encoder-base-latents", help="Latents taken from the base pose, the rest from the joints "
                                        "(--select's pose+joints; default: one PCA over all, the paper).")] = None,
     trig: Annotated[bool, typer.Option("--trig/--no-trig", help="Trigonometric terms in the library.")] = True,
     refine: Annotated[bool, typer.Option("--refine", help="Refine the coefficients on rollout error.")] = False,
-    polish: Annotated[Optional[str], typer.Option(
+    polish: Annotated[str | None, typer.Option(
         "--polish", help="With --refine: phases refined again, each alone, after the refinement and pruning, "
                          "e.g. flight (comma-separated; --select with --max-terms polishes flight).")] = None,
     select: Annotated[bool, typer.Option(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
                          "split (it refuses the options above, which it would not use).")] = False,
     select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
-    workers: Annotated[Optional[int], typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
-    max_terms: Annotated[Optional[int], typer.Option(
+    workers: Annotated[int | None, typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
+    max_terms: Annotated[int | None, typer.Option(
         "--max-terms", help="With --refine: prune the refined model to at most N active terms. --select: a "
                             "term budget; refinements pruned to at most N active terms, and only "
                             "candidates within it compete (default: none).")] = None,
@@ -155,7 +169,7 @@ def finetune_cmd(
                                                          "the source, --prior-weight) or rollout (the rollout-aware "
                                                          "refinement from the source coefficients).")] = "calibrate_rollout",
     tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
-    threshold: Annotated[Optional[float], typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
+    threshold: Annotated[float | None, typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
     calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate[_rollout]: every (an offset and a "
                                                                                "damping in every non-flight equation) or support "
                                                                                "(only where the source has the term).")] = "every",
@@ -189,7 +203,7 @@ def sweep_cmd(
     solver: Annotated[str, typer.Option("--solver", help="exact (closed form) or adam (torch).")] = "exact",
     poly_order: Annotated[int, typer.Option("--poly-order", help="Polynomial order p of the library.")] = 1,
     lam: Annotated[float, typer.Option("--lambda", help="Complexity weight of L_mod.")] = 0.001,
-    workers: Annotated[Optional[int], typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
+    workers: Annotated[int | None, typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     rmse_test: Annotated[bool, typer.Option("--rmse-test/--no-rmse-test", help="Also roll out the test split (rk4) per cell.")] = True,
     backend: BackendName = "local",
     address: Address = None,

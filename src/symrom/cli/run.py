@@ -4,12 +4,25 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
-from symrom.cli.common import (ENGINE_HELP, WORKERS_HELP, Address, BackendName, Command, Force, app, command_line,
-                               console, guarded, say, start_backend, status_say)
+from symrom.cli.common import (
+    ENGINE_HELP,
+    WORKERS_HELP,
+    Address,
+    BackendName,
+    Command,
+    Force,
+    app,
+    command_line,
+    console,
+    guarded,
+    say,
+    start_backend,
+    status_say,
+)
 
 
 @app.command("reproduce", cls=Command)
@@ -17,16 +30,16 @@ from symrom.cli.common import (ENGINE_HELP, WORKERS_HELP, Address, BackendName, 
 def reproduce_cmd(
     out: Annotated[Path, typer.Option("--out", help="Run directory; existing datasets and results are reused.")],
     quick: Annotated[bool, typer.Option("--quick", help="A reduced run that takes a few minutes.")] = False,
-    workers: Annotated[Optional[int], typer.Option(
+    workers: Annotated[int | None, typer.Option(
         "--workers", help="Generation, selection and sweep: " + WORKERS_HELP.format(local=2))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of every dataset and training run.")] = 0,
     no_report: Annotated[bool, typer.Option("--no-report", help="Skip the HTML/Markdown report.")] = False,
     backend: BackendName = "local",
     address: Address = None,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    only: Annotated[Optional[str], typer.Option(
+    only: Annotated[str | None, typer.Option(
         "--only", help="Run one part only: sim2real (with the SIM Go1 and SIM A1 selections it needs).")] = None,
-    max_terms: Annotated[Optional[int], typer.Option(
+    max_terms: Annotated[int | None, typer.Option(
         "--max-terms", help="Term budget of the SIM selections: refinements pruned to at most N active terms "
                             "(compact models; e.g. 60). Default: none.")] = None,
 ) -> None:
@@ -82,7 +95,7 @@ def demo_cmd(
 def report_cmd(
     run_dir: Annotated[Path, typer.Argument(help="Run directory (symrom reproduce, demo) or model folder (symrom train; "
                                                  "its evaluation's metrics.json in it or a subfolder).")],
-    out: Annotated[Optional[Path], typer.Option("--out", help="Output HTML file (default DIR/report.html); the Markdown twin and its figures go next to it.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="Output HTML file (default DIR/report.html); the Markdown twin and its figures go next to it.")] = None,
     force: Force = False,
 ) -> None:
     """Build the self-contained HTML report (and its Markdown twin) of a run directory or a model folder."""

@@ -129,7 +129,7 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
     n = t.size
     if n < 3:
         return out
-    for name, cols, unit in SCALE_GROUPS:
+    for name, cols, _unit in SCALE_GROUPS:
         x = np.unwrap(q[:, cols], axis=0) if name == "base angles" else q[:, cols]
         _, ratios, power = window_ratios(t, x, dq[:, cols], limits.window, limits.min_motion)
         if len(ratios) < 3:

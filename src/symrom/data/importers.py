@@ -74,20 +74,25 @@ from pathlib import Path
 import numpy as np
 
 from symrom.data.checks import PlausibilityLimits, check_samples
-from symrom.data.consistency import (ConsistencyLimits, foot_height, retime_stale, stale_rows, time_scale,
-                                     vertical_impulse)
+from symrom.data.consistency import (
+    ConsistencyLimits,
+    foot_height,
+    retime_stale,
+    stale_rows,
+    time_scale,
+    vertical_impulse,
+)
 from symrom.data.dataset import Dataset
+from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
 from symrom.data.rawlog import LogError, RawLog, log_kind, sha256_file
 from symrom.data.repair import RepairLimits, repair_log, repairs_record
 from symrom.data.report import ImportReport
-from symrom.data.preprocess import DIFF_METHODS, DIFF_WINDOW, assemble, differentiate
 from symrom.data.segment import SEGMENT, segment_log
 from symrom.data.timebase import METHOD as TIMEBASE_METHOD
 from symrom.data.timebase import TimeBase, TimeBaseError, check_gaps, choose_dt, jump_timing, on_grid, resample_jump
-from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.motions import get_motion
+from symrom.names import BASE_NAMES, DEFAULT_DT, JOINT_NAMES, LEGS, Q_NAMES, SPLITS
 from symrom.robots import get_robot
-
 
 # ----------------------------------------------------------------- layouts
 

@@ -36,10 +36,27 @@ import numpy as np
 
 from symrom.data.consistency import ConsistencyLimits, time_scale, vertical_impulse
 from symrom.data.rawlog import RawLog
-from symrom.data.repair_body import (ContactEstimate, GainEstimate, HeightEstimate, body_state, contact_lag,
-                                     estimate_gain, estimate_height, grounded, shift_flags)
-from symrom.data.repair_clock import (VELOCITY_GROUPS, ClockEstimate, ClockFit, RepairError, RepairLimits,
-                                      VelocityGain, estimate_clock, file_kind)
+from symrom.data.repair_body import (
+    ContactEstimate,
+    GainEstimate,
+    HeightEstimate,
+    body_state,
+    contact_lag,
+    estimate_gain,
+    estimate_height,
+    grounded,
+    shift_flags,
+)
+from symrom.data.repair_clock import (
+    VELOCITY_GROUPS,
+    ClockEstimate,
+    ClockFit,
+    RepairError,
+    RepairLimits,
+    VelocityGain,
+    estimate_clock,
+    file_kind,
+)
 from symrom.names import BASE_POS
 
 # 2: where one jump's flight fits a wrong clock and wrong velocities alike, the file's flights together decide

@@ -250,7 +250,7 @@ class Rate:
         return (f_lo * np.minimum(t, self.lo) + (F(inner) - F(self.lo))
                 + f_hi * np.maximum(t - self.hi, 0.0))
 
-    def scaled(self, k: float) -> "Rate":
+    def scaled(self, k: float) -> Rate:
         return Rate(self.level * k, None if self.spline is None else
                     BSpline(self.spline.t, self.spline.c * k, self.spline.k), self.lo, self.hi, self.sd * k)
 

@@ -48,12 +48,28 @@ decoded-acceleration term at weight 1, no ridge, |Xi| < 0.01 dropped) are
 trained and evaluated beside each under ``paper_defaults``.
 """
 
-from symrom.experiments.reproduce.config import (MAX_TERMS, PARTS, QUICK_SELECTION, DatasetSpec, ExperimentSpec,
-                                                 ReproduceConfig, paper_reference, reproduce_config)
+from symrom.experiments.reproduce.config import (
+                                                 MAX_TERMS,
+                                                 PARTS,
+                                                 QUICK_SELECTION,
+                                                 DatasetSpec,
+                                                 ExperimentSpec,
+                                                 ReproduceConfig,
+                                                 paper_reference,
+                                                 reproduce_config,
+)
 from symrom.experiments.reproduce.run import manifest, reproduce, summary_lines, sweep_line
 from symrom.experiments.reproduce.sim import run_learned
-from symrom.experiments.reproduce.sim2real import (DEFAULT_METHOD, PROXY_METHODS, SIM2REAL, Sim2RealTarget,
-                                                   proxy_selection, repair_summary, sim2real_checks, table_source)
+from symrom.experiments.reproduce.sim2real import (
+                                                 DEFAULT_METHOD,
+                                                 PROXY_METHODS,
+                                                 SIM2REAL,
+                                                 Sim2RealTarget,
+                                                 proxy_selection,
+                                                 repair_summary,
+                                                 sim2real_checks,
+                                                 table_source,
+)
 from symrom.experiments.reproduce.steps import ensure_dataset, selected_config
 
 __all__ = ["DEFAULT_METHOD", "MAX_TERMS", "PARTS", "PROXY_METHODS", "QUICK_SELECTION", "SIM2REAL", "DatasetSpec",

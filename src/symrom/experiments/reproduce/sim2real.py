@@ -25,7 +25,6 @@ from symrom.learn.training import TrainConfig
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import load_model, write_model_files
 
-
 # Sim-to-real. Sources: models trained, with the settings selected on the target robot's SIM
 # experiment (refined and not), on each of its source datasets; targets: hardware-like datasets
 # whose settings no source saw (Go1 pronk: the proxy in PyBullet, and in MuJoCo with armature too;

@@ -24,8 +24,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from symrom.learn.audit import audit_collinearity, null_terms
-from symrom.model.library import Library
 from symrom.learn.shooting import Trajectory
+from symrom.model.library import Library
 
 
 @dataclass
