@@ -26,7 +26,9 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from provenance import commit
 
+from symrom.atomic import write_text_atomic
 from symrom.sim.controllers.flight import longest_run
 from symrom.sim.generation.generate import GenerateConfig, GenerationError, generate
 
@@ -132,11 +134,12 @@ def main() -> None:
     record = {"command": " ".join(["python benchmarks/bench_randomized.py", f"--seeds {args.seeds}",
                                    f"--jumps {args.jumps}", f"--workers {args.workers}",
                                    f"--engines {args.engines}", f"--motions {args.motions}"]),
+              "commit": commit(),
               "machine": {"python": platform.python_version(), "cpus": __import__("os").cpu_count()},
               "wall_time_s": time.perf_counter() - t0, "summary": rows, "runs": runs}
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(record, indent=1) + "\n")
+        write_text_atomic(args.out, json.dumps(record, indent=1) + "\n")
 
 
 if __name__ == "__main__":
