@@ -172,7 +172,8 @@ def test_all_torques_with_the_opposite_sign_give_a_negative_impulse(tmp_path):
     m = jump(proxy_go1(), 1)
     m["tau"] *= -1
     # about -0.9: the proxy's measured torque is off by up to 10 % in scale
-    with pytest.raises(LogError, match=r"ratio -0\.[89]\d*, the limit is 0\.6\.\.1\.5; the torques have the opposite sign"):
+    with pytest.raises(LogError, match=r"ratio -0\.[89]\d*, the limit is 0\.6\.\.1\.5; "
+                                       r"the torques have the opposite sign"):
         import_logs([write_plain(tmp_path / "neg.csv", [m])], robot="go1")
 
 

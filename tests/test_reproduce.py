@@ -50,7 +50,8 @@ def test_summary_follows_the_contract(run):
     assert set(on_disk["experiments"]["a1_sim"]["active_terms"]) == {"contact", "partial", "flight"}
     for name in ("go1_sim", "a1_sim"):
         for b in ("aslip", "aslip_rollout", "newton"):
-            assert set(on_disk["experiments"][name]["baselines"][b]["horizons"]["full"]["components"]) == {"x", "y", "z"}
+            assert (set(on_disk["experiments"][name]["baselines"][b]["horizons"]["full"]["components"])
+                    == {"x", "y", "z"})
     assert set(on_disk["experiments"]["go1_sim"]["solvers"]) == {"exact", "adam"}
     sweep = on_disk["sweep"]
     assert sweep["latent_dims"] == [1, 2] and len(sweep["E_dec"]) == 2 and len(sweep["E_dec"][0]) == 2

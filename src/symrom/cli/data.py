@@ -61,7 +61,8 @@ Details: docs/import.md."""
 @guarded
 def generate_cmd(
     robot: Annotated[str, typer.Option("--robot", help="go1, a1 or the path of a robot description file (.toml).")],
-    motion: Annotated[str, typer.Option("--motion", help="pronk (convex MPC) or froggy (Cartesian PD); both scale to any robot.")],
+    motion: Annotated[str, typer.Option(
+        "--motion", help="pronk (convex MPC) or froggy (Cartesian PD); both scale to any robot.")],
     jumps: Annotated[int, typer.Option("--jumps", help="Number of jumps.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
     noise: Annotated[bool, typer.Option("--noise", help="Noisy variant: start pose, readings, CoM pushes.")] = False,
@@ -75,11 +76,12 @@ def generate_cmd(
                                             "masses, latency, friction, contact, joint damping, armature, "
                                             "friction loss and torque sensing drawn per jump (pronk).")] = False,
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
-    mpc_solver: Annotated[str | None, typer.Option("--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, "
-                                                      "to 1e-3) or daqp (active set, exact, faster); "
-                                                      "default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
-    split: Annotated[str | None, typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) "
-                                                 "of the jumps; default: the motion's paper split, scaled.")] = None,
+    mpc_solver: Annotated[str | None, typer.Option(
+        "--mpc-solver", help="QP solver of pronk's MPC: osqp (ADMM, to 1e-3) or daqp (active set, exact, "
+                             "faster); default: the engine's (osqp in PyBullet, daqp in MuJoCo).")] = None,
+    split: Annotated[str | None, typer.Option(
+        "--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of "
+                        "the jumps; default: the motion's paper split, scaled.")] = None,
     workers: Annotated[int | None, typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
     seed: Annotated[int, typer.Option("--seed", help="Random seed.")] = 0,
     resume: Annotated[bool, typer.Option("--resume", help="Continue an interrupted run (OUT.parts).")] = False,
@@ -141,27 +143,59 @@ def generate_cmd(
 @app.command("import", cls=Command, help=_IMPORT_HELP)
 @guarded
 def import_cmd(
-    logs: Annotated[list[Path], typer.Argument(help="Log files: CSV, ROS 1 bag, ROS 2 bag folder or MCAP; several are concatenated as consecutive jumps.")],
-    robot: Annotated[str, typer.Option("--robot", help="Robot of the logs: go1, a1 or a robot description file (.toml); its URDF gives the wrench.")],
+    logs: Annotated[list[Path], typer.Argument(
+        help="Log files: CSV, ROS 1 bag, ROS 2 bag folder or MCAP; several are concatenated as consecutive jumps.")],
+    robot: Annotated[str, typer.Option(
+        "--robot", help="Robot of the logs: go1, a1 or a robot description file (.toml); its URDF gives the wrench.")],
     out: Annotated[Path, typer.Option("--out", help="Output dataset file (HDF5).")],
-    motion: Annotated[str, typer.Option("--motion", help="Motion (pronk, froggy): its registry entry sets the phase rule.")] = "pronk",
+    motion: Annotated[str, typer.Option(
+        "--motion", help="Motion (pronk, froggy): its registry entry sets the phase rule.")] = "pronk",
     source: Annotated[str, typer.Option("--source", help="Source attribute of the dataset.")] = "hardware",
-    split: Annotated[str | None, typer.Option("--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of the jumps after segmentation; default all train.")] = None,
-    diff: Annotated[str, typer.Option("--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
-    diff_window: Annotated[float, typer.Option("--diff-window", help="Differentiation (savgol) window, s: 0.018 is 9 samples at 500 Hz, 19 at 1 kHz.")] = 0.018,
-    lenient: Annotated[bool, typer.Option("--lenient", help="Report implausible values and failed physical checks per file instead of refusing the import.")] = False,
-    torques: Annotated[str, typer.Option("--torques", help="measured or commanded: what the torque columns hold (commanded ones must stay within the motor limit; measured ones within 1.25 x it); stored in the dataset.")] = "measured",
-    physics: Annotated[bool, typer.Option("--physics/--no-physics", help="Check the logs against physics (time scale, vertical momentum, stance foot height).")] = True,
-    segment: Annotated[str, typer.Option("--segment", help="auto: cut a jump holding several flights into one jump per flight; off: keep jumps as logged.")] = "auto",
-    retime_stale: Annotated[bool, typer.Option("--retime-stale", help="Replace stale (repeated) rows by interpolation between the fresh rows, each kept at its own time.")] = False,
-    topics: Annotated[str | None, typer.Option("--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
-    mapping: Annotated[Path | None, typer.Option("--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
-    dt: Annotated[float | None, typer.Option("--dt", help="Sample period of the dataset, s (default: the coarsest jump's period); other jumps are resampled.")] = None,
-    max_gap: Annotated[float, typer.Option("--max-gap", help="Longest gap (missing samples) bridged by interpolation, s; longer ones are refused.")] = 0.01,
-    no_resample: Annotated[bool, typer.Option("--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
-    positions: Annotated[str, typer.Option("--positions", help="auto, absolute or rebased: base positions that start at 0 in each jump get their height back from the feet.")] = "auto",
-    repair: Annotated[bool, typer.Option("--repair", help="Repair each jump from physics before the checks: clock or velocities (by the flight), contact lag, torque gain (by the weight), height offset (by the feet); a fault the data cannot determine is refused.")] = False,
-    period: Annotated[float | None, typer.Option("--period", help="CSV logs without a time column: the nominal period of their rows, s (e.g. 0.002); with --repair the true clock is found from the flight.")] = None,
+    split: Annotated[str | None, typer.Option(
+        "--split", help="train,val,test counts (12,2,1) or fractions (0.8,0.1,0.1) of "
+                        "the jumps after segmentation; default all train.")] = None,
+    diff: Annotated[str, typer.Option(
+        "--diff", help="savgol or central: differentiation where a log has no accelerations.")] = "savgol",
+    diff_window: Annotated[float, typer.Option(
+        "--diff-window", help="Differentiation (savgol) window, s: 0.018 is "
+                              "9 samples at 500 Hz, 19 at 1 kHz.")] = 0.018,
+    lenient: Annotated[bool, typer.Option(
+        "--lenient", help="Report implausible values and failed physical checks "
+                          "per file instead of refusing the import.")] = False,
+    torques: Annotated[str, typer.Option(
+        "--torques", help="measured or commanded: what the torque columns hold (commanded ones must stay within "
+                          "the motor limit; measured ones within 1.25 x it); stored in the dataset.")] = "measured",
+    physics: Annotated[bool, typer.Option(
+        "--physics/--no-physics", help="Check the logs against physics (time scale, "
+                                       "vertical momentum, stance foot height).")] = True,
+    segment: Annotated[str, typer.Option(
+        "--segment", help="auto: cut a jump holding several flights into one jump "
+                          "per flight; off: keep jumps as logged.")] = "auto",
+    retime_stale: Annotated[bool, typer.Option(
+        "--retime-stale", help="Replace stale (repeated) rows by interpolation between "
+                               "the fresh rows, each kept at its own time.")] = False,
+    topics: Annotated[str | None, typer.Option(
+        "--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
+    mapping: Annotated[Path | None, typer.Option(
+        "--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
+    dt: Annotated[float | None, typer.Option(
+        "--dt", help="Sample period of the dataset, s (default: the coarsest "
+                     "jump's period); other jumps are resampled.")] = None,
+    max_gap: Annotated[float, typer.Option(
+        "--max-gap", help="Longest gap (missing samples) bridged by "
+                          "interpolation, s; longer ones are refused.")] = 0.01,
+    no_resample: Annotated[bool, typer.Option(
+        "--no-resample", help="Refuse jumps off the dataset's time grid instead of resampling them.")] = False,
+    positions: Annotated[str, typer.Option(
+        "--positions", help="auto, absolute or rebased: base positions that start at 0 in "
+                            "each jump get their height back from the feet.")] = "auto",
+    repair: Annotated[bool, typer.Option(
+        "--repair", help="Repair each jump from physics before the checks: clock or velocities (by "
+                         "the flight), contact lag, torque gain (by the weight), height offset (by "
+                         "the feet); a fault the data cannot determine is refused.")] = False,
+    period: Annotated[float | None, typer.Option(
+        "--period", help="CSV logs without a time column: the nominal period of their rows, s (e.g. "
+                         "0.002); with --repair the true clock is found from the flight.")] = None,
     force: Force = False,
 ) -> None:
     from symrom.data.bags import load_mapping, parse_topics

@@ -33,7 +33,8 @@ SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "
 
 def _given(ctx: typer.Context, names: tuple[str, ...]) -> list[str]:
     """The options of ``names`` given on the command line (not left at their defaults)."""
-    return ["/".join(p.opts + p.secondary_opts) for p in ctx.command.params  # typer's own click: by name
+    # typer's own click: by name
+    return ["/".join(p.opts + p.secondary_opts) for p in ctx.command.params
             if p.name in names and getattr(ctx.get_parameter_source(p.name), "name", "DEFAULT") != "DEFAULT"]
 
 
@@ -41,7 +42,8 @@ def _refuse_ignored(ctx: typer.Context, names: tuple[str, ...], why: str) -> Non
     """One line naming the options of ``names`` given on the command line, which would be ignored."""
     given = _given(ctx, names)
     if given:
-        raise ValueError(f"{', '.join(given)}: not used with --select ({why}); leave {'it' if len(given) == 1 else 'them'} out")
+        raise ValueError(f"{', '.join(given)}: not used with --select ({why}); "
+                         f"leave {'it' if len(given) == 1 else 'them'} out")
 
 
 def _split_list(text: str | None) -> tuple[str, ...] | None:
@@ -87,7 +89,8 @@ def train_cmd(
     select: Annotated[bool, typer.Option(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
                          "split (it refuses the options above, which it would not use).")] = False,
-    select_dims: Annotated[str, typer.Option("--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
+    select_dims: Annotated[str, typer.Option(
+        "--select-dims", help="Latent dimensions of --select: 2-4, 2,3,6 ...")] = "2-4",
     workers: Annotated[int | None, typer.Option("--workers", help="--select: " + WORKERS_HELP.format(local=1))] = None,
     max_terms: Annotated[int | None, typer.Option(
         "--max-terms", help="With --refine: prune the refined model to at most N active terms. --select: a "
@@ -109,7 +112,8 @@ def train_cmd(
     from symrom.learn.training import AdamConfig, TrainConfig, train_into
 
     config = TrainConfig(latent_dim=latent_dim, poly_order=poly_order, trig=trig, solver=solver,
-                         threshold=threshold, seed=seed, adam=AdamConfig() if epochs is None else AdamConfig(epochs=epochs),
+                         threshold=threshold, seed=seed,
+                         adam=AdamConfig() if epochs is None else AdamConfig(epochs=epochs),
                          encoder_components=_split_list(encoder_components), decoded_weight=decoded_weight,
                          alpha=alpha, measure=measure, collinearity=collinearity, encoder_scaling=encoder_scaling,
                          encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms,
@@ -159,20 +163,25 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
 def finetune_cmd(
     model_path: Annotated[Path, typer.Argument(help="Source model file (model.json), e.g. trained on simulation.")],
     data: Annotated[Path, typer.Argument(help="Dataset file (HDF5) of the new jumps: train to fit, val to check.")],
-    out: Annotated[Path, typer.Option("--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
-    prior_weight: Annotated[float, typer.Option("--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
-    keep_decoder: Annotated[bool, typer.Option("--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
-    method: Annotated[str, typer.Option("--method", help="calibrate_rollout (calibrate, then refine the non-flight phases "
-                                                         "on rollouts, the flight phase held as calibrated), calibrate (per "
-                                                         "phase input gains, offsets and damping; flight gravity kept unless "
-                                                         "the data contradict it), acceleration (every coefficient, towards "
-                                                         "the source, --prior-weight) or rollout (the rollout-aware "
-                                                         "refinement from the source coefficients).")] = "calibrate_rollout",
-    tolerance: Annotated[float, typer.Option("--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
-    threshold: Annotated[float | None, typer.Option("--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
-    calibration_terms: Annotated[str, typer.Option("--calibration-terms", help="--method calibrate[_rollout]: every (an offset and a "
-                                                                               "damping in every non-flight equation) or support "
-                                                                               "(only where the source has the term).")] = "every",
+    out: Annotated[Path, typer.Option(
+        "--out", help="Output directory (model.json, equations.txt, finetune.json, val_before/, val_after/).")],
+    prior_weight: Annotated[float, typer.Option(
+        "--prior-weight", help="Pull towards the source model (0: the new rows alone).")] = 0.01,
+    keep_decoder: Annotated[bool, typer.Option(
+        "--keep-decoder", help="Keep the source decoder; refit only the dynamics.")] = False,
+    method: Annotated[str, typer.Option(
+        "--method", help="calibrate_rollout (calibrate, then refine the non-flight phases on rollouts, "
+                         "the flight phase held as calibrated), calibrate (per phase input gains, offsets "
+                         "and damping; flight gravity kept unless the data contradict it), acceleration "
+                         "(every coefficient, towards the source, --prior-weight) or rollout (the "
+                         "rollout-aware refinement from the source coefficients).")] = "calibrate_rollout",
+    tolerance: Annotated[float, typer.Option(
+        "--tolerance", help="How much the val score may rise, as a fraction of the source's.")] = 0.05,
+    threshold: Annotated[float | None, typer.Option(
+        "--threshold", help="Sparsity threshold, --method acceleration only (default: the source's).")] = None,
+    calibration_terms: Annotated[str, typer.Option(
+        "--calibration-terms", help="--method calibrate[_rollout]: every (an offset and a damping in every non-flight "
+                                    "equation) or support (only where the source has the term).")] = "every",
     integrator: Annotated[str, typer.Option("--integrator", help="lsoda or rk4 (batch): the val rollouts.")] = "rk4",
     force: Force = False,
 ) -> None:
@@ -204,7 +213,8 @@ def sweep_cmd(
     poly_order: Annotated[int, typer.Option("--poly-order", help="Polynomial order p of the library.")] = 1,
     lam: Annotated[float, typer.Option("--lambda", help="Complexity weight of L_mod.")] = 0.001,
     workers: Annotated[int | None, typer.Option("--workers", help=WORKERS_HELP.format(local=1))] = None,
-    rmse_test: Annotated[bool, typer.Option("--rmse-test/--no-rmse-test", help="Also roll out the test split (rk4) per cell.")] = True,
+    rmse_test: Annotated[bool, typer.Option(
+        "--rmse-test/--no-rmse-test", help="Also roll out the test split (rk4) per cell.")] = True,
     backend: BackendName = "local",
     address: Address = None,
     force: Force = False,
@@ -257,7 +267,8 @@ def equations_cmd(
 @guarded
 def export_cmd(
     model_path: Annotated[Path, typer.Argument(help="Model file (model.json).")],
-    to: Annotated[str, typer.Option("--to", help="c (C99 source and header), casadi (casadi.Function files) or python.")],
+    to: Annotated[str, typer.Option(
+        "--to", help="c (C99 source and header), casadi (casadi.Function files) or python.")],
     out: Annotated[Path, typer.Option("--out", help="Output directory.")] = Path("export"),
     force: Force = False,
 ) -> None:

@@ -93,9 +93,12 @@ def demo_cmd(
 @app.command("report", cls=Command)
 @guarded
 def report_cmd(
-    run_dir: Annotated[Path, typer.Argument(help="Run directory (symrom reproduce, demo) or model folder (symrom train; "
-                                                 "its evaluation's metrics.json in it or a subfolder).")],
-    out: Annotated[Path | None, typer.Option("--out", help="Output HTML file (default DIR/report.html); the Markdown twin and its figures go next to it.")] = None,
+    run_dir: Annotated[Path, typer.Argument(
+        help="Run directory (symrom reproduce, demo) or model folder (symrom "
+             "train; its evaluation's metrics.json in it or a subfolder).")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", help="Output HTML file (default DIR/report.html); the "
+                      "Markdown twin and its figures go next to it.")] = None,
     force: Force = False,
 ) -> None:
     """Build the self-contained HTML report (and its Markdown twin) of a run directory or a model folder."""

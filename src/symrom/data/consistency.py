@@ -152,8 +152,8 @@ def time_scale(where: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
                     "high": 1 + limits.scale, "windows": len(ratios),
                     "message": (f"{where}, {_rows(0, n)}: the {name} change {r:.3g} times as fast as the "
                                 f"logged velocities integrate to (least squares over {len(ratios)} windows of "
-                                f"{1e3 * limits.window:g} ms); the limit is {1 - limits.scale:g}..{1 + limits.scale:g}: "
-                                f"{hint}")})
+                                f"{1e3 * limits.window:g} ms); the limit is "
+                                f"{1 - limits.scale:g}..{1 + limits.scale:g}: {hint}")})
     return out
 
 

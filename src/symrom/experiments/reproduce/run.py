@@ -38,7 +38,8 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
         data = rel("data", f"{exp.data}.h5")
         entry = exps[exp.name]
         out.append(ManifestEntry(exp.name, LEARNED, paper=exp.name if exp.name in PAPER_TABLE2 else None,
-                                 files={"model": rel(exp.name, "model.json"), "metrics": rel(exp.name, "eval", "metrics.json"),
+                                 files={"model": rel(exp.name, "model.json"),
+                                        "metrics": rel(exp.name, "eval", "metrics.json"),
                                         "data": data}, facts={"config": entry["config"]}))
         out.append(ManifestEntry(f"{exp.name}/selection", SELECTION, f"{exp.name}: selection on the validation split",
                                  of=exp.name, files={"table": rel(exp.name, "selection", "selection.json")}))
@@ -63,7 +64,8 @@ def manifest(run: Path, cfg: ReproduceConfig, summary: dict) -> list[ManifestEnt
         src = exps["go1_proxy"]["finetune"]["source"]
         out.append(ManifestEntry("go1_proxy", FINE_TUNED, f"proxy Go1, adapted from the {src} model",
                                  paper="go1_proxy", files={
-                                     "model": rel("go1_proxy", "model.json"), "metrics": rel("go1_proxy", "eval", "metrics.json"),
+                                     "model": rel("go1_proxy", "model.json"),
+                                     "metrics": rel("go1_proxy", "eval", "metrics.json"),
                                      "data": exps["go1_proxy"]["data"],
                                      "source_model": rel("sources", src, "model.json"),
                                      "before": rel("go1_proxy", "sources_eval", src, "metrics.json"),
@@ -136,8 +138,9 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
                       "wall_time_s": time.perf_counter() - t0}
-    write_text_atomic(run / "summary.json", json.dumps(summary, indent=1, allow_nan=False,
-                                                       default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
+    write_text_atomic(run / "summary.json",
+                      json.dumps(summary, indent=1, allow_nan=False,
+                                 default=lambda o: o.tolist() if isinstance(o, np.ndarray) else str(o)))
     return summary
 
 

@@ -164,7 +164,8 @@ def scaled(params: FroggyParams, robot: str) -> FroggyParams:
     f |= {n: getattr(params, n) * m / l for n in _STIFF}
     f |= {n: getattr(params, n) * m / root for n in _DAMP}
     f |= {"push_speed": params.push_speed * root, "force_all": params.force_all * m_thrust,
-          "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l, "d_att": params.d_att * m * l * root,
+          "force_rear": params.force_rear * m_thrust, "k_att": params.k_att * m * l,
+          "d_att": params.d_att * m * l * root,
           "crouch_pitch": 0.0}
     return replace(params, **f)
 
