@@ -177,3 +177,15 @@ def test_report_builds_from_the_run(run):
     assert "| go1_proxy_mujoco | repaired: target alone |" in md_text
     assert "| a1_proxy_mujoco | as logged: source as is (a1_randomized/" in md_text
     assert "a1_proxy_mujoco: logged without faults; repaired 0 of 3 jumps" in md_text
+
+
+def test_an_unrefined_model_drops_what_only_the_refinement_reads():
+    """The exact source and an unrefined target-alone model of a sim-to-real target are trained
+    with the SIM settings less the refinement: its term budget and polish stages go with it."""
+    from symrom.experiments.reproduce.sim2real import unrefined
+    from symrom.learn.training import TrainConfig
+
+    refined = TrainConfig(latent_dim=3, refine=True, max_terms=60, polish=("flight",))
+    plain = unrefined(refined)
+    assert not plain.refine and plain.max_terms is None and plain.polish == ()
+    assert plain.latent_dim == 3 and unrefined(plain) == plain

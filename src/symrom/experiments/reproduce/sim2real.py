@@ -93,10 +93,16 @@ def source_models(run: Path, data: dict[str, Path], target: Sim2RealTarget, sett
                 continue
             say(f"sim-to-real: training the {variant} source on {name}")
             ds = ds or read_dataset(data[name])
-            tc = settings if variant == "refined" else replace(settings, refine=False)
+            tc = settings if variant == "refined" else unrefined(settings)
             path.parent.mkdir(parents=True, exist_ok=True)
             out[f"{src}/{variant}"] = train_or_load(path, ds, tc)[0]
     return out
+
+
+def unrefined(settings: TrainConfig) -> TrainConfig:
+    """``settings`` without the refinement and what only the refinement reads (its term budget,
+    its polish stages): the exact source's and an unrefined target-alone model's settings."""
+    return replace(settings, refine=False, max_terms=None, polish=())
 
 
 def repaired_target(run: Path, name: str, logged: Path, say: Say) -> Path:
@@ -303,7 +309,7 @@ def run_target(run: Path, target: Sim2RealTarget, logged: Path, repaired: Path, 
     say(f"{name}: training on the target's train jumps alone")
     # refined on rollouts if the source or its default fine-tuning was: the same care as the fine-tuned model
     refined = src_key.endswith("/refined") or DEFAULT_METHOD in ROLLOUT_METHODS
-    tc = settings if refined else replace(settings, refine=False)
+    tc = settings if refined else unrefined(settings)
     alone, am = train_evaluate(ds, d / "target_alone", tc, cfg, f"{title} (target alone)", say)
     table["target_alone"] = _side_entry(alone, am, ds)
     table["checks"] = sim2real_checks(table)
