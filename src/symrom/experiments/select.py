@@ -377,7 +377,7 @@ def plan_steps(ds: Dataset, substeps: int) -> dict[str, dict[str, float]]:
     median training flight, split into rise and fall, over the flight intervals and substeps)
     and the rollouts' (the sample period over ``substeps``)."""
     from symrom.learn.estimator import _median_stay
-    from symrom.plan.problem import PlanConfig
+    from symrom.plan.config import PlanConfig  # no CasADi: the base install selects too
 
     pc = PlanConfig()
     out = {}
