@@ -102,6 +102,21 @@ def missing_files(spec, root: Path) -> list[str]:
     return out
 
 
+def drop_missing_meshes(spec, root: Path) -> None:
+    """Delete from the ``MjSpec`` ``spec`` the meshes whose files are not found (in its mesh
+    folder or beside it, relative to ``root``) and the geoms that use them: a URDF's collision
+    meshes, where its primitives stand in."""
+    mujoco = _mujoco()
+    missing = {m.name for m in spec.meshes
+               if m.file and not (root / spec.meshdir / m.file).is_file() and not (root / m.file).is_file()}
+    for g in list(spec.geoms):
+        if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname in missing:
+            spec.delete(g)
+    for m in list(spec.meshes):
+        if m.name in missing:
+            spec.delete(m)
+
+
 def compile_model(path: str | os.PathLike):
     """The compiled ``MjModel`` of an MJCF or, for a ``.urdf``, of a URDF as MuJoCo reads it
     (fixed links kept as bodies, visual geoms and collision meshes whose files are missing
@@ -125,15 +140,7 @@ def compile_model(path: str | os.PathLike):
             spec.compiler.fusestatic = False  # the foot links must stay bodies
             spec.compiler.discardvisual = True
             spec.compiler.balanceinertia = True
-            root = path.parent
-            missing = {m.name for m in spec.meshes
-                       if m.file and not (root / spec.meshdir / m.file).is_file() and not (root / m.file).is_file()}
-            for g in list(spec.geoms):
-                if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname in missing:
-                    spec.delete(g)
-            for m in list(spec.meshes):
-                if m.name in missing:
-                    spec.delete(m)
+            drop_missing_meshes(spec, path.parent)
         return spec.compile()
     except ValueError as e:
         raise RobotModelError(f"{path}: MuJoCo cannot read it ({_one_line(e)})") from None
@@ -504,6 +511,6 @@ def derived_urdf(mjcf: str | os.PathLike, base: str, joint_names: tuple[str, ...
 
 
 __all__ = ["BASE_INERTIA", "CACHE_ENV", "FOOT_KINDS", "FOOT_LINK", "BaseFrame", "Feet", "FootFrame",
-           "RobotModelError", "actuated", "cache_dir", "colliding", "compile_model", "derived_urdf", "element_id",
-           "foot_frames", "matrix_to_rpy", "missing_files", "model_hash", "name_of", "reach", "subtree",
-           "torque_bound", "urdf_text", "zero_pose"]
+           "RobotModelError", "actuated", "cache_dir", "colliding", "compile_model", "derived_urdf",
+           "drop_missing_meshes", "element_id", "foot_frames", "matrix_to_rpy", "missing_files", "model_hash",
+           "name_of", "reach", "subtree", "torque_bound", "urdf_text", "zero_pose"]

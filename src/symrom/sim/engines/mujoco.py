@@ -47,7 +47,7 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
-from symrom.robots.mjcf import foot_frames
+from symrom.robots.mjcf import drop_missing_meshes, foot_frames
 from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state, settle_mujoco
 from symrom.sim.engines.world import (
     RobotState,
@@ -91,15 +91,7 @@ def _spec(desc: RobotDescription) -> mujoco.MjSpec:
     if not any(j.type == mujoco.mjtJoint.mjJNT_FREE for j in base.joints):
         base.add_freejoint()
     # collision meshes whose files are missing: keep the primitives
-    root = (desc.mjcf_path or desc.urdf_path).parent
-    missing = {m.name for m in spec.meshes
-               if m.file and not (root / spec.meshdir / m.file).is_file() and not (root / m.file).is_file()}
-    for g in list(spec.geoms):
-        if g.type == mujoco.mjtGeom.mjGEOM_MESH and g.meshname in missing:
-            spec.delete(g)
-    for m in list(spec.meshes):
-        if m.name in missing:
-            spec.delete(m)
+    drop_missing_meshes(spec, (desc.mjcf_path or desc.urdf_path).parent)
     return spec
 
 
