@@ -1,11 +1,14 @@
 """Rollout-aware refinement: exact sensitivities, and a stable model where least squares is not."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from symrom.data.dataset import jump_bounds
 from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.estimator import trajectories
+from symrom.learn.plugins import regressor_from_dict
 from symrom.learn.regressors.refine import Refine
 from symrom.learn.regressors.stlsq import STLSQ
 from symrom.learn.shooting import Parameters, cut_windows, simulate
@@ -203,6 +206,17 @@ def test_budget_prunes_a_dense_model_to_the_planted_support(planted_axis):
     rounds = pruned.phase_info["contact"].report["refinement"]["prunings"]
     assert len(rounds) >= 2 and rounds[-1]["active_after"] == planted.sum()
     assert pruned.provenance.training.settings["max_terms"] == planted.sum()
+    # After each pruning the refinement goes on from the last stage it kept, not from the
+    # shortest windows again; the whole schedule again finds the same support.
+    est = TrainConfig(latent_dim=2, poly_order=1, threshold=0.0, refine=True,
+                      max_terms=int(planted.sum())).estimator()
+    assert est.regressor.after_pruning == "last"
+    last = len(pruned.phase_info["contact"].report["refinement"]["stages"]) - 1
+    assert all(len(r["stages"]) <= len(est.regressor.windows) - last for r in rounds)
+    est.regressor = replace(est.regressor, after_pruning="schedule")
+    again = est.fit(ds).model_
+    np.testing.assert_array_equal(again.mask, planted)
+    assert all(len(r["stages"]) > 1 for r in again.phase_info["contact"].report["refinement"]["prunings"])
 
 
 def test_budget_settings_are_checked():
@@ -210,5 +224,13 @@ def test_budget_settings_are_checked():
         Refine(STLSQ(), max_terms=0)
     with pytest.raises(ValueError, match="prune_share"):
         Refine(STLSQ(), prune_share=0.0)
+    with pytest.raises(ValueError, match="after_pruning"):
+        Refine(STLSQ(), max_terms=5, after_pruning="twice")
+    # a record from before the setting was pruned by the whole schedule again; without a budget
+    # the setting is not recorded
+    record = Refine(STLSQ(), max_terms=5).to_dict()
+    assert record["after_pruning"] == "last" and "after_pruning" not in Refine(STLSQ()).to_dict()
+    del record["after_pruning"]
+    assert regressor_from_dict(record).after_pruning == "schedule"
     with pytest.raises(ValueError, match="needs refine"):
         TrainConfig(max_terms=10)

@@ -72,6 +72,8 @@ def regressor_from_dict(d: dict, where: str = "regressor") -> Regressor:
     if cls is Refine:
         body.setdefault("acceleration_weight", 0.0)  # a record from before the terms: rollouts alone
         body.setdefault("momentum_weight", 0.0)
+        if body.get("max_terms") is not None:
+            body.setdefault("after_pruning", "schedule")  # a record from before the setting
         if "initial" in body:
             body["initial"] = regressor_from_dict(body["initial"], f"{where}.initial")
         if "windows" in body:

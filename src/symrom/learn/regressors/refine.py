@@ -25,9 +25,13 @@ the training jumps, by multiple shooting:
 Refinement moves the coefficients STLSQ chose and never adds terms. With a
 term budget, ``max_terms``, it then removes terms while the model has more:
 ``prune_share`` of them at a time (never below the budget), the least needed
-first by their saliency on the rollout costs (``prune``), and runs the schedule
-again from there (the result before the pruning is kept as ``Coefficients.unpruned``: what
-the refinement without the budget fits). ``max_jumps`` caps the training jumps used (evenly spaced).
+first by their saliency on the rollout costs (``prune``), and refines again from there
+(the result before the pruning is kept as ``Coefficients.unpruned``: what the refinement
+without the budget fits). ``after_pruning`` says how: ``last``, from the last stage whose
+result was kept onward (the pruned coefficients start where the schedule left the
+full model, and the removal already moved the rest to make up for what went), or
+``schedule``, the whole schedule again from the shortest windows (six times the work
+per pruning; a record without the setting was fitted so). ``max_jumps`` caps the training jumps used (evenly spaced).
 ``hold`` names phases whose coefficients are held at the start's values: they act
 in every rollout but are not fitted (a flight phase whose gravity must stay).
 ``short_weight`` weighs the shortest windows' error against the longer windows' in
@@ -56,13 +60,10 @@ the momentum balance of the phase as a whole. The validation selection checks
 both on every candidate whatever the weights (``symrom.evaluate.usability``).
 
 ``backend`` says what rolls the windows out (``symrom.learn.shooting.simulate``):
-``table``, the compiled kernel, several times faster per rollout but compiled
-once per process first; ``numpy``, nothing to compile; ``auto`` (default), the
-kernel when the refinement's work pays for its compilation: training window
-samples times active coefficients of at least ``KERNEL_PAYS`` (a one-off
-refinement of a few terms on forty jumps does not), else NumPy (a polish stage
-decides by its own work). The choice depends on the problem alone, so a
-refinement gives the same coefficients wherever it runs.
+``table``, the compiled kernel (compiled once per installation, then loaded from
+numba's disk cache); ``numpy``, the reference; ``auto`` (default), the kernel
+whenever the library has a term table, else NumPy. The choice depends on the
+library alone, so a refinement gives the same coefficients wherever it runs.
 """
 
 from __future__ import annotations
@@ -82,10 +83,7 @@ from symrom.learn.shooting import Parameters, Windows, cut_windows, simulate
 # units of the spread): more than any sample still inside, so leaving is never a
 # way to lower the cost, and finite, so the solver can go on.
 DIVERGED_FACTOR = 2.0
-# Training window samples x active coefficients from which the compiled kernel's speed pays for its
-# compilation on a cold cache over a refinement's rollouts.
-KERNEL_PAYS = 1_000_000
-
+AFTER_PRUNING = ("last", "schedule")
 
 @dataclass(frozen=True)
 class Refine(Regressor):
@@ -113,6 +111,7 @@ class Refine(Regressor):
     stride: int = 4
     max_terms: int | None = None
     prune_share: float = 0.25
+    after_pruning: str = "last"
     hold: tuple[str, ...] = ()
     short_weight: float = 1.0
     polish: tuple[str, ...] = ()
@@ -141,6 +140,8 @@ class Refine(Regressor):
             raise ValueError(f"polish: phase(s) {sorted(set(self.polish) & set(self.hold))} are held")
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
+        if self.after_pruning not in AFTER_PRUNING:
+            raise ValueError(f"after_pruning must be one of {AFTER_PRUNING}, got {self.after_pruning!r}")
         if not self.acceleration_weight >= 0:
             raise ValueError(f"acceleration_weight must be >= 0, got {self.acceleration_weight}")
         if self.backend not in SHOOTING_BACKENDS:
@@ -161,6 +162,7 @@ class Refine(Regressor):
                 "velocity_weight": self.velocity_weight, "max_jumps": self.max_jumps,
                 "max_nfev": self.max_nfev, "bound": self.bound, "substeps": self.substeps,
                 "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share,
+                **({"after_pruning": self.after_pruning} if self.max_terms is not None else {}),
                 **({"hold": list(self.hold)} if self.hold else {}),
                 **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {}),
                 **({"polish": list(self.polish), "polish_windows": list(self.polish_windows),
@@ -218,8 +220,6 @@ class Refine(Regressor):
                  if self.acceleration_weight > 0 or self.momentum_weight > 0 else None)
         mask = start.mask & ~held[:, None, None]
         backend = self.backend
-        if backend == "auto":  # the kernel (if the library has a table) where its speed pays for compiling it
-            backend = "auto" if sum(t.xi.shape[0] for t in trajs) * int(mask.sum()) >= KERNEL_PAYS else "numpy"
         Xi = start.Xi * mask
         Xi, stages, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
         unpruned = None
@@ -232,7 +232,8 @@ class Refine(Regressor):
             n = int(mask.sum())
             drop = min(n - self.max_terms, max(1, int(np.ceil(self.prune_share * n))))
             Xi, mask, record = prune(Xi, mask, [cost(mask, [w]) for w in windows[last]], drop)
-            Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost)
+            first = last if self.after_pruning == "last" else 0
+            Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost, first)
             prunings.append({**record, "stages": more})
         Xi, mask = Xi + fixed, mask | (start.mask & held[:, None, None])
         report = {name: {**start.report.get(name, {}), "refinement": {
@@ -248,13 +249,16 @@ class Refine(Regressor):
         return Coefficients(Xi, mask, report, unpruned)
 
     def _schedule(self, Xi: np.ndarray, mask: np.ndarray, windows: list[list[tuple[Windows, float]]], lengths: list,
-                  dt: float, cost) -> tuple[np.ndarray, list[dict], int]:
-        """The growing-window schedule from ``Xi`` on the support ``mask``: the result, a
-        record per stage and the index of the last stage whose result was kept (0 if none)."""
+                  dt: float, cost, first: int = 0) -> tuple[np.ndarray, list[dict], int]:
+        """The growing-window schedule from ``Xi`` on the support ``mask``, from stage ``first``
+        on: the result, a record per stage and the index of the last stage whose result was
+        kept (``first`` if none)."""
         params = Parameters.of(mask)
         theta = params.vector(Xi)
-        stages, last = [], 0
+        stages, last = [], first
         for i, (length, wins) in enumerate(zip(lengths, windows)):
+            if i < first:
+                continue
             record = {"window_s": None if length is None else length * dt}
             new, info = levenberg_marquardt(cost(mask, wins), theta, self.max_nfev)
             record.update(info)
