@@ -204,3 +204,27 @@ def test_stages_along_a_sequence():
     assert stage_along(froggy, np.array([0, 2, 0])) == 3  # a jump without its partial phase
     assert stage_along(froggy, np.array([0, 1, 0])) == 3  # partial straight to contact: still forward
     assert stage_along(froggy, np.array([0, 2, 1])) == -1  # back into a phase the jump has left
+
+
+def test_guards_levelled_along_free_predictions_switch_no_later_than_on_own_rollouts(fitted):
+    # fit levels each guard again along free predictions, transition by transition; the grid's
+    # fit_variants stops at the own rollouts. On the jumps they were levelled on, the free
+    # predictions' switching errors can only shrink (a guard changes only when better on val),
+    # and the levelled ones name their path.
+    from symrom.evaluate.switching import predicted_rollout, switching_errors
+    from symrom.learn.estimator import FREE_PATH
+
+    model, ds, _ = fitted
+    est = TrainConfig(latent_dim=2, poly_order=2).estimator()
+    (own,) = est.fit_variants(ds, [est.regressor])
+    assert FREE_PATH in [g.report.get("refit_on") for g in model.guards]  # this fit's touchdown moved
+    assert FREE_PATH not in [g.report.get("refit_on") for g in own.guards]
+    jumps = ds.jumps_in("val")
+    errors = {}
+    for name, m in (("own", own), ("free", model)):
+        ro, ph = predicted_rollout(m, ds, jumps, RolloutOptions("rk4"))
+        errors[name] = switching_errors(m, ds, jumps, ph, ro.diverged_at)
+    for t, e in errors["free"].items():
+        assert e["missed"] == errors["own"][t]["missed"] and e["extra"] == 0
+        assert np.mean([abs(x["predicted_t"] - x["logged_t"]) for x in e["errors"]]) <= np.mean(
+            [abs(x["predicted_t"] - x["logged_t"]) for x in errors["own"][t]["errors"]]) + ds.dt

@@ -156,6 +156,69 @@ def own_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows:
                         np.array(vb, dtype=int).reshape(-1, 2), list(model.phase_names), ds.dt, OWN_PATH)
 
 
+FREE_PATH = "the model's free predictions"  # what guards levelled along free predictions name as their source
+
+
+def free_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows: np.ndarray,
+                     fit: GuardFit) -> list[Guard]:
+    """``model``'s guards levelled again along its free predictions, one transition of the
+    motion's phase sequence at a time, in its order (``refit_guards`` on the new path).
+
+    A free prediction (``symrom.evaluate.switching.predicted_rollout``: from each jump's first
+    state, the logged inputs, the guards deciding the phases) reaches a switch through the
+    switches before it; one early switch into the push's next phase changes the lift-off, and
+    the touchdown with it. So each transition's guard is levelled on free predictions of the
+    jumps of ``rows`` and ``val_rows`` (N,) bool made with the guards before it already
+    levelled and none from it on (the prediction stays in the transition's source phase), its
+    loss against the logged switch times. A guard stays as it was unless better on that path.
+    Only the logged stays at the transition's place in the sequence count (a pronk's landing
+    stay is contact too, but no lift-off follows it in a prediction). The guards as they are
+    without a phase sequence (the motion is not in the registry)."""
+    from symrom.evaluate.switching import predicted_rollout
+    from symrom.model.guards import advance, first_stage
+    from symrom.rollout.integrate import RolloutOptions
+
+    guards = [replace(g) for g in model.guards or ()]
+    seq, names = model.phase_sequence(), list(model.phase_names)
+    if not seq or not guards:
+        return guards
+    pairs = [(seq[i], seq[i + 1]) for i in range(len(seq) - 1)]
+    key = lambda g: (names.index(g.source), names.index(g.target))  # noqa: E731
+    sel = rows | val_rows
+    jumps, bounds, logged = np.unique(ds.jump[sel]), ds.jump_bounds(), model.phase_index(ds)
+    stage = np.full(logged.shape, -1)  # each row's place in the sequence along its logged jump
+    for j in jumps:
+        a, b = bounds[j]
+        st = first_stage(seq, int(logged[a]))
+        for k in range(a, b):
+            if k > a and logged[k] != logged[k - 1] and st >= 0:
+                st = advance(seq, st, int(logged[k])) if int(logged[k]) in seq[st + 1:] else -1
+            stage[k] = st
+    for i, pair in enumerate(pairs):
+        k = next((k for k, g in enumerate(guards) if key(g) == pair), None)
+        if k is None or pair not in fit.finalists or pair in pairs[:i]:
+            continue
+        before = [g for g in guards if key(g) in pairs[:i]]
+        ro, _ = predicted_rollout(replace(model, guards=before), ds, jumps, RolloutOptions(method="rk4", substeps=2))
+        Z, ph, tb, vb, start = [], [], [], [], 0
+        for j, X, V in zip(jumps, ro.xi, ro.dxi):
+            a, b = bounds[j]
+            keep = np.flatnonzero(sel[a:b])
+            keep = keep[keep < int(np.isfinite(X).all(axis=1).sum())]
+            if keep.size < 2:
+                continue
+            Z.append(np.c_[X[keep], V[keep], model.autoencoder.encode_input(ds.u[a + keep])])
+            other = (logged[a + keep] == pair[0]) & (stage[a + keep] != i)  # the source at another place
+            ph.append(np.where(other, len(names), logged[a + keep]))
+            (tb if rows[a + keep[0]] else vb).append((start, start + keep.size))
+            start += keep.size
+        if tb:
+            guards[k] = refit_guards(GuardFit([guards[k]], {pair: fit.finalists[pair]}), np.concatenate(Z),
+                                     np.concatenate(ph), np.array(tb), np.array(vb, dtype=int).reshape(-1, 2),
+                                     names, ds.dt, FREE_PATH)[0]
+    return guards
+
+
 def _median_stay(ds: Dataset, rows: np.ndarray, k: int) -> float | None:
     """Median length (s) of the contiguous runs of phase k among ``rows``, within jumps."""
     lengths = []
@@ -215,7 +278,7 @@ class SymbolicROM:
                              "older): set its encoder and regressor to fit it again")
         say = progress or (lambda stage, frac: None)
         prepared = self._prepare(ds, rows, say, getattr(self.regressor, "needs_trajectories", False))
-        self.model_ = self._finish(prepared, self.regressor, say)
+        self.model_ = self._finish(prepared, self.regressor, say, free=True)
         return self
 
     def fit_variants(self, ds: Dataset, regressors: list[Regressor], rows: np.ndarray | None = None,
@@ -223,7 +286,9 @@ class SymbolicROM:
         """One model per regressor, all on this estimator's encoder and contact guards fitted once
         to the same rows (what a sparsity path or a selection grid needs), each with its library
         in ``libraries`` (default: this estimator's; one regression problem per distinct
-        library); ``model_`` unchanged."""
+        library); ``model_`` unchanged. Their guards are levelled on their own rollouts along
+        the logged phases only (``fit`` then levels them along free predictions too:
+        ``free_path_guards``)."""
         say = lambda stage, frac: None  # noqa: E731
         if libraries is not None and len(libraries) != len(regressors):
             raise ValueError(f"libraries: {len(libraries)} for {len(regressors)} regressors")
@@ -290,16 +355,18 @@ class SymbolicROM:
         say = lambda stage, frac: None  # noqa: E731
         prep = self._prepare(ds, rows, say, getattr(self.regressor, "needs_trajectories", False))
         lib, coefs, regressor = self._coefficients(prep, self.regressor, say, None)
-        model = self._model(prep, lib, coefs, regressor, say)
+        model = self._model(prep, lib, coefs, regressor, say, free=True)
         if coefs.unpruned is None:
             return model, None
-        return model, self._model(prep, lib, coefs.unpruned, replace(regressor, max_terms=None, polish=()), say)
+        return model, self._model(prep, lib, coefs.unpruned, replace(regressor, max_terms=None, polish=()), say,
+                                  free=True)
 
     def _finish(self, prep: dict, regressor: Regressor, say: Progress,
-                library: LibrarySpec | None = None) -> HybridModel:
+                library: LibrarySpec | None = None, free: bool = False) -> HybridModel:
         """Step (c) with ``regressor`` (and ``library``, default this estimator's) on a prepared fit,
-        then the guards levelled on the model's own rollouts: the fitted model."""
-        return self._model(prep, *self._coefficients(prep, regressor, say, library), say)
+        then the guards levelled on the model's own rollouts (and, with ``free``, along its free
+        predictions): the fitted model."""
+        return self._model(prep, *self._coefficients(prep, regressor, say, library), say, free)
 
     def _coefficients(self, prep: dict, regressor: Regressor, say: Progress, library: LibrarySpec | None):
         """Step (c): the bound library, the coefficients and the regressor that fitted them."""
@@ -315,8 +382,9 @@ class SymbolicROM:
                 coefs.report.setdefault(name, {})["path"] = path
         return lib, coefs, regressor
 
-    def _model(self, prep: dict, lib, coefs, regressor: Regressor, say: Progress) -> HybridModel:
-        """The fitted model of step (c)'s coefficients, its guards levelled on its own rollouts."""
+    def _model(self, prep: dict, lib, coefs, regressor: Regressor, say: Progress, free: bool = False) -> HybridModel:
+        """The fitted model of step (c)'s coefficients, its guards levelled on its own rollouts
+        (and, with ``free``, along its free predictions: ``free_path_guards``)."""
         phase_info = {}
         for name, (n_rows, op, stay) in zip(prep["phase_names"], prep["phases"]):
             phase_info[name] = PhaseInfo(trained=n_rows > 0, n_rows=n_rows, operating_point=op,
@@ -328,6 +396,10 @@ class SymbolicROM:
         say("contact guards on the model's own rollouts", 0.9)
         model = replace(model, guards=own_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
                                                       prep["guards"]))
+        if free and model.guards:
+            say("contact guards along the model's free predictions", 0.95)
+            model = replace(model, guards=free_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
+                                                           prep["guards"]))
         say("done", 1.0)
         return model
 

@@ -94,6 +94,33 @@ def _versions() -> dict:
 
 
 
+def _quiet(msg: str, transient: bool = False) -> None:
+    pass
+
+
+class Solvers:
+    """The solver comparison (``run_solvers``), started beside the rest of the run in a process
+    of its own when the run has more than one worker (the adam solver runs on one thread, so
+    its results do not depend on where it runs). ``result`` then reads what that process wrote
+    (``run_solvers`` resumes from its files; whatever it did not finish is done here)."""
+
+    def __init__(self, run: Path, data: Path, settings, cfg: ReproduceConfig, say: Say) -> None:
+        self.args, self.say, self.process = (run, data, settings, cfg), say, None
+        if cfg.workers > 1:
+            import multiprocessing as mp
+
+            say("solvers: exact and adam on go1_sim, beside the rest of the run")
+            # a daemon: an interrupted run does not wait for it
+            self.process = mp.get_context("spawn").Process(target=run_solvers, args=(*self.args, _quiet), daemon=True)
+            self.process.start()
+
+    def result(self) -> dict:
+        if self.process is not None:
+            self.say("solvers: waiting for the adam run", transient=True)
+            self.process.join()
+        return run_solvers(*self.args, self.say)
+
+
 def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None,
               only: str | None = None) -> dict:
     """Run every experiment into ``run``; write and return ``summary.json``'s content.
@@ -113,9 +140,13 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     specs = [s for s in cfg.datasets if only is None or s.name in needed]
     data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
     summary: dict = {"experiments": {}}
+    solvers = None
     if only is None:
         for exp in cfg.experiments:
             summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
+            if exp.name == "go1_sim" and cfg.compare_solvers:  # its settings are known: the solvers may start
+                solvers = Solvers(run, data["go1_sim"], selected_config(load_model(run / exp.name / "model.json")),
+                                  cfg, say)
     else:
         for exp in cfg.experiments:
             if exp.name in settings_of:
@@ -123,9 +154,6 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
                 selected(run, exp, read_dataset(data[exp.data]), cfg, say)
     settings = {exp.name: selected_config(load_model(run / exp.name / "model.json")) for exp in cfg.experiments
                 if exp.name in settings_of and (run / exp.name / "model.json").is_file()}
-    go1 = summary["experiments"].get("go1_sim")
-    if go1 is not None and cfg.compare_solvers:
-        go1["solvers"] = run_solvers(run, data["go1_sim"], settings["go1_sim"], cfg, say)
     if settings:
         entries, tables = run_sim2real(run, data, settings, cfg, say)
         if "go1_proxy" in entries:  # the paper's Table 2 row
@@ -134,6 +162,8 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
                                "targets": tables}
     if only is None:
         summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
+    if solvers is not None:
+        summary["experiments"]["go1_sim"]["solvers"] = solvers.result()
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
