@@ -18,7 +18,8 @@ Items (``--only`` picks some; ``--reproduce`` and ``--tests`` add the long ones)
 - ``generate_{pybullet,mujoco}_w{1,2}``: 12 Go1 pronks, ``--workers 1`` and ``2``; the files of
   both sides are compared byte for byte;
 - ``select_{go1_pybullet,go1_mujoco,a1_froggy}``: ``symrom train DATA --select --workers 2`` on 40
-  jumps, generated once beforehand by this checkout (not timed);
+  jumps, generated once beforehand by this checkout (not timed); ``..._max10``: the same with
+  ``--max-terms 10``;
 - ``demo``: ``symrom demo --out DIR``;
 - ``rollout``: the default ``rollout()`` of a 3-latent model of 120 planted jumps x 800 samples
   (the median whole call after the first, samples per second), and ``first_calls``: in a new
@@ -296,16 +297,19 @@ def main() -> None:
     selects = {"select_go1_pybullet": ("go1", "pronk", "pybullet"), "select_go1_mujoco": ("go1", "pronk", "mujoco"),
                "select_a1_froggy": ("a1", "froggy", "pybullet")}
     for name, (robot, motion, engine) in selects.items():
-        if not want(name):
+        budget = f"{name}_max10"
+        if not (want(name) or want(budget)):
             continue
         data = work / f"{name}.h5"
         r = run(symrom("generate", "--robot", robot, "--motion", motion, "--jumps", "40", "--engine", engine,
                        "--workers", w, "--out", str(data)), sides[-1].src, work, fresh(work / f"gen-{name}"), T)
         if r["returncode"] != 0:
             raise SystemExit(f"generating {data} failed: {r['tail']}")
-        items[name] = item_runs(name, sides, args.runs, work, lambda side, folder, d=data: (
-            symrom("train", str(d), "--out", str(folder / "model"), "--select", "--workers", w), folder,
-            fresh(folder)), T)
+        for item, extra in ((name, ()), (budget, ("--max-terms", "10"))):
+            if want(item):
+                items[item] = item_runs(item, sides, args.runs, work, lambda side, folder, d=data, x=extra: (
+                    symrom("train", str(d), "--out", str(folder / "model"), "--select", "--workers", w, *x), folder,
+                    fresh(folder)), T)
 
     if want("demo"):
         items["demo"] = item_runs("demo", sides, args.runs, work, lambda side, folder: (
