@@ -189,3 +189,27 @@ def test_an_unrefined_model_drops_what_only_the_refinement_reads():
     plain = unrefined(refined)
     assert not plain.refine and plain.max_terms is None and plain.polish == ()
     assert plain.latent_dim == 3 and unrefined(plain) == plain
+
+
+def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run, tmp_path):
+    # With more than one worker the comparison runs in a process of its own beside the rest;
+    # the run then reads what it wrote. The numbers are those of the run's own process (adam on
+    # one thread, seeded): a process that computed wrong, or a read-back that lost a key, differs.
+    from symrom.experiments.reproduce.run import Solvers
+    from symrom.experiments.reproduce.steps import selected_config
+    from symrom.model.persistence import load_model
+
+    d, summary, _, cfg = run
+    (tmp_path / "go1_sim").mkdir()
+    settings = selected_config(load_model(d / "go1_sim" / "model.json"))
+    said = []
+    beside = Solvers(tmp_path, d / "data" / "go1_sim.h5", settings, replace(cfg, workers=2),
+                     lambda msg, transient=False: said.append(msg))
+    assert beside.process is not None and "beside the rest" in said[0]
+    got = beside.result()
+    assert not beside.process.is_alive() and beside.process.exitcode == 0
+    inline = summary["experiments"]["go1_sim"]["solvers"]
+    for solver in ("exact", "adam"):
+        assert got[solver]["metrics"] == json.loads(json.dumps(inline[solver]["metrics"]))
+        assert got[solver]["active_terms"] == inline[solver]["active_terms"]
+        assert (tmp_path / "go1_sim" / "solvers" / solver / "model.json").is_file()

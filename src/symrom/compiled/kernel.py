@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from symrom.compiled.cache import in_disk_cache
 from symrom.compiled.dynamics import TermLibrary
 
 STATE_POWER, SIN, COS, INPUT = 0, 1, 2, 3
@@ -249,3 +250,37 @@ def active_terms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         active[k, :idx.size] = idx
         n[k] = idx.size
     return active, n
+
+
+def warm_windows() -> None:
+    """Compile (or load from numba's disk cache) the refinement's window kernel for the argument
+    types ``rollout_windows`` passes it, on one window of two samples."""
+    f, i = np.zeros, np.int64
+    one = np.zeros(1, dtype=i)
+    kernels()["rk4_windows"](f((1, 2, 1)), f((1, 2, 1)), f((1, 2, 1)), np.zeros((1, 2), dtype=i), f((1, 1, 1)),
+                             np.zeros((1, 1), dtype=i), np.zeros((1, 1), dtype=i), np.ones((1, 1), dtype=i), one,
+                             one, one, one, np.zeros((1, 1), dtype=i), np.ones(1, dtype=i), 0.002, 1, np.ones(2), 1,
+                             True, f((1, 2, 1)), f((1, 2, 1)), f((1, 2, 2, 1)), np.zeros((1, 2), dtype=np.bool_))
+
+
+def start_windows_helper():
+    """On a cold cache, a process compiling the window kernel into numba's disk cache (so that
+    the refinements' workers load it instead of each compiling it), as a ``subprocess.Popen``;
+    None when the cache holds it or no process can be started. It imports the symrom this
+    process runs."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    if in_disk_cache(kernels()["rk4_windows"]):
+        return None
+    root = str(Path(__file__).resolve().parents[2])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+    try:
+        return subprocess.Popen([sys.executable, "-c", "from symrom.compiled.kernel import warm_windows; "
+                                 "warm_windows()"], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+

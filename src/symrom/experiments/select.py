@@ -95,6 +95,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import subprocess
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -104,6 +105,7 @@ from typing import Any
 import numpy as np
 
 from symrom.atomic import atomic_dir, check_output_file, write_text_atomic
+from symrom.compiled.kernel import start_windows_helper
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate_model
@@ -118,6 +120,8 @@ from symrom.model.persistence import model_from_dict, model_to_dict, write_model
 from symrom.model.provenance import SelectionRecord
 from symrom.names import BASE_NAMES, FLIGHT_PHASE, PARTIAL_PHASE, Q_NAMES, STANCE_PHASE
 from symrom.rollout.integrate import RolloutOptions
+
+HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is left behind
 
 SELECTION_VERSION = 3
 CELL_VERSION = 2
@@ -683,6 +687,18 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     steps = plan_steps(ds, cfg.substeps)
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top * (1 if cfg.budget is None else 2)
+    # On a cold cache the refinements' window kernel compiles in a helper beside the grid, once,
+    # instead of in every worker when the refinements start.
+    helper = start_windows_helper() if cfg.refine_top > 0 else None
+    try:
+        return _select(ds, cfg, say, backend, sha, steps, cells, total, t0, cells_dir, helper)
+    finally:
+        if helper is not None and helper.poll() is None:
+            helper.kill()
+
+
+def _select(ds: Dataset, cfg: SelectionConfig, say, backend: Backend, sha: str, steps, cells, total: int,
+            t0: float, cells_dir, helper) -> Selection:
     store = None if cells_dir is None else Store(
         path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c, steps),
         record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},
@@ -701,6 +717,11 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
                           budget is not None and (cfg.max_terms is not None or rows[i]["active_terms"] > budget))
                          for i in idx]
     total = len(cells) + len(picks)  # fewer than refine_top when fewer candidates qualify
+    if helper is not None and picks:
+        try:
+            helper.wait(timeout=HELPER_TIMEOUT)
+        except subprocess.TimeoutExpired:  # left behind: the workers compile the kernel themselves
+            pass
     say(len(cells), total, f"refining {len(picks)} candidate model(s)" if picks else "no candidate to refine")
     rstore = None if cells_dir is None else Store(
         path=lambda p: refined_path(cells_dir, p), key=lambda p: refined_key(cfg, sha, p, steps),
