@@ -210,6 +210,7 @@ def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run
     assert not beside.process.is_alive() and beside.process.exitcode == 0
     inline = summary["experiments"]["go1_sim"]["solvers"]
     for solver in ("exact", "adam"):
-        assert got[solver]["metrics"] == json.loads(json.dumps(inline[solver]["metrics"]))
+        mine = {k: v for k, v in got[solver]["metrics"].items() if k != "model"}  # where the model is
+        assert mine == {k: v for k, v in json.loads(json.dumps(inline[solver]["metrics"])).items() if k != "model"}
         assert got[solver]["active_terms"] == inline[solver]["active_terms"]
         assert (tmp_path / "go1_sim" / "solvers" / solver / "model.json").is_file()

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from symrom.compiled.cache import in_disk_cache
 from symrom.compiled.dynamics import TermLibrary
 
 STATE_POWER, SIN, COS, INPUT = 0, 1, 2, 3
@@ -264,17 +263,15 @@ def warm_windows() -> None:
 
 
 def start_windows_helper():
-    """On a cold cache, a process compiling the window kernel into numba's disk cache (so that
-    the refinements' workers load it instead of each compiling it), as a ``subprocess.Popen``;
-    None when the cache holds it or no process can be started. It imports the symrom this
-    process runs."""
+    """A process making the window kernel ready in numba's disk cache (compiling it on a cold
+    cache, so that the refinements' workers load it instead of each compiling it; on a filled
+    one it only loads it), as a ``subprocess.Popen``; None if no process can be started. It
+    imports the symrom this process runs."""
     import os
     import subprocess
     import sys
     from pathlib import Path
 
-    if in_disk_cache(kernels()["rk4_windows"]):
-        return None
     root = str(Path(__file__).resolve().parents[2])
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
     try:
@@ -283,4 +280,3 @@ def start_windows_helper():
                                 stderr=subprocess.DEVNULL)
     except OSError:
         return None
-

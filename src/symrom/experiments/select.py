@@ -105,7 +105,7 @@ from typing import Any
 import numpy as np
 
 from symrom.atomic import atomic_dir, check_output_file, write_text_atomic
-from symrom.compiled.kernel import start_windows_helper
+from symrom.compiled import start_windows_helper
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate_model
@@ -687,8 +687,8 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     steps = plan_steps(ds, cfg.substeps)
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top * (1 if cfg.budget is None else 2)
-    # On a cold cache the refinements' window kernel compiles in a helper beside the grid, once,
-    # instead of in every worker when the refinements start.
+    # The refinements' window kernel made ready in numba's disk cache by a helper beside the grid:
+    # on a cold cache it compiles once there, not in every worker when the refinements start.
     helper = start_windows_helper() if cfg.refine_top > 0 else None
     try:
         return _select(ds, cfg, say, backend, sha, steps, cells, total, t0, cells_dir, helper)

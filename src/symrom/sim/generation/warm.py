@@ -20,7 +20,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-from symrom.compiled.cache import in_disk_cache
 from symrom.sim.controllers import compiled as controllers
 from symrom.sim.engines import compiled as engines
 
@@ -30,6 +29,15 @@ HELPER_TIMEOUT = 600.0  # s: a helper still compiling then is left behind; this 
 def routines(kind: str, name: str) -> list:
     """The numba dispatchers of a group: ``("engine", name)`` or ``("motion", name)``."""
     return engines.routines(name) if kind == "engine" else controllers.routines(name)
+
+
+def in_disk_cache(dispatcher) -> bool:
+    """Whether numba's disk cache holds a build of ``dispatcher`` for its present source
+    (False where the cache cannot be read)."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba's cache internals; any failure means "compile"
+        return False
 
 
 def warm(kind: str, name: str) -> None:
