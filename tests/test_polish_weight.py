@@ -15,33 +15,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from symrom.data.dataset import jump_bounds
 from symrom.experiments.select import SelectionConfig
 from symrom.learn.training import TrainConfig, train
-from symrom.testing import make_planted_dataset
+from symrom.testing import make_lagged_dataset
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import polish_weight as bench  # noqa: E402
 
 sys.path.pop(0)
 
-LIGHTLY_DAMPED = {
-    "contact": [{"1": 1.0, "xi1": -60.0, "dxi1": -0.6, "nu1": 20.0},
-                {"1": -0.5, "xi2": -40.0, "dxi2": -0.4, "nu2": 15.0}],
-    "flight": [{"xi1": -50.0, "dxi1": -0.5}, {"1": -2.0, "xi2": -45.0, "dxi2": -0.5}],
-}
-LAG = 10  # samples: 20 ms
-
-
 @pytest.fixture(scope="module")
 def lagged_model():
-    ds, _ = make_planted_dataset(10, 400, embedding="axis", noise=1e-5, seed=7, equations=LIGHTLY_DAMPED,
-                                 amplitude=(1.0, 1.0))
-    ddq = ds.ddq.copy()
-    for a, b in jump_bounds(ds.jump):
-        ddq[a + LAG:b] = ds.ddq[a:b - LAG]
-        ddq[a:a + LAG] = ds.ddq[a]
-    ds.ddq = ddq
+    ds, _ = make_lagged_dataset(10, 400)  # accelerations lagging by 20 ms
     return ds, train(ds, TrainConfig(latent_dim=2, poly_order=1))
 
 

@@ -5,7 +5,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from symrom.data.dataset import jump_bounds
 from symrom.evaluate.metrics import evaluate_model
 from symrom.learn.estimator import trajectories
 from symrom.learn.plugins import regressor_from_dict
@@ -14,28 +13,14 @@ from symrom.learn.regressors.stlsq import STLSQ
 from symrom.learn.shooting import Parameters, cut_windows, simulate
 from symrom.learn.training import TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions
-from symrom.testing import make_planted_dataset
-
-# Stiff, lightly damped latents. The logged accelerations lag the motion by 20 ms (a
-# causal filter): least squares on them reads the lag as negative damping.
-LIGHTLY_DAMPED = {
-    "contact": [{"1": 1.0, "xi1": -60.0, "dxi1": -0.6, "nu1": 20.0},
-                {"1": -0.5, "xi2": -40.0, "dxi2": -0.4, "nu2": 15.0}],
-    "flight": [{"xi1": -50.0, "dxi1": -0.5}, {"1": -2.0, "xi2": -45.0, "dxi2": -0.5}],
-}
-LAG = 10  # samples
+from symrom.testing import make_lagged_dataset
 
 
 @pytest.fixture(scope="module")
 def lagged():
-    ds, truth = make_planted_dataset(16, 600, embedding="axis", noise=1e-5, seed=7, equations=LIGHTLY_DAMPED,
-                                     amplitude=(1.0, 1.0))
-    ddq = ds.ddq.copy()
-    for a, b in jump_bounds(ds.jump):
-        ddq[a + LAG:b] = ds.ddq[a:b - LAG]
-        ddq[a:a + LAG] = ds.ddq[a]
-    ds.ddq = ddq
-    return ds, truth
+    # Stiff, lightly damped latents whose logged accelerations lag the motion by 20 ms (a causal
+    # filter): least squares on them reads the lag as negative damping.
+    return make_lagged_dataset(16, 600)
 
 
 def test_sensitivities_match_finite_differences(planted_block):

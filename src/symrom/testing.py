@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from symrom.data.dataset import Dataset, validate
+from symrom.data.dataset import Dataset, jump_bounds, validate
 from symrom.model.library import Library
 from symrom.names import GRAVITY, N_JOINTS, N_Q
 
@@ -160,6 +160,29 @@ def make_planted_dataset(n_jumps: int = 24, n_samples: int = 400, embedding: str
                             "equations": equations})
     validate(ds)
     return ds, PlantedSystem(lib, phase_names, Xi, E, c)
+
+
+# Stiff, lightly damped latents: what a logged acceleration's lag turns into negative damping.
+LIGHTLY_DAMPED: dict[str, list[dict[str, float]]] = {
+    "contact": [{"1": 1.0, "xi1": -60.0, "dxi1": -0.6, "nu1": 20.0},
+                {"1": -0.5, "xi2": -40.0, "dxi2": -0.4, "nu2": 15.0}],
+    "flight": [{"xi1": -50.0, "dxi1": -0.5}, {"1": -2.0, "xi2": -45.0, "dxi2": -0.5}],
+}
+
+
+def make_lagged_dataset(n_jumps: int, n_samples: int, lag: int = 10, seed: int = 7
+                        ) -> tuple[Dataset, PlantedSystem]:
+    """A planted dataset of ``LIGHTLY_DAMPED`` latents (axis embedding, little noise) whose
+    logged accelerations lag the motion by ``lag`` samples, as a causal filter's do (each jump's
+    first ``lag`` rows hold its first value); and its truth."""
+    ds, truth = make_planted_dataset(n_jumps, n_samples, embedding="axis", noise=1e-5, seed=seed,
+                                     equations=LIGHTLY_DAMPED, amplitude=(1.0, 1.0))
+    ddq = ds.ddq.copy()
+    for a, b in jump_bounds(ds.jump):
+        ddq[a + lag:b] = ds.ddq[a:b - lag]
+        ddq[a:a + lag] = ds.ddq[a]
+    ds.ddq = ddq
+    return ds, truth
 
 
 def make_slip_dataset(n_jumps: int = 6, n_samples: int = 300, k_s: float = 3000.0, l_0: float = 0.35,
