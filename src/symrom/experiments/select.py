@@ -688,17 +688,9 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     cells = cfg.cells()
     total = len(cells) + cfg.refine_top * (1 if cfg.budget is None else 2)
     # The refinements' window kernel made ready in numba's disk cache by a helper beside the grid:
-    # on a cold cache it compiles once there, not in every worker when the refinements start.
+    # on a cold cache it compiles once there, not in every worker when the refinements start (a
+    # selection that stops early leaves it to finish: it only fills the cache).
     helper = start_windows_helper() if cfg.refine_top > 0 else None
-    try:
-        return _select(ds, cfg, say, backend, sha, steps, cells, total, t0, cells_dir, helper)
-    finally:
-        if helper is not None and helper.poll() is None:
-            helper.kill()
-
-
-def _select(ds: Dataset, cfg: SelectionConfig, say, backend: Backend, sha: str, steps, cells, total: int,
-            t0: float, cells_dir, helper) -> Selection:
     store = None if cells_dir is None else Store(
         path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c, steps),
         record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},

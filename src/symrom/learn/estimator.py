@@ -131,29 +131,38 @@ def own_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows:
 
     sel = rows | val_rows
     jumps = np.unique(ds.jump[sel])
-    bounds = ds.jump_bounds()
     try:
         ro = rollout(model, ds, jumps, RolloutOptions(method="rk4", substeps=2))
         phase = model.phase_index(ds)
     except ValueError:  # rows in a phase the model has no equations for: nothing to roll out
         return [replace(g) for g in fit.guards]
-    ae = model.autoencoder
+    path = _path_rows(model, ds, jumps, rows, sel, ro.xi, ro.dxi, phase)
+    if path is None:
+        return [replace(g) for g in fit.guards]
+    return refit_guards(fit, *path, list(model.phase_names), ds.dt, OWN_PATH)
+
+
+def _path_rows(model: HybridModel, ds: Dataset, jumps: np.ndarray, rows: np.ndarray, sel: np.ndarray,
+               xs: list[np.ndarray], vs: list[np.ndarray], labels: np.ndarray):
+    """What ``refit_guards`` reads of a path of ``jumps``: Z (M, 3l) of the rows of ``sel`` (N,)
+    bool on the path's states ``xs``, ``vs`` (per jump (n_j, l); a diverged jump up to its
+    divergence) with the logged inputs, their phase ``labels`` (N,), and the train (the jumps
+    of ``rows``) and val bounds; None if no training jump is left."""
+    bounds = ds.jump_bounds()
     Z, ph, tb, vb, start = [], [], [], [], 0
-    for j, X, V in zip(jumps, ro.xi, ro.dxi):
+    for j, X, V in zip(jumps, xs, vs):
         a, b = bounds[j]
         keep = np.flatnonzero(sel[a:b])
-        n = int(np.isfinite(X).all(axis=1).sum())
-        keep = keep[keep < n]
+        keep = keep[keep < int(np.isfinite(X).all(axis=1).sum())]
         if keep.size < 2:
             continue
-        Z.append(np.c_[X[keep], V[keep], ae.encode_input(ds.u[a + keep])])
-        ph.append(phase[a + keep])
+        Z.append(np.c_[X[keep], V[keep], model.autoencoder.encode_input(ds.u[a + keep])])
+        ph.append(labels[a + keep])
         (tb if rows[a + keep[0]] else vb).append((start, start + keep.size))
         start += keep.size
     if not tb:
-        return [replace(g) for g in fit.guards]
-    return refit_guards(fit, np.concatenate(Z), np.concatenate(ph), np.array(tb),
-                        np.array(vb, dtype=int).reshape(-1, 2), list(model.phase_names), ds.dt, OWN_PATH)
+        return None
+    return np.concatenate(Z), np.concatenate(ph), np.array(tb), np.array(vb, dtype=int).reshape(-1, 2)
 
 
 FREE_PATH = "the model's free predictions"  # what guards levelled along free predictions name as their source
@@ -189,33 +198,24 @@ def free_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows
     stage = np.full(logged.shape, -1)  # each row's place in the sequence along its logged jump
     for j in jumps:
         a, b = bounds[j]
+        cuts = np.r_[a, a + 1 + np.flatnonzero(np.diff(logged[a:b])), b]
         st = first_stage(seq, int(logged[a]))
-        for k in range(a, b):
-            if k > a and logged[k] != logged[k - 1] and st >= 0:
-                st = advance(seq, st, int(logged[k])) if int(logged[k]) in seq[st + 1:] else -1
-            stage[k] = st
+        for c, e in zip(cuts[:-1], cuts[1:]):
+            if c > a and st >= 0:
+                st = advance(seq, st, int(logged[c])) if int(logged[c]) in seq[st + 1:] else -1
+            stage[c:e] = st
     for i, pair in enumerate(pairs):
         k = next((k for k, g in enumerate(guards) if key(g) == pair), None)
         if k is None or pair not in fit.finalists or pair in pairs[:i]:
             continue
         before = [g for g in guards if key(g) in pairs[:i]]
         ro, _ = predicted_rollout(replace(model, guards=before), ds, jumps, RolloutOptions(method="rk4", substeps=2))
-        Z, ph, tb, vb, start = [], [], [], [], 0
-        for j, X, V in zip(jumps, ro.xi, ro.dxi):
-            a, b = bounds[j]
-            keep = np.flatnonzero(sel[a:b])
-            keep = keep[keep < int(np.isfinite(X).all(axis=1).sum())]
-            if keep.size < 2:
-                continue
-            Z.append(np.c_[X[keep], V[keep], model.autoencoder.encode_input(ds.u[a + keep])])
-            other = (logged[a + keep] == pair[0]) & (stage[a + keep] != i)  # the source at another place
-            ph.append(np.where(other, len(names), logged[a + keep]))
-            (tb if rows[a + keep[0]] else vb).append((start, start + keep.size))
-            start += keep.size
-        if tb:
-            guards[k] = refit_guards(GuardFit([guards[k]], {pair: fit.finalists[pair]}), np.concatenate(Z),
-                                     np.concatenate(ph), np.array(tb), np.array(vb, dtype=int).reshape(-1, 2),
-                                     names, ds.dt, FREE_PATH)[0]
+        # the source phase at another place of the sequence is no stay of this transition
+        labels = np.where((logged == pair[0]) & (stage != i), len(names), logged)
+        path = _path_rows(model, ds, jumps, rows, sel, ro.xi, ro.dxi, labels)
+        if path is not None:
+            guards[k] = refit_guards(GuardFit([guards[k]], {pair: fit.finalists[pair]}), *path, names, ds.dt,
+                                     FREE_PATH)[0]
     return guards
 
 
