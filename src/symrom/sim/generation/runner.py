@@ -137,8 +137,8 @@ def run_jump(cfg: GenerateConfig, seq: np.random.SeedSequence) -> tuple[dict[str
 # A drawn jump (the ``randomized`` and ``proxy`` variants draw the motion's parameters and the
 # world from ranges) that the controller cannot land is replaced by a fresh draw from the same
 # ranges, each recorded as a retry: at least this many draws, so that a run of them never stops
-# at the ranges' landing rates (docs/simulation.md: at the lowest, 0.7 of the randomised froggy's
-# draws land; 100 failures in a row then have a chance below 1e-50).
+# at the ranges' landing rates (docs/simulation.md: at the lowest, 0.35 of the randomised froggy's
+# draws land, in MuJoCo; 100 failures in a row then have a chance of about 1e-19).
 DRAWN_ATTEMPTS = 100
 
 
