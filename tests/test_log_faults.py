@@ -100,12 +100,13 @@ def test_a_faulty_file_is_one_logger_whose_faults_the_repair_finds(tmp_path):
 
 
 def test_the_hardware_like_a1_froggy_holds_its_rear_feet_as_a_real_one_and_its_slow_loop_is_found(tmp_path):
-    """Two jumps of the A1 froggy proxy (the sim-to-real target's robot, seed 5) in MuJoCo,
+    """Three jumps of the A1 froggy proxy (the sim-to-real target's robot, seed 5) in MuJoCo,
     logged by a slow wobbling loop: each holds the rear feet alone 0.25-0.4 s before the flight
-    and turns nose-up by 0.15 rad or more; the repair finds a wrong clock in both (the two
-    flights together where one cannot tell) and puts the jumps back on about the true clock."""
-    ds = generate(GenerateConfig("a1", "froggy", 2, seed=5, proxy=True, engine="mujoco", log_faults="clock",
-                                 splits=(1, 0, 1)), tmp_path / "a1_real.h5")
+    and turns nose-up by 0.15 rad or more; the repair finds a wrong clock in every one (the
+    file's flights together where one cannot tell: the second's alone fits both) and puts the
+    jumps back on the true clock within its stated uncertainty."""
+    ds = generate(GenerateConfig("a1", "froggy", 3, seed=5, proxy=True, engine="mujoco", log_faults="clock",
+                                 splits=(2, 0, 1)), tmp_path / "a1_real.h5")
     planted = ds.generator["log_faults"]
     assert ds.source == "proxy" and planted["clock"] >= 1.04
     for (a, b), rec in zip(ds.jump_bounds(), ds.generator["jumps"]):
@@ -122,4 +123,6 @@ def test_the_hardware_like_a1_froggy_holds_its_rear_feet_as_a_real_one_and_its_s
     for r, rec in zip(rep.generator["repairs"]["jumps"], ds.generator["jumps"]):
         assert r["clock"]["finding"] == "clock", r["line"]
         true_duration = (rec["log_faults"]["true_samples"] - 1) * 0.002
-        assert abs(r["clock"]["scale"] * (rec["samples"] - 1) * 0.002 / true_duration - 1) < 0.01
+        # within its own uncertainty (3 sd; a wobbling loop fitted by one scale has a wide one), and 2 %
+        err = abs(r["clock"]["scale"] * (rec["samples"] - 1) * 0.002 / true_duration - 1)
+        assert err < min(0.02, max(0.005, 3 * r["clock"]["scale_sd"])), (err, r["clock"]["scale_sd"])
