@@ -116,6 +116,8 @@ def test_budget_refines_the_best_cell_at_short_horizons_nearest_above_the_budget
     # a budget the usual picks fit in refines nothing more
     assert to_refine(rows, 1, reference=True, max_terms=300) == [0]
     assert to_refine(rows[:1] + rows[3:], 1, reference=True, max_terms=150) == [0, 2]  # 157 > 150: 154 of b
+    # none pruned beyond PRUNE_REACH (3) times the budget: of b's only 40 within 3 x 30 = 90 terms
+    assert to_refine(rows, 2, reference=True, max_terms=30) == [0, 1, 7]
     # a candidate a check refuses for good (physics, integrator) is not refined
     rows[0]["refused"] = [{"check": "physics", "reason": "its flight falls upward"}]
     rows[1]["refused"] = [{"check": "free", "reason": "its free prediction diverged"}]

@@ -29,7 +29,8 @@ and 0.1 s resets). The grid spans
   budget, bit for bit) is a candidate too. When a usual pick has more terms than
   the budget, the cell (encoder, latent dimension, library) of the exact
   candidate with the best 0.1 s score is refined from ``refine_top`` more of its
-  thresholds, the sparsest with at least the budget's terms first (an exact
+  thresholds with at most ``PRUNE_REACH`` (3) times the budget's terms, the
+  sparsest with at least the budget's terms first (an exact
   fit's own val score says little of what it becomes once pruned, and the fewer
   terms pruning removes, the less it costs). ``max_terms`` is a hard budget:
   only candidates within it compete in the rule below, unless none of them
@@ -137,6 +138,10 @@ BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitc
 # SIM A1 meets Table 2 as without one: docs/results.md).
 COMPACT_TERMS = 60
 SWITCH_TOLERANCE = 0.02  # s: a free prediction's median switching error per transition, at most
+# The budget's extra refinements (``to_refine``) take the best cell's candidates with at most this
+# many times the budget's terms: pruned further (3.5-5x: 35-50 terms to 10 on 40 Go1 MuJoCo and A1
+# froggy jumps) they broke the momentum balance or lost on val, at twice the selection's time.
+PRUNE_REACH = 3
 CHECKS = ("physics", "integrator", "free")  # what a refusal names; the last two are set aside in reverse order
 FREE = "free"  # the row's horizon key of the free prediction
 
@@ -572,7 +577,8 @@ def _refinable(r: dict) -> bool:
 def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int | None = None) -> list[int]:
     """Indices of the exact candidates to refine (module docstring): ``k`` of them, and
     when one of those has more than ``max_terms`` terms (the budget), up to ``k`` more from
-    the best cell at 0.1 s. Candidates refused on physics or by the integrator are not refined."""
+    the best cell at 0.1 s, none with more than ``PRUNE_REACH`` times the budget's terms.
+    Candidates refused on physics or by the integrator are not refined."""
     short = [i for i, r in enumerate(rows) if r["horizons"]["0.1"]["score"] is not None and _refinable(r)]
     picked = []
     if reference:  # the sparsest that meet the reference with 0.1 s resets
@@ -586,7 +592,8 @@ def to_refine(rows: list[dict], k: int, reference: bool = False, max_terms: int 
         return picked
     cell = lambda r: (r["encoder"], r["latent_dim"], r["library"])  # noqa: E731
     best = cell(rows[min(short, key=lambda i: rows[i]["horizons"]["0.1"]["score"])])
-    members = [i for i, r in enumerate(rows) if cell(r) == best and _refinable(r)]
+    members = [i for i, r in enumerate(rows) if cell(r) == best and _refinable(r)
+               and r["active_terms"] <= PRUNE_REACH * max_terms]
     members.sort(key=lambda i: (rows[i]["active_terms"] < max_terms,
                                 abs(rows[i]["active_terms"] - max_terms)))
     return picked + [i for i in members if i not in picked][:k]
