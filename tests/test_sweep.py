@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.experiments.sweep import SweepConfig, bootstrap_jumps, l_mod, parse_latent_dims, run_sweep, summarise
+from symrom.names import TABLE2_COMPONENTS
 from symrom.testing import make_planted_dataset
 
 DIMS = (1, 2, 3, 4)
@@ -90,6 +91,28 @@ def test_accuracy_recorded(swept):
     rmse = np.array(result["rmse_test"], dtype=float)
     assert np.isfinite(rmse).all()
     assert rmse[1].mean() < 0.1 * rmse[0].mean()  # l = 2 predicts far better than l = 1
+
+
+def test_a_cell_fits_no_guard_and_gives_what_a_guarded_fit_gives(planted):
+    # The cell's numbers follow the logged phases, so the cell skips the guards: same numbers.
+    from symrom.evaluate.metrics import evaluate_model
+    from symrom.experiments.sweep import run_cell
+    from symrom.learn.training import TrainConfig, reconstruction_error, train
+    from symrom.rollout.integrate import RolloutOptions
+
+    cell = run_cell(planted, SweepConfig(latent_dims=(2,), seeds=1, solver="exact"), 2, 0)
+    train_ds = planted.select_jumps(bootstrap_jumps(planted, 0))
+    rows = np.ones(train_ds.n_samples, dtype=bool)
+    guarded = train(train_ds, TrainConfig(latent_dim=2, threshold=0.01, seed=0), rows)
+    assert guarded.guards, "the planted data's phases give the guarded fit its guards"
+    est = TrainConfig(latent_dim=2, threshold=0.01, seed=0).estimator()
+    est.contact_guards = False
+    bare = est.fit(train_ds, rows).model
+    assert bare.guards is None and np.array_equal(bare.Xi, guarded.Xi)
+    assert cell["E_dec"] == reconstruction_error(guarded, train_ds, rows)
+    assert cell["active_terms"] == sum(guarded.active_terms().values())
+    metrics, _ = evaluate_model(guarded, planted, "test", resets=(None,), options=RolloutOptions(method="rk4"))
+    assert cell["rmse_test"] == float(np.mean([metrics.full.components[c].rmse for c in TABLE2_COMPONENTS]))
 
 
 def test_same_cells_with_two_workers(swept, planted, tmp_path):

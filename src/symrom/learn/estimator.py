@@ -236,7 +236,9 @@ class SymbolicROM:
     decoded-acceleration term ||ddq - W_d Theta Xi||^2 of the SINDy loss (1 = the
     paper); contact_phase: the phase that trains the encoder in step (a);
     path_thresholds: if set (and the regressor is ``STLSQ``), record each phase's
-    sparsity path over these thresholds with its validation error; settings: the flat
+    sparsity path over these thresholds with its validation error; contact_guards: fit the
+    contact guards (False: the model has none, ``guards`` None; for uses that follow the logged
+    phases only, as the latent-dimension sweep, where fitting them is most of a fit); settings: the flat
     settings it was built from (``TrainConfig.estimator`` sets them: a ``TrainConfig``'s
     fields), recorded in the fitted model's provenance."""
 
@@ -247,6 +249,7 @@ class SymbolicROM:
     decoded_weight: float = 1.0
     contact_phase: str = STANCE_PHASE
     path_thresholds: tuple[float, ...] | None = None
+    contact_guards: bool = True
     settings: dict | None = field(default=None, repr=False)
     model_: HybridModel | None = field(default=None, init=False, repr=False)
 
@@ -327,7 +330,7 @@ class SymbolicROM:
                                   latent_mean=tuple(xi.mean(axis=0).tolist()),
                                   latent_spread=tuple(xi.std(axis=0).tolist()))
         say("contact guards", 0.3)
-        guards = logged_guard_fit(ds, rows, val_rows, ae)
+        guards = logged_guard_fit(ds, rows, val_rows, ae) if self.contact_guards else None
         return {"ds": ds, "rows": rows, "val_rows": val_rows, "ae": ae, "phases": phases, "data": data,
                 "training": training, "guards": guards, "phase_names": list(ds.phase_names),
                 "with_trajectories": with_trajectories, "problems": {},
@@ -392,7 +395,11 @@ class SymbolicROM:
         training = replace(prep["training"], untrained_phases=tuple(n for n, p in phase_info.items() if not p.trained))
         model = HybridModel(prep["ae"], lib, list(prep["phase_names"]), coefs.Xi, coefs.mask,
                             prep["scale"].copy(), Provenance(prep["data"], training), phase_info,
-                            self.to_dict(regressor), [replace(g) for g in prep["guards"].guards])
+                            self.to_dict(regressor),
+                            None if prep["guards"] is None else [replace(g) for g in prep["guards"].guards])
+        if prep["guards"] is None:
+            say("done", 1.0)
+            return model
         say("contact guards on the model's own rollouts", 0.9)
         model = replace(model, guards=own_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
                                                       prep["guards"]))
