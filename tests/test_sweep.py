@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -105,9 +106,8 @@ def test_a_cell_fits_no_guard_and_gives_what_a_guarded_fit_gives(planted):
     rows = np.ones(train_ds.n_samples, dtype=bool)
     guarded = train(train_ds, TrainConfig(latent_dim=2, threshold=0.01, seed=0), rows)
     assert guarded.guards, "the planted data's phases give the guarded fit its guards"
-    est = TrainConfig(latent_dim=2, threshold=0.01, seed=0).estimator()
-    est.contact_guards = False
-    bare = est.fit(train_ds, rows).model
+    bare = replace(TrainConfig(latent_dim=2, threshold=0.01, seed=0).estimator(), contact_guards=False).fit(
+        train_ds, rows).model
     assert bare.guards is None and np.array_equal(bare.Xi, guarded.Xi)
     assert cell["E_dec"] == reconstruction_error(guarded, train_ds, rows)
     assert cell["active_terms"] == sum(guarded.active_terms().values())

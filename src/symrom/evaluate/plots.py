@@ -43,7 +43,8 @@ def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | 
     t, phase = ds.t[a:b], ds.phase[a:b]
     ncol = 3
     nrow = int(np.ceil(len(components) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.5 * nrow), sharex=True, squeeze=False)
+    height = 2.5 * nrow  # in
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, height), sharex=True, squeeze=False)
     # The full horizon is drawn dashed on top of a wide, pale reset line, so that where the
     # two agree both stay visible.
     styles = {"full": dict(color="C3", ls="--", lw=1.3, zorder=4)}
@@ -77,7 +78,6 @@ def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | 
         fig.suptitle(title)
     # Margins fixed in inches (the legend and the time axis below, the titles above): tight_layout
     # would draw the whole figure once more to measure it, as long as drawing it.
-    height = 2.5 * nrow
     fig.subplots_adjust(left=0.075, right=0.99, bottom=0.85 / height, top=1 - (0.7 if title else 0.4) / height,
                         wspace=0.3, hspace=0.32)
     write_with(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))

@@ -42,7 +42,7 @@ import json
 import re
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -170,9 +170,8 @@ def run_cell(ds: Dataset, config: SweepConfig, latent_dim: int, seed: int) -> di
         rows = np.ones(train_ds.n_samples, dtype=bool)
     else:
         train_ds, rows = ds, ds.rows_of("train")
-    est = tc.estimator()
-    est.contact_guards = False  # a cell's numbers follow the logged phases: no guard is ever used
-    model = est.fit(train_ds, rows).model
+    # a cell's numbers follow the logged phases: no guard is ever used
+    model = replace(tc.estimator(), contact_guards=False).fit(train_ds, rows).model
     per_phase = model.active_terms()
     cell: dict[str, Any] = {"latent_dim": latent_dim, "seed": seed,
                             "E_dec": reconstruction_error(model, train_ds, rows),

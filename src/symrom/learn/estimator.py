@@ -397,16 +397,14 @@ class SymbolicROM:
                             prep["scale"].copy(), Provenance(prep["data"], training), phase_info,
                             self.to_dict(regressor),
                             None if prep["guards"] is None else [replace(g) for g in prep["guards"].guards])
-        if prep["guards"] is None:
-            say("done", 1.0)
-            return model
-        say("contact guards on the model's own rollouts", 0.9)
-        model = replace(model, guards=own_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
-                                                      prep["guards"]))
-        if free and model.guards:
-            say("contact guards along the model's free predictions", 0.95)
-            model = replace(model, guards=free_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
-                                                           prep["guards"]))
+        if prep["guards"] is not None:
+            say("contact guards on the model's own rollouts", 0.9)
+            model = replace(model, guards=own_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
+                                                          prep["guards"]))
+            if free and model.guards:
+                say("contact guards along the model's free predictions", 0.95)
+                model = replace(model, guards=free_path_guards(model, prep["ds"], prep["rows"], prep["val_rows"],
+                                                               prep["guards"]))
         say("done", 1.0)
         return model
 
