@@ -42,6 +42,40 @@ def test_adam_solver_reproduces_held_out_rollouts(planted_block):
         assert nmae.max() <= 0.03, (h, nmae.max())
 
 
+def test_adam_closed_form_gradients_equal_autograd():
+    """The Adam steps' losses differentiated by hand give autograd's gradients, masks included."""
+    torch = pytest.importorskip("torch")
+    from symrom.learn.adam import recon_grads, sindy_grad
+
+    rng = np.random.default_rng(3)
+    B, n, l, p = 37, 18, 3, 11
+    t = lambda a: torch.tensor(a, dtype=torch.float64, requires_grad=True)  # noqa: E731
+    q = torch.tensor(rng.normal(size=(B, n)))
+    emask = torch.tensor((rng.random(n) < 0.6).astype(float))
+    params = [t(rng.normal(size=s)) for s in ((l, n), (l,), (n, l), (n,))]
+    loss, *grads = recon_grads(q, *params, emask)
+    W_e, B_e, W_d, B_d = params
+    reference = ((q - ((q @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean()
+    reference.backward()
+    assert loss.item() == pytest.approx(reference.item(), rel=1e-12)
+    for g, par in zip(grads, params):
+        np.testing.assert_allclose(g.detach().numpy(), par.grad.numpy(), rtol=1e-10, atol=1e-12)
+    assert np.all(grads[0].detach().numpy()[:, emask.numpy() == 0] == 0)
+
+    theta, ddxi = torch.tensor(rng.normal(size=(B, p))), torch.tensor(rng.normal(size=(B, l)))
+    ddq, Wd = torch.tensor(rng.normal(size=(B, n))), torch.tensor(rng.normal(size=(n, l)))
+    mask = torch.tensor((rng.random((p, l)) < 0.7).astype(float))
+    Xi = t(rng.normal(size=(p, l)))
+    for l1 in (0.0, 0.3):
+        Xi.grad = None
+        z = theta @ (Xi * mask)
+        (((ddxi - z) ** 2).sum(1).mean() + ((ddq - z @ Wd.T) ** 2).sum(1).mean()
+         + l1 * (Xi * mask).abs().sum()).backward()
+        g = sindy_grad(theta, ddxi, ddq, Wd, Xi.detach(), mask, l1)
+        np.testing.assert_allclose(g.numpy(), Xi.grad.numpy(), rtol=1e-10, atol=1e-12)
+        assert np.all(g.numpy()[mask.numpy() == 0] == 0)
+
+
 def test_integrators_agree(planted_block):
     ds, _ = planted_block
     model = train(ds, TrainConfig())
