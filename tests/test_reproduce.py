@@ -195,7 +195,7 @@ def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run
     # With more than one worker the comparison runs in a process of its own beside the rest;
     # the run then reads what it wrote. The numbers are those of the run's own process (adam on
     # one thread, seeded): a process that computed wrong, or a read-back that lost a key, differs.
-    from symrom.experiments.reproduce.run import Solvers
+    from symrom.experiments.reproduce.run import solvers_beside
     from symrom.experiments.reproduce.steps import selected_config
     from symrom.model.persistence import load_model
 
@@ -203,7 +203,7 @@ def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run
     (tmp_path / "go1_sim").mkdir()
     settings = selected_config(load_model(d / "go1_sim" / "model.json"))
     said = []
-    beside = Solvers(tmp_path, d / "data" / "go1_sim.h5", settings, replace(cfg, workers=2),
+    beside = solvers_beside(tmp_path, d / "data" / "go1_sim.h5", settings, replace(cfg, workers=2),
                      lambda msg, transient=False: said.append(msg))
     assert beside.process is not None and "beside the rest" in said[0]
     got = beside.result()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import json
 import platform
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +21,7 @@ from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import run_learned, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
 from symrom.experiments.reproduce.solvers import run_solvers
-from symrom.experiments.reproduce.steps import config_facts, ensure_dataset, selected_config
+from symrom.experiments.reproduce.steps import config_facts, done, ensure_dataset, selected_config
 from symrom.experiments.reproduce.sweep import run_sweep_step
 from symrom.model.persistence import load_model
 
@@ -94,31 +94,69 @@ def _versions() -> dict:
 
 
 
+BESIDE_NICE = 5  # the steps only the run's end needs yield the cores to its critical path
+
+
 def _quiet(msg: str, transient: bool = False) -> None:
     pass
 
 
-class Solvers:
-    """The solver comparison (``run_solvers``), started beside the rest of the run in a process
-    of its own when the run has more than one worker (the adam solver runs on one thread, so
-    its results do not depend on where it runs). ``result`` then reads what that process wrote
-    (``run_solvers`` resumes from its files; whatever it did not finish is done here)."""
+def _beside_main(fn, args: tuple, nice: int) -> None:
+    import os
 
-    def __init__(self, run: Path, data: Path, settings, cfg: ReproduceConfig, say: Say) -> None:
-        self.args, self.say, self.process = (run, data, settings, cfg), say, None
-        if cfg.workers > 1:
+    if nice:
+        os.nice(nice)
+    try:
+        fn(*args, _quiet)
+    except Exception:  # the run's own process does the step again and reports what went wrong
+        raise SystemExit(1) from None
+
+
+class Beside:
+    """A step of the run started beside the rest in a process of its own when the run has more
+    than one worker (spawned, a daemon, so an interrupted run does not wait for it). There the
+    step runs on one worker, with ``nice`` added to its niceness; its numbers do not depend on
+    either (each step's results are the same for any number of workers). ``result`` waits for
+    it, then calls the step in the run's own process, which reads back what the other process
+    wrote (every step resumes from its files) and does whatever it did not finish.
+
+    fn(*args, cfg, say) is the step; local_only: run it beside only on the local back end (a
+    step that spreads work over the back end), else in the run's own process at ``result``;
+    needed: False when there is nothing to do (a resumed run), which ``result`` then finds."""
+
+    def __init__(self, what: str, fn, args: tuple, cfg: ReproduceConfig, say: Say, nice: int = 0,
+                 local_only: bool = True, needed: bool = True) -> None:
+        self.what, self.fn, self.args, self.cfg, self.say, self.process = what, fn, args, cfg, say, None
+        if needed and cfg.workers > 1 and (cfg.backend == "local" or not local_only):
             import multiprocessing as mp
 
-            say("solvers: exact and adam on go1_sim, beside the rest of the run")
-            # a daemon: an interrupted run does not wait for it
-            self.process = mp.get_context("spawn").Process(target=run_solvers, args=(*self.args, _quiet), daemon=True)
+            say(f"{what}: beside the rest of the run")
+            self.process = mp.get_context("spawn").Process(
+                target=_beside_main, args=(fn, (*args, replace(cfg, workers=1)), nice), daemon=True)
             self.process.start()
 
-    def result(self) -> dict:
+    def result(self):
         if self.process is not None:
-            self.say("solvers: waiting for the adam run", transient=True)
+            self.say(f"{self.what}: waiting for it", transient=True)
             self.process.join()
-        return run_solvers(*self.args, self.say)
+        return self.fn(*self.args, self.cfg, self.say)
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.is_alive():
+            self.process.terminate()
+            self.process.join()
+
+
+def solvers_beside(run: Path, data: Path, settings, cfg: ReproduceConfig, say: Say) -> Beside:
+    """The solver comparison (``run_solvers``) beside the rest of the run: the adam solver runs
+    on one thread, so its results do not depend on where it runs."""
+    return Beside("solvers: exact and adam on go1_sim", run_solvers, (run, data, settings), cfg, say,
+                  nice=BESIDE_NICE, local_only=False)
+
+
+def ensure_datasets(run: Path, specs: list, cfg: ReproduceConfig, say: Say) -> dict[str, Path]:
+    """``ensure_dataset`` of each of ``specs``, in order: name -> file."""
+    return {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
 
 
 def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None,
@@ -138,32 +176,59 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     needed = {e.data for e in cfg.experiments if e.name in settings_of} | set(SIM2REAL_SOURCES.values()) | set(
         SIM2REAL_TARGETS)
     specs = [s for s in cfg.datasets if only is None or s.name in needed]
-    data = {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
-    summary: dict = {"experiments": {}}
-    solvers = None
-    if only is None:
-        for exp in cfg.experiments:
-            summary["experiments"][exp.name] = run_learned(run, exp, data[exp.data], cfg, say)
-            if exp.name == "go1_sim" and cfg.compare_solvers:  # its settings are known: the solvers may start
-                solvers = Solvers(run, data["go1_sim"], selected_config(load_model(run / exp.name / "model.json")),
-                                  cfg, say)
-    else:
-        for exp in cfg.experiments:
-            if exp.name in settings_of:
-                say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
-                selected(run, exp, read_dataset(data[exp.data]), cfg, say)
-    settings = {exp.name: selected_config(load_model(run / exp.name / "model.json")) for exp in cfg.experiments
-                if exp.name in settings_of and (run / exp.name / "model.json").is_file()}
-    if settings:
-        entries, tables = run_sim2real(run, data, settings, cfg, say)
-        if "go1_proxy" in entries:  # the paper's Table 2 row
-            summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
-        summary["sim2real"] = {"sources": {k: v for k, v in SIM2REAL_SOURCES.items() if v in data},
-                               "targets": tables}
-    if only is None:
-        summary["sweep"] = run_sweep_step(run, data["go1_sim"], cfg, say)
-    if solvers is not None:
-        summary["experiments"]["go1_sim"]["solvers"] = solvers.result()
+    # The SIM experiments' data first, each made in this process when its experiment needs it;
+    # the rest (sim-to-real's) beside them, and the sweep (SIM Go1's data alone) beside all.
+    sim_data = {exp.data for exp in cfg.experiments}
+    data: dict[str, Path] = {}
+    beside: list[Beside] = []
+    try:
+        first = next(s for s in specs if s.name in sim_data)
+        data[first.name] = ensure_dataset(run, first, cfg, say)
+        others = [s for s in specs if s.name not in sim_data]
+        rest = Beside("datasets: " + ", ".join(s.name for s in others), ensure_datasets, (run, others), cfg, say,
+                      needed=not all(done(run / "data" / f"{s.name}.h5") for s in others))
+        beside.append(rest)
+        sweep = None
+        if only is None:
+            sweep = Beside("sweep", run_sweep_step, (run, data["go1_sim"]), cfg, say, nice=BESIDE_NICE)
+            beside.append(sweep)
+
+        def sim_dataset(name: str) -> Path:
+            if name not in data:
+                data[name] = ensure_dataset(run, next(s for s in specs if s.name == name), cfg, say)
+            return data[name]
+
+        summary: dict = {"experiments": {}}
+        solvers = None
+        if only is None:
+            for exp in cfg.experiments:
+                summary["experiments"][exp.name] = run_learned(run, exp, sim_dataset(exp.data), cfg, say)
+                if exp.name == "go1_sim" and cfg.compare_solvers:  # its settings are known: the solvers may start
+                    solvers = solvers_beside(run, data["go1_sim"],
+                                             selected_config(load_model(run / exp.name / "model.json")), cfg, say)
+                    beside.append(solvers)
+        else:
+            for exp in cfg.experiments:
+                if exp.name in settings_of:
+                    say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
+                    selected(run, exp, read_dataset(sim_dataset(exp.data)), cfg, say)
+        data.update(rest.result())
+        data = {s.name: data[s.name] for s in specs}
+        settings = {exp.name: selected_config(load_model(run / exp.name / "model.json")) for exp in cfg.experiments
+                    if exp.name in settings_of and (run / exp.name / "model.json").is_file()}
+        if settings:
+            entries, tables = run_sim2real(run, data, settings, cfg, say)
+            if "go1_proxy" in entries:  # the paper's Table 2 row
+                summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
+            summary["sim2real"] = {"sources": {k: v for k, v in SIM2REAL_SOURCES.items() if v in data},
+                                   "targets": tables}
+        if sweep is not None:
+            summary["sweep"] = sweep.result()
+        if solvers is not None:
+            summary["experiments"]["go1_sim"]["solvers"] = solvers.result()
+    finally:
+        for b in beside:
+            b.stop()
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
