@@ -134,8 +134,21 @@ class Backend(ABC):
 _SHARED: dict[str, tuple] = {}
 
 
-def _init_local(shared: tuple) -> None:
+def limit_blas(threads: int):
+    """Let the BLAS libraries this process has loaded use at most ``threads`` threads from now on;
+    the returned limiter's ``restore_original_limits()`` undoes it.
+
+    Processes that share the cores each keep BLAS to their share: BLAS threads that outnumber
+    the cores wait for each other, and the same work then costs several times the CPU time
+    (docs/benchmarks.md)."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=max(1, int(threads)), user_api="blas")
+
+
+def _init_local(shared: tuple, blas_threads: int) -> None:
     _SHARED["args"] = shared
+    limit_blas(blas_threads)
 
 
 def _local_task(fn: Callable, args: tuple) -> tuple[Any, float, str]:
@@ -186,7 +199,7 @@ class LocalBackend(Backend):
         while pending:
             n = min(self.workers, len(pending))
             with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_local,
-                                     initargs=(shared,)) as pool:
+                                     initargs=(shared, (os.cpu_count() or 1) // n)) as pool:
                 running: dict = {}
                 broken: list[Task] = []
                 try:

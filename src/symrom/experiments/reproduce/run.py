@@ -17,6 +17,7 @@ from symrom.baselines import BASELINES
 from symrom.data.io import read_dataset
 from symrom.evaluate.paper import PAPER_TABLE2
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
+from symrom.execution import limit_blas
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import run_learned, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
@@ -106,6 +107,7 @@ def _beside_main(fn, args: tuple, nice: int) -> None:
 
     if nice:
         os.nice(nice)
+    limit_blas(1)
     try:
         fn(*args, _quiet)
     except Exception:  # the run's own process does the step again and reports what went wrong
@@ -159,6 +161,12 @@ def ensure_datasets(run: Path, specs: list, cfg: ReproduceConfig, say: Say) -> d
     return {spec.name: ensure_dataset(run, spec, cfg, say) for spec in specs}
 
 
+def sim2real_part(run: Path, specs: list, settings: dict, cfg: ReproduceConfig, say: Say) -> tuple[dict, dict]:
+    """``run_sim2real`` on the targets whose datasets (and their sources') are ``specs``, made first,
+    with the SIM experiments' ``settings`` (experiment -> its selected configuration)."""
+    return run_sim2real(run, ensure_datasets(run, specs, cfg, say), settings, cfg, say)
+
+
 def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | None = None,
               only: str | None = None) -> dict:
     """Run every experiment into ``run``; write and return ``summary.json``'s content.
@@ -176,48 +184,69 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     needed = {e.data for e in cfg.experiments if e.name in settings_of} | set(SIM2REAL_SOURCES.values()) | set(
         SIM2REAL_TARGETS)
     specs = [s for s in cfg.datasets if only is None or s.name in needed]
-    # The SIM experiments' data first, each made in this process when its experiment needs it;
-    # the rest (sim-to-real's) beside them, and the sweep (SIM Go1's data alone) beside all.
-    sim_data = {exp.data for exp in cfg.experiments}
+    exps = [e for e in cfg.experiments if only is None or e.name in settings_of]
+    # Each SIM experiment's data is made in this process when it starts. Once an experiment's
+    # settings are chosen, its sim-to-real part (its targets' and sources' data, then sim-to-real)
+    # runs beside the rest; the last experiment's part runs here at the end, its data made
+    # beside from the start. The sweep (SIM Go1's data alone) and the solvers run beside too.
+    parts: dict[str, list] = {}  # SIM experiment -> the datasets of its sim-to-real part
+    for t in SIM2REAL:
+        names = {t.name, *(d for _, d in t.sources)}
+        parts.setdefault(t.settings, []).extend(
+            s for s in specs if s.name in names and s not in parts[t.settings])
+    last = exps[-1].name if exps else None
     data: dict[str, Path] = {}
     beside: list[Beside] = []
+    summary: dict = {"experiments": {}}
+    entries, tables, solvers, sweep, running = {}, {}, None, None, {}
+
+    def sim_dataset(name: str) -> Path:
+        if name not in data:
+            data[name] = ensure_dataset(run, next(s for s in specs if s.name == name), cfg, say)
+        return data[name]
+
+    def settings_of_exp(name: str) -> dict:
+        return {name: selected_config(load_model(run / name / "model.json"))}
+
+    # with more than one worker, other processes of the run share the cores
+    blas = limit_blas(1) if cfg.workers > 1 and cfg.backend == "local" else None
     try:
-        first = next(s for s in specs if s.name in sim_data)
-        data[first.name] = ensure_dataset(run, first, cfg, say)
-        others = [s for s in specs if s.name not in sim_data]
-        rest = Beside("datasets: " + ", ".join(s.name for s in others), ensure_datasets, (run, others), cfg, say,
-                      needed=not all(done(run / "data" / f"{s.name}.h5") for s in others))
-        beside.append(rest)
-        sweep = None
+        if exps:
+            sim_dataset(exps[0].data)
+        late = parts.get(last, [])
+        early = Beside("datasets: " + ", ".join(s.name for s in late), ensure_datasets, (run, late), cfg, say,
+                       needed=bool(late) and not all(done(run / "data" / f"{s.name}.h5") for s in late))
+        beside.append(early)
         if only is None:
             sweep = Beside("sweep", run_sweep_step, (run, data["go1_sim"]), cfg, say, nice=BESIDE_NICE)
             beside.append(sweep)
-
-        def sim_dataset(name: str) -> Path:
-            if name not in data:
-                data[name] = ensure_dataset(run, next(s for s in specs if s.name == name), cfg, say)
-            return data[name]
-
-        summary: dict = {"experiments": {}}
-        solvers = None
-        if only is None:
-            for exp in cfg.experiments:
+        for exp in exps:
+            if only is None:
                 summary["experiments"][exp.name] = run_learned(run, exp, sim_dataset(exp.data), cfg, say)
-                if exp.name == "go1_sim" and cfg.compare_solvers:  # its settings are known: the solvers may start
-                    solvers = solvers_beside(run, data["go1_sim"],
-                                             selected_config(load_model(run / exp.name / "model.json")), cfg, say)
-                    beside.append(solvers)
-        else:
-            for exp in cfg.experiments:
-                if exp.name in settings_of:
-                    say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
-                    selected(run, exp, read_dataset(sim_dataset(exp.data)), cfg, say)
-        data.update(rest.result())
-        data = {s.name: data[s.name] for s in specs}
-        settings = {exp.name: selected_config(load_model(run / exp.name / "model.json")) for exp in cfg.experiments
-                    if exp.name in settings_of and (run / exp.name / "model.json").is_file()}
-        if settings:
-            entries, tables = run_sim2real(run, data, settings, cfg, say)
+            else:
+                say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
+                selected(run, exp, read_dataset(sim_dataset(exp.data)), cfg, say)
+            if exp.name == "go1_sim" and cfg.compare_solvers and only is None:  # its settings are known
+                solvers = solvers_beside(run, data["go1_sim"], settings_of_exp("go1_sim")["go1_sim"], cfg, say)
+                beside.append(solvers)
+            if exp.name != last and parts.get(exp.name):
+                running[exp.name] = Beside(f"sim-to-real from {exp.name}'s settings", sim2real_part,
+                                           (run, parts[exp.name], settings_of_exp(exp.name)), cfg, say)
+                beside.append(running[exp.name])
+        early.result()
+        if last is not None and parts.get(last):
+            e, t = sim2real_part(run, parts[last], settings_of_exp(last), cfg, say)
+            entries.update(e)
+            tables.update(t)
+        for part in running.values():
+            e, t = part.result()
+            entries.update(e)
+            tables.update(t)
+        data = ensure_datasets(run, specs, cfg, say)
+        if tables:
+            order = [t.name for t in SIM2REAL]
+            entries = dict(sorted(entries.items(), key=lambda kv: order.index(kv[0])))
+            tables = dict(sorted(tables.items(), key=lambda kv: order.index(kv[0])))
             if "go1_proxy" in entries:  # the paper's Table 2 row
                 summary["experiments"]["go1_proxy"] = entries["go1_proxy"]
             summary["sim2real"] = {"sources": {k: v for k, v in SIM2REAL_SOURCES.items() if v in data},
@@ -229,6 +258,8 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     finally:
         for b in beside:
             b.stop()
+        if blas is not None:
+            blas.restore_original_limits()
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
