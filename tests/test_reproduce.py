@@ -214,3 +214,22 @@ def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run
         assert mine == {k: v for k, v in json.loads(json.dumps(inline[solver]["metrics"])).items() if k != "model"}
         assert got[solver]["active_terms"] == inline[solver]["active_terms"]
         assert (tmp_path / "go1_sim" / "solvers" / solver / "model.json").is_file()
+
+
+def test_a_step_beside_the_run_that_fails_is_done_again_in_the_run_and_its_error_raised(tmp_path, capfd):
+    # The process beside the run exits with 1 and prints nothing; the run's own process then does
+    # the step itself and raises its error, naming what is wrong.
+    from symrom.experiments.reproduce.config import DatasetSpec, ReproduceConfig
+    from symrom.experiments.reproduce.run import Beside, ensure_datasets
+
+    bad = DatasetSpec("bad", "no_such_robot", "pronk", 2)
+    said = []
+    step = Beside("datasets: bad", ensure_datasets, (tmp_path, [bad]), ReproduceConfig(workers=2),
+                  lambda m, transient=False: said.append(m))
+    assert step.process is not None and said == ["datasets: bad: beside the rest of the run"]
+    step.process.join()
+    assert step.process.exitcode == 1
+    with pytest.raises(Exception, match="no_such_robot"):
+        step.result()
+    assert not (tmp_path / "data" / "bad.h5").exists()
+    assert "Traceback" not in capfd.readouterr().err
