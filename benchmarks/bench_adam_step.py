@@ -96,10 +96,9 @@ def main() -> None:
           f"steps (a)-(b): one vector {med['recon_closed_form_per_tensor'] / med['recon_closed_form_one_vector']:.2f}x "
           f"faster than one tensor per array")
     if args.out:
-        record = {"settings": {k: v for k, v in vars(args).items() if k != "out"} | {"batch": B},
+        record = {**provenance(), "settings": {k: v for k, v in vars(args).items() if k != "out"} | {"batch": B},
                   "seconds_per_step": {k: [float(x) for x in v] for k, v in times.items()},
-                  "median_ms": {k: float(np.round(v * 1e3, 4)) for k, v in med.items()},
-                  "provenance": provenance()}
+                  "median_ms": {k: float(np.round(v * 1e3, 4)) for k, v in med.items()}}
         write_text_atomic(args.out, json.dumps(record, indent=1))
 
 
