@@ -117,8 +117,9 @@ def _beside_main(fn, args: tuple, nice: int) -> None:
 class Beside:
     """A step of the run started beside the rest in a process of its own when the run has more
     than one worker (spawned, a daemon, so an interrupted run does not wait for it). There the
-    step runs on one worker, with ``nice`` added to its niceness; its numbers do not depend on
-    either (each step's results are the same for any number of workers). ``result`` waits for
+    step runs on one worker and one BLAS thread, with ``nice`` added to its niceness; its numbers
+    do not depend on the workers or the niceness, and BLAS's threads move only their last bits.
+    ``result`` waits for
     it, then calls the step in the run's own process, which reads back what the other process
     wrote (every step resumes from its files) and does whatever it did not finish.
 
