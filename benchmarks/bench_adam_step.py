@@ -73,7 +73,7 @@ def main() -> None:
                 opt = torch.optim.Adam(params, lr=1e-3)
             t = time.perf_counter()
             for s in range(args.steps):
-                grads = recon_grads(q[batches[s % len(batches)]], *params, emask)[1:]
+                grads = recon_grads(q[batches[s % len(batches)]], *params, emask)
                 if kind == "flat":
                     flat.grad = torch.cat([g.reshape(-1) for g in grads])
                 else:

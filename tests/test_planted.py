@@ -53,11 +53,9 @@ def test_adam_closed_form_gradients_equal_autograd():
     q = torch.tensor(rng.normal(size=(B, n)))
     emask = torch.tensor((rng.random(n) < 0.6).astype(float))
     params = [t(rng.normal(size=s)) for s in ((l, n), (l,), (n, l), (n,))]
-    loss, *grads = recon_grads(q, *params, emask)
+    grads = recon_grads(q, *params, emask)
     W_e, B_e, W_d, B_d = params
-    reference = ((q - ((q @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean()
-    reference.backward()
-    assert loss.item() == pytest.approx(reference.item(), rel=1e-12)
+    ((q - ((q @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean().backward()
     for g, par in zip(grads, params):
         np.testing.assert_allclose(g.detach().numpy(), par.grad.numpy(), rtol=1e-10, atol=1e-12)
     assert np.all(grads[0].detach().numpy()[:, emask.numpy() == 0] == 0)

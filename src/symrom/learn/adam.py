@@ -79,14 +79,13 @@ def _epochs(n_rows: int, batch: int, epochs: int, gen, torch, step: Callable[[ob
 
 
 def recon_grads(q, W_e, B_e, W_d, B_d, emask) -> tuple:
-    """The reconstruction loss mean_b ||q_b - ((q_b (W_e*emask)^T + B_e) W_d^T + B_d)||^2 of a
-    mini-batch q (B, n) and its gradients with respect to (W_e, B_e, W_d, B_d), shapes (l, n),
-    (l,), (n, l), (n,); W_e's gradient is zero where ``emask`` (n,) is."""
+    """The gradients of the reconstruction loss mean_b ||q_b - ((q_b (W_e*emask)^T + B_e) W_d^T +
+    B_d)||^2 of a mini-batch q (B, n) with respect to (W_e, B_e, W_d, B_d), shapes (l, n), (l,),
+    (n, l), (n,); W_e's is zero where ``emask`` (n,) is."""
     h = q @ (W_e * emask).T + B_e
-    r = h @ W_d.T + B_d - q
-    d = r * (2.0 / q.shape[0])  # d loss / d prediction
+    d = (h @ W_d.T + B_d - q) * (2.0 / q.shape[0])  # d loss / d prediction
     dh = d @ W_d
-    return (r * r).sum(1).mean(), (dh.T @ q) * emask, dh.sum(0), d.T @ h, d.sum(0)
+    return (dh.T @ q) * emask, dh.sum(0), d.T @ h, d.sum(0)
 
 
 def sindy_grad(theta, ddxi, ddq, W_d, Xi, mask, l1: float):
@@ -128,7 +127,7 @@ def fit_autoencoder_adam(q_contact: np.ndarray, q_all: np.ndarray, latent_dim: i
             opt = torch.optim.Adam([trained], lr=config.learning_rate)
 
             def step(idx):
-                grads = recon_grads(q[idx], W_e, B_e, W_d, B_d, emask)[1:]
+                grads = recon_grads(q[idx], W_e, B_e, W_d, B_d, emask)
                 trained.grad = torch.cat([g.reshape(-1) for g in grads])[start:]
                 opt.step()
             return step

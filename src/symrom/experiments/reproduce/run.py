@@ -4,6 +4,7 @@ and the summary in words."""
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from dataclasses import asdict, replace
@@ -103,8 +104,6 @@ def _quiet(msg: str, transient: bool = False) -> None:
 
 
 def _beside_main(fn, args: tuple, nice: int) -> None:
-    import os
-
     if nice:
         os.nice(nice)
     limit_blas(1)
@@ -119,9 +118,9 @@ class Beside:
     than one worker (spawned, a daemon, so an interrupted run does not wait for it). There the
     step runs on one worker and one BLAS thread, with ``nice`` added to its niceness; its numbers
     do not depend on the workers or the niceness, and BLAS's threads move only their last bits.
-    ``result`` waits for
-    it, then calls the step in the run's own process, which reads back what the other process
-    wrote (every step resumes from its files) and does whatever it did not finish.
+    ``result`` waits for it, then calls the step in the run's own process, which reads back what
+    the other process wrote (every step resumes from its files) and does whatever it did not
+    finish.
 
     fn(*args, cfg, say) is the step; local_only: run it beside only on the local back end (a
     step that spreads work over the back end), else in the run's own process at ``result``;
@@ -199,15 +198,14 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     data: dict[str, Path] = {}
     beside: list[Beside] = []
     summary: dict = {"experiments": {}}
-    entries, tables, solvers, sweep, running = {}, {}, None, None, {}
+    chosen: dict = {}  # SIM experiment -> its selected configuration, read once it is chosen
+    running: dict[str, Beside] = {}  # SIM experiment -> its sim-to-real part beside the run
+    entries, tables, solvers, sweep = {}, {}, None, None
 
     def sim_dataset(name: str) -> Path:
         if name not in data:
             data[name] = ensure_dataset(run, next(s for s in specs if s.name == name), cfg, say)
         return data[name]
-
-    def settings_of_exp(name: str) -> dict:
-        return {name: selected_config(load_model(run / name / "model.json"))}
 
     # with more than one worker, other processes of the run share the cores
     blas = limit_blas(1) if cfg.workers > 1 and cfg.backend == "local" else None
@@ -227,16 +225,17 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
             else:
                 say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
                 selected(run, exp, read_dataset(sim_dataset(exp.data)), cfg, say)
+            chosen[exp.name] = selected_config(load_model(run / exp.name / "model.json"))
             if exp.name == "go1_sim" and cfg.compare_solvers and only is None:  # its settings are known
-                solvers = solvers_beside(run, data["go1_sim"], settings_of_exp("go1_sim")["go1_sim"], cfg, say)
+                solvers = solvers_beside(run, data["go1_sim"], chosen["go1_sim"], cfg, say)
                 beside.append(solvers)
             if exp.name != last and parts.get(exp.name):
                 running[exp.name] = Beside(f"sim-to-real from {exp.name}'s settings", sim2real_part,
-                                           (run, parts[exp.name], settings_of_exp(exp.name)), cfg, say)
+                                           (run, parts[exp.name], {exp.name: chosen[exp.name]}), cfg, say)
                 beside.append(running[exp.name])
         early.result()
         if last is not None and parts.get(last):
-            e, t = sim2real_part(run, parts[last], settings_of_exp(last), cfg, say)
+            e, t = sim2real_part(run, parts[last], {last: chosen[last]}, cfg, say)
             entries.update(e)
             tables.update(t)
         for part in running.values():
