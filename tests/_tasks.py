@@ -29,3 +29,15 @@ def refuse(x: int) -> int:
     if x == 2:
         raise ValueError(f"task {x} refuses: a bad input")
     return x
+
+
+def thread_limits(x: int) -> tuple[int, int]:
+    """This worker's thread limits: symrom's kernels' and BLAS's (the highest of NumPy's and
+    SciPy's libraries, loaded only now)."""
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_info
+
+    from symrom.execution import kernel_threads
+
+    return kernel_threads(), max(i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas")

@@ -10,7 +10,7 @@ import tempfile
 import numpy as np
 import pytest
 
-from symrom.execution import limit_blas
+from symrom.execution import THREADS_ENV, limit_threads
 from symrom.testing import make_planted_dataset
 
 # Read by Ray when it is imported, so set before any test imports it (and inherited by the
@@ -18,12 +18,14 @@ from symrom.testing import make_planted_dataset
 # instance on the loopback interface (Ray's single-machine mode).
 os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
 os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-# Under pytest-xdist each worker shares the cores with the others: BLAS keeps to its share, in
-# the worker and in the processes its tests start (symrom.execution.limit_blas says why).
+# Under pytest-xdist each worker shares the cores with the others: BLAS and symrom's kernels keep
+# to its share, in the worker and in the processes its tests start (symrom.execution.limit_threads
+# says why).
 if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
     _share = max(1, (os.cpu_count() or 1) // int(os.environ["PYTEST_XDIST_WORKER_COUNT"]))
     os.environ.setdefault("OPENBLAS_NUM_THREADS", str(_share))
-    limit_blas(_share)
+    os.environ.setdefault(THREADS_ENV, str(_share))
+    limit_threads(_share)
 # The generated code's disk cache of the test session, not the user's (symrom.compiled.codegen).
 if "SYMROM_CACHE_DIR" not in os.environ:
     os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")

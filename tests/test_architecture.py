@@ -30,7 +30,7 @@ LAYERS: dict[str, int] = {
 # Inside a package (or a subpackage, dotted), the same rule between its modules (or subpackages).
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     # compiled execution: the descriptions it reads, then its kernels and generated code
-    "compiled": {"dynamics": 0, "codec": 0, "table_kernels": 0, "kernel": 1, "codegen": 1},
+    "compiled": {"dynamics": 0, "batch": 0, "codec": 0, "table_kernels": 0, "kernel": 1, "codegen": 1},
     # the fitted model: its terms, the expressions, the guards, then the model, its file
     "model": {"autoencoder": 0, "library": 0, "provenance": 0, "expressions": 1, "guards": 1,
               "hybrid": 2, "path": 2, "persistence": 3},

@@ -83,3 +83,26 @@ def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                        cwd=str(Path(__file__).parent), env=env)
     assert r.returncode == 0, r.stderr
+
+
+def test_pool_workers_keep_their_threads_to_their_share_of_the_cores():
+    """Each of n pool workers runs BLAS and symrom's kernels on cores / n threads: threads that
+    outnumber the cores wait for each other."""
+    share = max(1, execution.available_cores() // 2)
+    done = list(LocalBackend(2).map(_tasks.thread_limits, [(x, (x,)) for x in range(2)]))
+    assert [d.value for d in done] == [(share, share)] * 2
+
+
+def test_a_thread_limit_is_undone_in_order(monkeypatch):
+    monkeypatch.delenv(execution.THREADS_ENV, raising=False)
+    base = execution.kernel_threads()
+    outer = execution.limit_threads(3)
+    inner = execution.limit_threads(1)
+    assert execution.kernel_threads() == 1
+    inner.restore_original_limits()
+    assert execution.kernel_threads() == 3
+    outer.restore_original_limits()
+    assert execution.kernel_threads() == base
+    monkeypatch.setenv(execution.THREADS_ENV, "two")
+    with pytest.raises(ValueError, match="SYMROM_THREADS"):
+        execution.kernel_threads()

@@ -290,3 +290,56 @@ def test_compiled_lsoda_without_numbalsoda_says_how_to_install_it(monkeypatch):
     with pytest.raises(ValueError, match=r"needs numbalsoda: pip install 'symrom\[lsoda\]'"):
         RolloutOptions("lsoda", lsoda_solver="numbalsoda")
     RolloutOptions("lsoda")  # SciPy's LSODA needs nothing more
+
+
+@pytest.mark.parametrize("backend", ["table", "generated"])
+def test_jumps_split_over_threads_give_the_same_paths_bit_for_bit(planted_block, monkeypatch, backend):
+    """The kernels' jumps run in threads (``symrom.compiled.batch``): any thread count gives the
+    same rollout, divergences included, to the last bit."""
+    from dataclasses import replace
+
+    from symrom.compiled import batch
+    from symrom.execution import limit_threads
+
+    ds, _ = planted_block
+    model = train(ds, TrainConfig())
+    Xi = model.Xi.copy()
+    Xi[0, model.library.feature_names.index("dxi1"), 0] = 60.0  # the jumps diverge, each at its own sample
+    bad = replace(model, Xi=Xi, mask=model.mask | (Xi != 0))
+    monkeypatch.setattr(batch, "MIN_SPLIT_WORK", 0)  # split even this small batch
+    calls = []
+    split = batch.split
+    monkeypatch.setattr(batch, "split", lambda lens, parts: calls.append(parts) or split(lens, parts))
+    for m in (model, bad):
+        out = {}
+        for threads in (1, 3):
+            limit = limit_threads(threads)
+            try:
+                out[threads] = rollout(m, ds, None, RolloutOptions("rk4", reset=0.1, backend=backend))
+            finally:
+                limit.restore_original_limits()
+        np.testing.assert_array_equal(out[1].diverged_at, out[3].diverged_at)
+        for x, y in zip(out[1].q_pred, out[3].q_pred):
+            np.testing.assert_array_equal(x, y)
+    assert out[1].diverged.all() and len(set(out[1].diverged_at.tolist())) > 1  # each jump its own sample
+    assert calls and set(calls) == {3}  # only the 3-thread runs split, and they did
+
+
+def test_a_batch_splits_into_runs_of_about_equal_work():
+    from symrom.compiled.batch import over_jumps, split
+
+    lens = np.array([5, 100, 3, 40, 40, 12, 1, 99])
+    for parts in (1, 2, 3, 8, 20):
+        runs = split(lens, parts)
+        assert runs[0].start == 0 and runs[-1].stop == len(lens)
+        assert all(a.stop == b.start and a.stop > a.start for a, b in zip(runs, runs[1:]))
+        assert len(runs) <= min(parts, len(lens))
+    work = [lens[r].sum() for r in split(lens, 2)]
+    assert max(work) <= lens.sum() / 2 + lens.max()
+
+    def fail(r):
+        if r.start > 0:
+            raise ValueError("jump run failed")
+
+    with pytest.raises(ValueError, match="jump run failed"):
+        over_jumps(fail, np.full(8, 10_000))

@@ -134,21 +134,66 @@ class Backend(ABC):
 _SHARED: dict[str, tuple] = {}
 
 
-def limit_blas(threads: int):
-    """Let the BLAS libraries this process has loaded use at most ``threads`` threads from now on;
-    the returned limiter's ``restore_original_limits()`` undoes it.
+THREADS_ENV = "SYMROM_THREADS"
+BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")  # read by a BLAS library when it loads
+_KERNEL_THREADS: list[int] = []  # the limit ``limit_threads`` set last in this process, if any
 
-    Processes that share the cores each keep BLAS to their share: BLAS threads that outnumber
-    the cores wait for each other, and the same work then costs several times the CPU time
+
+def kernel_threads() -> int:
+    """Threads symrom's own compiled kernels may split a batch of jumps over: the limit
+    ``limit_threads`` set, else ``$SYMROM_THREADS``, else the cores this process may run on."""
+    if _KERNEL_THREADS:
+        return _KERNEL_THREADS[-1]
+    env = os.environ.get(THREADS_ENV, "").strip()
+    if env:
+        try:
+            return max(1, int(env))
+        except ValueError:
+            raise ValueError(f"${THREADS_ENV}: {env!r} is not a whole number of threads") from None
+    return available_cores()
+
+
+def available_cores() -> int:
+    """The cores this process may run on."""
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+
+
+class ThreadLimit:
+    """The limit ``limit_threads`` set; ``restore_original_limits()`` undoes it."""
+
+    def __init__(self, threads: int) -> None:
+        from threadpoolctl import threadpool_limits
+
+        # the BLAS libraries loaded now, and (by their variables) those loaded later
+        self._env = {name: os.environ.get(name) for name in BLAS_ENV}
+        os.environ.update({name: str(threads) for name in BLAS_ENV})
+        self._blas = threadpool_limits(limits=threads, user_api="blas")
+        _KERNEL_THREADS.append(threads)
+        self._mark = len(_KERNEL_THREADS)
+
+    def restore_original_limits(self) -> None:
+        self._blas.restore_original_limits()
+        for name, value in self._env.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+        del _KERNEL_THREADS[self._mark - 1:]
+
+
+def limit_threads(threads: int) -> ThreadLimit:
+    """Let BLAS and symrom's compiled kernels use at most ``threads`` threads in this process
+    from now on, until the returned limit's ``restore_original_limits()``.
+
+    Processes that share the cores each keep to their share: threads that outnumber the
+    cores wait for each other, and the same work then costs several times the CPU time
     (docs/benchmarks.md)."""
-    from threadpoolctl import threadpool_limits
-
-    return threadpool_limits(limits=max(1, int(threads)), user_api="blas")
+    return ThreadLimit(max(1, int(threads)))
 
 
-def _init_local(shared: tuple, blas_threads: int) -> None:
+def _init_local(shared: tuple, threads: int) -> None:
     _SHARED["args"] = shared
-    limit_blas(blas_threads)
+    limit_threads(threads)
 
 
 def _local_task(fn: Callable, args: tuple) -> tuple[Any, float, str]:
@@ -199,7 +244,7 @@ class LocalBackend(Backend):
         while pending:
             n = min(self.workers, len(pending))
             with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_local,
-                                     initargs=(shared, (os.cpu_count() or 1) // n)) as pool:
+                                     initargs=(shared, available_cores() // n)) as pool:
                 running: dict = {}
                 broken: list[Task] = []
                 try:

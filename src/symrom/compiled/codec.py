@@ -21,6 +21,8 @@ from typing import Protocol
 
 import numpy as np
 
+from symrom.compiled.batch import over_jumps
+
 # LLVM's fast-math flags without nnan/ninf (as ``symrom.compiled.codegen``): sums may be
 # vectorised; NaN (a diverged path) still decodes to NaN.
 FASTMATH = {"contract", "arcp", "nsz", "reassoc"}
@@ -48,7 +50,7 @@ def _kernels() -> dict[str, object]:
         return _KERNELS
     import numba
 
-    njit = numba.njit(cache=True, fastmath=FASTMATH)
+    njit = numba.njit(cache=True, fastmath=FASTMATH, nogil=True)  # nogil: jumps run in threads (``batch``)
 
     @njit
     def encode_states(q, dq, starts, lens, rows, W_e, B_e, x, v):
@@ -125,8 +127,9 @@ def encode_states(ae: LinearMaps, q: np.ndarray, dq: np.ndarray, bounds: np.ndar
         raise ValueError(f"rows: shape {rows.shape}, expected ({n_max},) (the longest jump)")
     x, v = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
     f = np.ascontiguousarray
-    _kernels()["encode_states"](f(q, dtype=float), f(dq, dtype=float), starts, lens, rows,
-                                f(ae.W_e, dtype=float), f(ae.B_e, dtype=float), x, v)
+    q, dq, W_e, B_e, k = f(q, dtype=float), f(dq, dtype=float), f(ae.W_e, dtype=float), f(ae.B_e, dtype=float), \
+        _kernels()["encode_states"]
+    over_jumps(lambda r: k(q, dq, starts[r], lens[r], rows, W_e, B_e, x[r], v[r]), np.full(J, n_max))
     return x, v
 
 
@@ -139,8 +142,9 @@ def encode_inputs(ae: LinearMaps, u: np.ndarray, phase: np.ndarray,
     n_max = int(lens.max()) if J else 0
     nu, ph = np.empty((J, n_max, l)), np.empty((J, n_max), dtype=np.int64)
     f = np.ascontiguousarray
-    _kernels()["encode_inputs"](f(u, dtype=float), f(phase, dtype=np.int64), starts, lens,
-                                f(ae.input_map.T, dtype=float), nu, ph)
+    u, phase, M, k = f(u, dtype=float), f(phase, dtype=np.int64), f(ae.input_map.T, dtype=float), \
+        _kernels()["encode_inputs"]
+    over_jumps(lambda r: k(u, phase, starts[r], lens[r], M, nu[r], ph[r]), np.full(J, n_max))
     return nu, ph
 
 
@@ -169,6 +173,7 @@ def decode_jumps(ae: LinearMaps, X: np.ndarray, lens: np.ndarray) -> list[np.nda
     offsets = np.zeros(len(lens), dtype=np.int64)
     np.cumsum(lens[:-1], out=offsets[1:])
     out = np.empty((int(lens.sum()), ae.W_d.shape[0]))
-    _kernels()["decode"](np.ascontiguousarray(X, dtype=float), lens, offsets,
-                         np.ascontiguousarray(ae.W_d.T, dtype=float), np.ascontiguousarray(ae.B_d, dtype=float), out)
+    f = np.ascontiguousarray
+    X, W_t, B_d, k = f(X, dtype=float), f(ae.W_d.T, dtype=float), f(ae.B_d, dtype=float), _kernels()["decode"]
+    over_jumps(lambda r: k(X[r], lens[r], offsets[r], W_t, B_d, out), lens)
     return [out[a:a + n] for a, n in zip(offsets.tolist(), lens.tolist())]

@@ -55,6 +55,7 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
+from symrom.compiled.batch import over_jumps
 from symrom.compiled.dynamics import LatentDynamics
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
@@ -222,7 +223,7 @@ FASTMATH = {sorted(FASTMATH)!r}
 shift = numba.njit(fastmath=set(FASTMATH), cache=True)(shift)
 accel_s = numba.njit(fastmath=set(FASTMATH), cache=True)(accel_s)
 accel_ref = numba.njit(cache=True)(accel_ref)
-rollout = numba.njit(fastmath=set(FASTMATH), cache=True)(rollout)
+rollout = numba.njit(fastmath=set(FASTMATH), cache=True, nogil=True)(rollout)
 rhs = numba.njit(cache=True)(rhs)
 """
 
@@ -298,7 +299,7 @@ def _compiled(dynamics: LatentDynamics) -> dict:
         for name in ("shift", "accel_s"):  # compiled before the functions that call them
             ns[name] = numba.njit(fastmath=FASTMATH)(ns[name])
         ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
-        rollout, rhs = numba.njit(fastmath=FASTMATH)(ns["rollout"]), numba.njit(ns["rhs"])
+        rollout, rhs = numba.njit(fastmath=FASTMATH, nogil=True)(ns["rollout"]), numba.njit(ns["rhs"])
     l = dynamics.latent_dim
     z = np.zeros((1, 2, l))
     # Compile for the argument types the integrators pass, so that the first real call is fast.
@@ -349,10 +350,12 @@ def generated(dynamics: LatentDynamics) -> GeneratedFunctions:
         J, n_max, l = x_true.shape
         X, V = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
         div_at = np.full(J, -1, dtype=np.int64)
-        fn(np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
-           np.ascontiguousarray(drive["nu"], dtype=float), np.ascontiguousarray(drive["phase"], dtype=np.int64),
-           np.asarray(lens, dtype=np.int64), np.asarray(resets, dtype=np.bool_), float(dt), int(substeps),
-           np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
+        f = np.ascontiguousarray
+        xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
+        ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
+        resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
+        over_jumps(lambda r: fn(xt[r], vt[r], nu[r], ph[r], lens[r], resets, float(dt), int(substeps), lim[r],
+                                X[r], V[r], div_at[r]), lens, int(substeps))
         return X, V, div_at
 
     return GeneratedFunctions(integrate, entry["rhs"], lambda: _c_rhs(entry))

@@ -26,7 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from symrom.compiled.batch import over_jumps
 from symrom.compiled.dynamics import TermLibrary
+from symrom.execution import kernel_threads
 
 STATE_POWER, SIN, COS, INPUT = 0, 1, 2, 3
 
@@ -183,10 +185,12 @@ def _table_integrator(terms: TermLibrary, Xi: np.ndarray):
         J, n_max, l = x_true.shape
         X, V = np.full((J, n_max, l), np.nan), np.full((J, n_max, l), np.nan)
         div_at = np.full(J, -1, dtype=np.int64)
-        k(np.ascontiguousarray(x_true, dtype=float), np.ascontiguousarray(v_true, dtype=float),
-          np.ascontiguousarray(drive["nu"], dtype=float), np.ascontiguousarray(drive["phase"], dtype=np.int64),
-          np.asarray(lens, dtype=np.int64), np.asarray(resets, dtype=np.bool_), *program, float(dt),
-          int(substeps), np.ascontiguousarray(np.broadcast_to(limit, (J, 2 * l)), dtype=float), X, V, div_at)
+        f = np.ascontiguousarray
+        xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
+        ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
+        resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
+        over_jumps(lambda r: k(xt[r], vt[r], nu[r], ph[r], lens[r], resets, *program, float(dt), int(substeps),
+                               lim[r], X[r], V[r], div_at[r]), lens, int(substeps))
         return X, V, div_at
 
     return integrate
@@ -229,6 +233,9 @@ def rollout_windows(terms: TermLibrary, Xi: np.ndarray, phase: np.ndarray, term:
     support = np.asarray(Xi) != 0  # coefficients held fixed (not parameters) act too
     support[phase, term, latent] = True  # a coefficient at 0.0 still needs its term
     active, n_active = active_terms(support)
+    import numba
+
+    numba.set_num_threads(min(kernel_threads(), numba.config.NUMBA_NUM_THREADS))  # the process's share
     k(np.ascontiguousarray(xi), np.ascontiguousarray(dxi), np.ascontiguousarray(nu),
       np.ascontiguousarray(window_phase, dtype=np.int64), np.ascontiguousarray(Xi, dtype=float),
       table.kind, table.var, table.power, table.count, np.asarray(phase).astype(np.int64),

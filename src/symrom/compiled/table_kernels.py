@@ -209,7 +209,7 @@ def program_accel(ph, s, val, fidx, nfac, coef, n_act, trig, acc):
         for j in range(acc.shape[0]):
             acc[j] += th * coef[ph, a, j]
 
-@njit
+@numba.njit(cache=True, fastmath=False, nogil=True)  # nogil: a batch's jumps run in threads (``batch``)
 def rk4_rollout(x_true, v_true, nu, phase, lens, resets, fidx, nfac, coef, n_act, trig,
                 dt, substeps, limit, X, V, div_at):
     """J jumps from their true start, reset to the truth where ``resets``; the

@@ -18,7 +18,7 @@ from symrom.baselines import BASELINES
 from symrom.data.io import read_dataset
 from symrom.evaluate.paper import PAPER_TABLE2
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
-from symrom.execution import limit_blas
+from symrom.execution import limit_threads
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import run_learned, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
@@ -106,7 +106,7 @@ def _quiet(msg: str, transient: bool = False) -> None:
 def _beside_main(fn, args: tuple, nice: int) -> None:
     if nice:
         os.nice(nice)
-    limit_blas(1)
+    limit_threads(1)
     try:
         fn(*args, _quiet)
     except Exception:  # the run's own process does the step again and reports what went wrong
@@ -116,8 +116,9 @@ def _beside_main(fn, args: tuple, nice: int) -> None:
 class Beside:
     """A step of the run started beside the rest in a process of its own when the run has more
     than one worker (spawned, a daemon, so an interrupted run does not wait for it). There the
-    step runs on one worker and one BLAS thread, with ``nice`` added to its niceness; its numbers
-    do not depend on the workers or the niceness, and BLAS's threads move only their last bits.
+    step runs on one worker and one thread (``limit_threads``), with ``nice`` added to its
+    niceness; its numbers do not depend on the workers or the niceness, and BLAS's threads move
+    only their last bits.
     ``result`` waits for it, then calls the step in the run's own process, which reads back what
     the other process wrote (every step resumes from its files) and does whatever it did not
     finish.
@@ -208,7 +209,7 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
         return data[name]
 
     # with more than one worker, other processes of the run share the cores
-    blas = limit_blas(1) if cfg.workers > 1 and cfg.backend == "local" else None
+    threads = limit_threads(1) if cfg.workers > 1 and cfg.backend == "local" else None
     try:
         if exps:
             sim_dataset(exps[0].data)
@@ -258,8 +259,8 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
     finally:
         for b in beside:
             b.stop()
-        if blas is not None:
-            blas.restore_original_limits()
+        if threads is not None:
+            threads.restore_original_limits()
     summary["manifest"] = [e.to_dict() for e in manifest(run, cfg, summary)]
     summary["run"] = {"command": command, "versions": _versions(), "seeds": {"seed": cfg.seed},
                       "config": json.loads(json.dumps(asdict(cfg), default=str)), "only": only,
