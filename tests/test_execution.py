@@ -103,6 +103,9 @@ def test_a_thread_limit_is_undone_in_order(monkeypatch):
     assert execution.kernel_threads() == 3
     outer.restore_original_limits()
     assert execution.kernel_threads() == base
+    monkeypatch.setattr(execution, "_KERNEL_THREADS", [])  # no limit set: the variable decides
+    monkeypatch.setenv(execution.THREADS_ENV, "3")
+    assert execution.kernel_threads() == 3
     monkeypatch.setenv(execution.THREADS_ENV, "two")
     with pytest.raises(ValueError, match="SYMROM_THREADS"):
         execution.kernel_threads()
