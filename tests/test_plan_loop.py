@@ -232,3 +232,69 @@ def test_froggy_jump_end_to_end(tmp_path):
     assert np.all(before[:, :2] == 0) and np.all(before[:, 2:].sum(axis=1) > 0)
     phases = tr["phase"]
     assert "push_all" in phases and "push_rear" in phases and phases[-1] == "land"
+
+
+def test_a_pitch_blind_model_keeps_the_rear_push_s_pitching_moment_to_its_data():
+    """A froggy model whose latents read base x and z only (Newton's law on the A1's mass) plans
+    the rear feet's push within the pitching moment its training pushes made (``push_wrench``),
+    in the plan and in every re-plan; without that record, or for a model that reads the pitch,
+    the rear push is planned free of it (and here leaves it)."""
+    from dataclasses import replace
+
+    from symrom.model.autoencoder import LinearAutoencoder
+    from symrom.plan.inputs import holds_pitch, pitch_moment_map
+    from symrom.plan.jump import make_planner, reads_pitch
+
+    assert holds_pitch((0, 1, 2, 3)) and not holds_pitch((2, 3)) and not holds_pitch((0, 1))
+    m = 1 / 12.5
+    law = [{"nu1": m}, {"nu2": m, "1": -9.81}]
+    low, high = 1.0, 4.0  # N m: the rear pushes' pitching moment in the training data
+    envelope = {"jumps": 9, "travel_x_m": [0.25, 0.45], "apex_z_m": [0.33, 0.45], "liftoff_z_m": 0.325,
+                "touchdown_z_m": 0.29, "push_s": [0.15, 0.2],
+                "push_wrench": {"components": ["fx", "fz", "my"],
+                                "phases": {"contact": {"min": [0.0, 0.0, -50.0], "max": [300.0, 400.0, 50.0]},
+                                           "partial": {"min": [-80.0, -80.0, low], "max": [150.0, 200.0, high]}}}}
+    model = planted_model(law, [{}, {"1": -9.81}], phases=("contact", "partial", "flight"), third=law,
+                          info={"robot": "a1", "motion": "froggy", "envelope": envelope})
+    assert not reads_pitch(model)
+
+    def rear_moments(planner, target=0.35):
+        mp = planner.motion
+        plan, *_ = planner_plan(planner, target)
+        k0 = mp.stances[0].knots
+        M = pitch_moment_map("a1", [mp.q_crouch], (2, 3))[0]
+        return plan, plan.forces[k0:] @ M
+
+    def planner_plan(planner, target):
+        from symrom.plan.jump import plan_jump
+
+        return plan_jump(planner, planner.motion.q_crouch, np.zeros(18), target)
+
+    bounded = make_planner("learned", "a1", model=model)
+    plan, moments = rear_moments(bounded)
+    assert plan.success and moments.min() >= low - 1e-6 and moments.max() <= high + 1e-6
+    rp = bounded.replanner
+    rp.begin(plan, 0.35, plan.x0, bounded.liftoff_height, bounded.touchdown_height, None, bounded.nominal_apex)
+    M = pitch_moment_map("a1", [bounded.motion.q_crouch], (2, 3))[0]
+    checked = 0
+    for tau in np.arange(0.01, plan.t_stance, 0.01):
+        k = min(int(tau / plan.t_stance * (len(plan.states) - 5)), len(plan.states) - 6)
+        s = plan.states[k + 1].copy()
+        s[3] *= 0.98  # rising slower than planned: the re-plan pushes harder
+        sch = rp.step(s, tau)
+        for i, F in enumerate(sch.forces):
+            if sch.first + i == 1 and rp.stats.status[-1] == "ok":  # a softened QP has every bound soft
+                assert (F @ M).max() <= high + 1e-6 and (F @ M).min() >= low - 1e-6
+                checked += 1
+    assert checked >= 5 and rp.schedule.first == 1
+    # free of it: no record, or latents that read the pitch
+    no_record = replace(model, provenance=replace(model.provenance, data=replace(
+        model.provenance.data, envelope={k: v for k, v in envelope.items() if k != "push_wrench"})))
+    W_e = model.autoencoder.W_e.copy()
+    W_e[1, 16] = 1e-3  # the second latent weighs the pitch a little
+    ae = model.autoencoder
+    reading = replace(model, autoencoder=LinearAutoencoder(W_e, ae.B_e, ae.W_d, ae.B_d))
+    assert reads_pitch(reading)
+    for free in (no_record, reading):
+        plan, moments = rear_moments(make_planner("learned", "a1", model=free))
+        assert plan.success and moments.max() > high + 1.0

@@ -109,8 +109,15 @@ def test_the_envelope_of_planted_jumps():
         rows.append((np.full(n, j), t, q, phase))
     jump, t, q, phase = (np.concatenate(v) for v in zip(*rows))
     N = len(t)
+    # the input's wrench: fx, fz, my of 10 + j, 200 + 50 j, -3 + j in the push (rows 99-149 of
+    # each jump), far larger in the crouch and the landing, which the push range leaves out
+    u = np.zeros((N, 18))
+    u[:, [12, 14, 16]] = [900.0, 900.0, 900.0]
+    for j in (0, 1):
+        push = (jump == j) & (np.arange(N) % 300 >= 99) & (np.arange(N) % 300 < 150)
+        u[push, 12], u[push, 14], u[push, 16] = 10.0 + j, np.linspace(200.0, 250.0 + 50 * j, 51), -3.0 + j
     ds = Dataset("go1", "pronk", "sim", ["contact", "flight"], jump.astype(np.int32), t, q, np.zeros((N, 18)),
-                 np.zeros((N, 18)), np.zeros((N, 12)), np.ones((N, 4), np.uint8), np.zeros((N, 18)),
+                 np.zeros((N, 18)), np.zeros((N, 12)), np.ones((N, 4), np.uint8), u,
                  phase.astype(np.int8), np.array(["train", "train"]))
     env = jump_envelope(ds, [0, 1])
     assert env["jumps"] == 2
@@ -118,4 +125,9 @@ def test_the_envelope_of_planted_jumps():
     assert env["apex_z_m"] == pytest.approx([0.44, 0.46], abs=1e-3)
     assert env["liftoff_z_m"] == pytest.approx(0.33) and env["touchdown_z_m"] == pytest.approx(0.3)
     assert env["push_s"] == pytest.approx([0.102, 0.102])
+    pushed = env["push_wrench"]
+    assert pushed["components"] == ["fx", "fz", "my"] and list(pushed["phases"]) == ["contact"]
+    assert pushed["phases"]["contact"]["min"] == pytest.approx([10.0, 200.0, -3.0])
+    assert pushed["phases"]["contact"]["max"] == pytest.approx([11.0, 300.0, -2.0])
+    assert jump_envelope(ds, [0])["push_wrench"]["phases"]["contact"]["max"] == pytest.approx([10.0, 250.0, -3.0])
     assert jump_envelope(ds, []) is None

@@ -9,10 +9,12 @@ hold. Per jump, its main flight (the longest run of ``flight`` rows) and:
   flight (the touchdown);
 - apex: the largest base height in the flight;
 - the base height at lift-off (the flight's first row) and at touchdown;
-- push: the time from the push start to lift-off, s.
+- push: the time from the push start to lift-off, s;
+- the ground wrench the push's feet exerted (the input's forward and vertical force and pitch
+  moment, ``push_wrench``), per contact phase, over its rows from the push start to lift-off.
 
 A jump without a flight, or whose flight runs to its last row, is left out.
-Units: m, s.
+Units: m, s, N, N m.
 """
 
 from __future__ import annotations
@@ -20,9 +22,10 @@ from __future__ import annotations
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.names import BASE_POS, FLIGHT_PHASE
+from symrom.names import BASE_POS, FLIGHT_PHASE, U_NAMES
 
 _X, _Z = BASE_POS.start, BASE_POS.start + 2
+WRENCH = ("fx", "fz", "my")  # the push's wrench in the sagittal plane, N, N, N m (``U_NAMES``)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -34,13 +37,16 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
     """The envelope of ``jumps`` (dataset indices) of ``ds`` (module docstring), JSON-ready:
     ``jumps`` (how many had a landed flight), ``travel_x_m`` and ``apex_z_m`` [min, max],
-    ``liftoff_z_m`` and ``touchdown_z_m`` (medians), ``push_s`` [min, max]; None if no jump
-    has a landed flight or the dataset has no ``flight`` phase."""
+    ``liftoff_z_m`` and ``touchdown_z_m`` (medians), ``push_s`` [min, max], ``push_wrench``:
+    {"components": ``WRENCH``, "phases": {phase: {"min": (3,), "max": (3,)}}} over the push rows
+    of each phase; None if no jump has a landed flight or the dataset has no ``flight`` phase."""
     if FLIGHT_PHASE not in ds.phase_names:
         return None
     fid = ds.phase_names.index(FLIGHT_PHASE)
     bounds = ds.jump_bounds()
     travel, apex, z_lo, z_td, push = [], [], [], [], []
+    cols = [U_NAMES.index(c) for c in WRENCH]
+    wrench: dict[int, list[np.ndarray]] = {}  # phase -> the push rows' wrench (n, 3)
     for j in np.asarray(jumps, dtype=int):
         a0, a1 = bounds[j]
         q, phase = ds.q[a0:a1], ds.phase[a0:a1]
@@ -56,14 +62,20 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
         z_lo.append(q[a, _Z])
         z_td.append(q[b, _Z])
         push.append((a - k0) * ds.dt)
+        for k in np.unique(phase[k0:a]):
+            wrench.setdefault(int(k), []).append(ds.u[a0 + k0:a0 + a][phase[k0:a] == k][:, cols])
     if not travel:
         return None
+    pushed = {ds.phase_names[k]: np.concatenate(w) for k, w in sorted(wrench.items())}
 
     def span(v):
         return [float(np.min(v)), float(np.max(v))]
 
     return {"jumps": len(travel), "travel_x_m": span(travel), "apex_z_m": span(apex),
-            "liftoff_z_m": float(np.median(z_lo)), "touchdown_z_m": float(np.median(z_td)), "push_s": span(push)}
+            "liftoff_z_m": float(np.median(z_lo)), "touchdown_z_m": float(np.median(z_td)), "push_s": span(push),
+            "push_wrench": {"components": list(WRENCH),
+                            "phases": {k: {"min": w.min(axis=0).tolist(), "max": w.max(axis=0).tolist()}
+                                       for k, w in pushed.items()}}}
 
 
 __all__ = ["jump_envelope"]

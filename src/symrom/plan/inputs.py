@@ -22,7 +22,7 @@ import numpy as np
 
 from symrom.data.preprocess import input_from_torques
 from symrom.model.hybrid import HybridModel
-from symrom.names import BASE_RPY, JOINTS, N_LEGS, N_Q
+from symrom.names import BASE_RPY, JOINTS, LEGS, N_LEGS, N_Q, U_NAMES
 from symrom.robots import leg_kinematics
 from symrom.robots.kinematics import rpy_to_matrix
 
@@ -70,3 +70,20 @@ def torque_map(robot: str, qs: list[np.ndarray], limits: np.ndarray, share: floa
     keep = np.sort(np.unique(key, axis=0, return_index=True)[1])
     keep = keep[np.abs(A[keep]).sum(axis=1) > 0]
     return A[keep], b[keep]
+
+
+def holds_pitch(legs: tuple[int, ...]) -> bool:
+    """Whether feet ``legs`` (indices into ``names.LEGS``) can give the trunk a pitching moment
+    of their own: a front and a rear foot down. Feet side by side (a froggy's rear pair)
+    cannot: the moment their summed force makes is set by that force."""
+    ends = {LEGS[k][0] for k in legs}  # "f" or "r"
+    return ends == {"f", "r"}
+
+
+def pitch_moment_map(robot: str, qs: list[np.ndarray], legs: tuple[int, ...]) -> np.ndarray:
+    """A (len(qs), 2): the pitching moment (N m; the input's ``my``, about the base, as the data
+    derive it) that a summed force F = (F_x, F_z) N shared equally by the feet ``legs`` makes,
+    A F, at each configuration of ``qs`` (each (18,))."""
+    my = U_NAMES.index("my")
+    return np.array([[stance_input(robot, q, e, legs)[my] for e in (np.array([1.0, 0.0, 0.0]),
+                                                                      np.array([0.0, 0.0, 1.0]))] for q in qs])

@@ -35,11 +35,11 @@ import numpy as np
 from symrom.atomic import atomic_dir
 from symrom.baselines.aslip import ASlipParams
 from symrom.model.hybrid import HybridModel
-from symrom.names import BASE_POS, FLIGHT_PHASE, JOINTS, PARTIAL_PHASE, STANCE_PHASE
+from symrom.names import BASE_POS, BASE_RPY, FLIGHT_PHASE, JOINTS, PARTIAL_PHASE, STANCE_PHASE
 from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PlanModelError, PointMass
 from symrom.plan.execute import MOTIONS, Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
-from symrom.plan.inputs import ALL_LEGS, force_input_map, torque_map
+from symrom.plan.inputs import ALL_LEGS, force_input_map, holds_pitch, pitch_moment_map, torque_map
 from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError, Stance
 from symrom.plan.replan import Replanner, ReplanStats, Schedule
 from symrom.robots import get_robot, leg_kinematics, robot_key
@@ -322,12 +322,39 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         q_up = start_pose(robot, mp.liftoff_height)
         limits = {st.phase: torque_map(robot, [q_crouch, q_up], desc.torque_limit, legs=legs[st.phase])
                   for st in mp.stances}
+    if envelope is not None and motion != "pronk" and not reads_pitch(model):
+        limits = {st.phase: pitch_bounds(limits[st.phase], robot, [q_crouch, q_up], legs[st.phase],
+                                         envelope, st.phase) for st in mp.stances}
     nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None)
     crouch = float(q_crouch[BASE_POS][2]) if motion != "pronk" else mp.params.crouch_height
     # without a target apex the jump rises at least to the motion's nominal apex, or to the highest
     # apex of the training jumps where that is lower: a model knows the motion only where its data went
     nominal = mp.nominal_apex if envelope is None else min(mp.nominal_apex, float(envelope["apex_z_m"][1]))
     return RobotPlanner(kind, robot, guards, nlp, crouch, mp.liftoff_height, nominal, mp, envelope)
+
+
+def reads_pitch(model: HybridModel) -> bool:
+    """Whether the model's latents read the trunk's pitch (its encoder weighs it)."""
+    return bool(np.any(model.autoencoder.W_e[:, BASE_RPY.start + 1] != 0))
+
+
+def pitch_bounds(tmap: tuple[np.ndarray, np.ndarray], robot: str, qs: list[np.ndarray], legs: tuple[int, ...],
+                 envelope: dict, phase: str) -> tuple[np.ndarray, ...]:
+    """The torque map ``tmap`` (A, limits) of a stance on the feet ``legs`` in ``phase`` of a model
+    whose latents do not read the pitch, and, where those feet cannot hold the trunk's pitch
+    (``inputs.holds_pitch``: a froggy's rear pair), the pitching moment the force makes at the
+    configurations ``qs`` within what the training pushes made in that phase
+    (``envelope["push_wrench"]``). Such a model learned how the push moves the base only for pushes
+    that pitched the trunk as its data's did; planned free of it, a rear push can spin the trunk
+    (a Laikago froggy plan turned it 1.5 rad in flight). As it is where there is no such record."""
+    pushed = (envelope.get("push_wrench") or {}).get("phases", {}).get(phase)
+    if pushed is None or holds_pitch(legs):
+        return tmap
+    k = list(envelope["push_wrench"]["components"]).index("my")
+    A, lim = tmap
+    M = pitch_moment_map(robot, qs, legs)
+    return (np.vstack([A, M]), np.concatenate([-lim, np.full(len(qs), pushed["min"][k])]),
+            np.concatenate([lim, np.full(len(qs), pushed["max"][k])]))
 
 
 def check_model_robot(trained_on: str, robot: str) -> None:

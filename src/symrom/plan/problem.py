@@ -155,7 +155,17 @@ def _rk4(f, s, h, n):
     return s
 
 
-TorqueMap = tuple[np.ndarray, np.ndarray]
+# A (m, 2), limits (m,): -limits <= A F <= limits; or A, lower (m,), upper (m,)
+TorqueMap = tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def linear_bounds(tmap: TorqueMap) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(A, lower, upper) of a ``TorqueMap``: lower <= A F <= upper."""
+    if len(tmap) == 2:
+        A, lim = tmap
+        return np.asarray(A, float), -np.asarray(lim, float), np.asarray(lim, float)
+    A, lo, hi = tmap
+    return np.asarray(A, float), np.asarray(lo, float), np.asarray(hi, float)
 
 
 class JumpPlanner:
@@ -164,9 +174,10 @@ class JumpPlanner:
     dyn: the model (``PlanDynamics``); mass kg: the robot's, for the scale of the force terms
     and the first guess; guards: the phase-switch rule; torque_map: (A (m, 2), limits (m,))
     with A F the joint torques (N m) a summed force F asks of the legs, bounded by the limits,
-    or one such pair per stance phase (a dict by phase); stances: the push's stances in turn
-    (default: one ``contact`` stance of ``config.knots`` intervals, ``config.stance_min`` to
-    ``config.stance_max`` s)."""
+    or (A, lower, upper) with bounds of each side (a rear pair's pitching moment among the
+    rows, ``jump.pitch_bounds``), or one such per stance phase (a dict by phase); stances: the
+    push's stances in turn (default: one ``contact`` stance of ``config.knots`` intervals,
+    ``config.stance_min`` to ``config.stance_max`` s)."""
 
     def __init__(self, dyn: PlanDynamics, mass: float, config: PlanConfig | None = None,
                  guards: Guards | None = None, torque_map: TorqueMap | dict[str, TorqueMap] | None = None,
@@ -215,10 +226,10 @@ class JumpPlanner:
                 prev = S[:, col]
                 add([(dyn.velocity(prev)[1], 0.0, ca.inf)])  # the base rises all through the push
                 add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
-                if tmap is not None:  # joint torques the force asks of the legs, within the limits
-                    A, lim = tmap
+                if tmap is not None:  # joint torques the force asks of the legs (and moment), within bounds
+                    A, lo_t, hi_t = linear_bounds(tmap)
                     tau = ca.mtimes(ca.DM(A), Fk)
-                    add([(tau[i], -float(lim[i]), float(lim[i])) for i in range(A.shape[0])])
+                    add([(tau[i], float(lo_t[i]), float(hi_t[i])) for i in range(A.shape[0])])
                 col += 1
         add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):  # rise, then fall

@@ -30,7 +30,7 @@ import daqp
 import numpy as np
 
 from symrom.names import GRAVITY
-from symrom.plan.problem import JumpPlanner, Plan, _rk4
+from symrom.plan.problem import JumpPlanner, Plan, _rk4, linear_bounds
 
 
 @dataclass
@@ -146,9 +146,9 @@ class Replanner:
                 add([(dyn.velocity(s)[1], 0.0, ca.inf)])
                 add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
                 if tmap is not None:
-                    A, lim = tmap
+                    A, lo_t, hi_t = linear_bounds(tmap)
                     tau = ca.mtimes(ca.DM(A), Fk)
-                    add([(tau[i], -float(lim[i]), float(lim[i])) for i in range(A.shape[0])])
+                    add([(tau[i], float(lo_t[i]), float(hi_t[i])) for i in range(A.shape[0])])
                 col += 1
         add(nlp.guards.liftoff(dyn, s, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):
