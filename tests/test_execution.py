@@ -103,7 +103,10 @@ def test_a_thread_limit_is_undone_in_order(monkeypatch):
     assert execution.kernel_threads() == 3
     outer.restore_original_limits()
     assert execution.kernel_threads() == base
-    monkeypatch.setattr(execution, "_KERNEL_THREADS", [])  # no limit set: the variable decides
+    monkeypatch.setattr(execution, "_KERNEL_THREADS", [])  # no limit set: the variables decide
+    monkeypatch.delenv(execution.THREADS_ENV, raising=False)
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")  # as Ray sets it in its workers
+    assert execution.kernel_threads() == 1
     monkeypatch.setenv(execution.THREADS_ENV, "3")
     assert execution.kernel_threads() == 3
     monkeypatch.setenv(execution.THREADS_ENV, "two")

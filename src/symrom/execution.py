@@ -141,15 +141,17 @@ _KERNEL_THREADS: list[int] = []  # the limit ``limit_threads`` set last in this 
 
 def kernel_threads() -> int:
     """Threads symrom's own compiled kernels may split a batch of jumps over: the limit
-    ``limit_threads`` set, else ``$SYMROM_THREADS``, else the cores this process may run on."""
+    ``limit_threads`` set, else ``$SYMROM_THREADS``, else ``$OMP_NUM_THREADS`` (what schedulers
+    and Ray's workers set for a process's share), else the cores this process may run on."""
     if _KERNEL_THREADS:
         return _KERNEL_THREADS[-1]
-    env = os.environ.get(THREADS_ENV, "").strip()
-    if env:
-        try:
-            return max(1, int(env))
-        except ValueError:
-            raise ValueError(f"${THREADS_ENV}: {env!r} is not a whole number of threads") from None
+    for name in (THREADS_ENV, "OMP_NUM_THREADS"):
+        env = os.environ.get(name, "").strip()
+        if env:
+            try:
+                return max(1, int(env))
+            except ValueError:
+                raise ValueError(f"${name}: {env!r} is not a whole number of threads") from None
     return available_cores()
 
 
