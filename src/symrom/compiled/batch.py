@@ -56,6 +56,25 @@ def over_jumps(run: Callable[[slice], None], lens: np.ndarray, steps_per_sample:
             raise e
 
 
+def rollout_jumps(kernel: Callable, x_true: np.ndarray, v_true: np.ndarray, drive: dict, lens: np.ndarray,
+                  resets: np.ndarray, limit: np.ndarray, dt: float, substeps: int, X: np.ndarray, V: np.ndarray,
+                  program: tuple = ()) -> np.ndarray:
+    """Run an RK4 rollout kernel ``kernel(x_true, v_true, nu, phase, lens, resets, *program, dt,
+    substeps, limit, X, V, div_at)`` (the generated one, or the term table's with its
+    ``program``) over the J jumps of the padded arrays (J, n_max, l), in threads
+    (``over_jumps``); it writes X, V in place. Returns div_at (J,): each jump's first bad
+    sample, -1 if none."""
+    J, _, l = x_true.shape
+    f = np.ascontiguousarray
+    xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
+    ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
+    resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
+    div_at = np.full(J, -1, dtype=np.int64)
+    over_jumps(lambda r: kernel(xt[r], vt[r], nu[r], ph[r], lens[r], resets, *program, float(dt), int(substeps),
+                                lim[r], X[r], V[r], div_at[r]), lens, int(substeps))
+    return div_at
+
+
 def _pool(workers: int) -> ThreadPoolExecutor:
     if not _POOL or _POOL[0][0] < workers:
         if _POOL:

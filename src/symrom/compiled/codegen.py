@@ -55,7 +55,7 @@ import numpy as np
 import sympy
 from sympy.printing.pycode import PythonCodePrinter
 
-from symrom.compiled.batch import over_jumps
+from symrom.compiled.batch import rollout_jumps
 from symrom.compiled.dynamics import LatentDynamics
 
 _CACHE: OrderedDict[str, dict] = OrderedDict()
@@ -347,16 +347,8 @@ def generated(dynamics: LatentDynamics) -> GeneratedFunctions:
     fn = entry["rollout"]
 
     def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
-        J, n_max, l = x_true.shape
-        X, V = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
-        div_at = np.full(J, -1, dtype=np.int64)
-        f = np.ascontiguousarray
-        xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
-        ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
-        resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
-        over_jumps(lambda r: fn(xt[r], vt[r], nu[r], ph[r], lens[r], resets, float(dt), int(substeps), lim[r],
-                                X[r], V[r], div_at[r]), lens, int(substeps))
-        return X, V, div_at
+        X, V = np.empty((2, *x_true.shape))  # one block: fewer page faults (huge pages from 4 MB)
+        return X, V, rollout_jumps(fn, x_true, v_true, drive, lens, resets, limit, dt, substeps, X, V)
 
     return GeneratedFunctions(integrate, entry["rhs"], lambda: _c_rhs(entry))
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from symrom.compiled.batch import over_jumps
+from symrom.compiled.batch import rollout_jumps
 from symrom.compiled.dynamics import TermLibrary
 from symrom.execution import kernel_threads
 
@@ -182,16 +182,8 @@ def _table_integrator(terms: TermLibrary, Xi: np.ndarray):
     def integrate(x_true, v_true, drive, lens, resets, limit, dt, substeps):
         """Padded (J, n_max, l) truth, drive {nu (J, n_max, l), phase (J, n_max)} ->
         X, V (J, n_max, l) with NaN after a divergence, div_at (J,)."""
-        J, n_max, l = x_true.shape
-        X, V = np.full((J, n_max, l), np.nan), np.full((J, n_max, l), np.nan)
-        div_at = np.full(J, -1, dtype=np.int64)
-        f = np.ascontiguousarray
-        xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
-        ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
-        resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
-        over_jumps(lambda r: k(xt[r], vt[r], nu[r], ph[r], lens[r], resets, *program, float(dt), int(substeps),
-                               lim[r], X[r], V[r], div_at[r]), lens, int(substeps))
-        return X, V, div_at
+        X, V = np.full(x_true.shape, np.nan), np.full(x_true.shape, np.nan)
+        return X, V, rollout_jumps(k, x_true, v_true, drive, lens, resets, limit, dt, substeps, X, V, program)
 
     return integrate
 
