@@ -107,6 +107,10 @@ def test_a_thread_limit_is_undone_in_order(monkeypatch):
     monkeypatch.delenv(execution.THREADS_ENV, raising=False)
     monkeypatch.setenv("OMP_NUM_THREADS", "1")  # as Ray sets it in its workers
     assert execution.kernel_threads() == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "3,2")  # OpenMP's nested form: the outer count
+    assert execution.kernel_threads() == 3
+    monkeypatch.setenv("OMP_NUM_THREADS", "auto")  # not ours to refuse: the cores decide
+    assert execution.kernel_threads() == execution.available_cores()
     monkeypatch.setenv(execution.THREADS_ENV, "3")
     assert execution.kernel_threads() == 3
     monkeypatch.setenv(execution.THREADS_ENV, "two")

@@ -145,13 +145,15 @@ def kernel_threads() -> int:
     and Ray's workers set for a process's share), else the cores this process may run on."""
     if _KERNEL_THREADS:
         return _KERNEL_THREADS[-1]
-    for name in (THREADS_ENV, "OMP_NUM_THREADS"):
-        env = os.environ.get(name, "").strip()
-        if env:
-            try:
-                return max(1, int(env))
-            except ValueError:
-                raise ValueError(f"${name}: {env!r} is not a whole number of threads") from None
+    env = os.environ.get(THREADS_ENV, "").strip()
+    if env:
+        try:
+            return max(1, int(env))
+        except ValueError:
+            raise ValueError(f"${THREADS_ENV}: {env!r} is not a whole number of threads") from None
+    omp = os.environ.get("OMP_NUM_THREADS", "").split(",")[0].strip()  # OpenMP's "outer,inner" form too
+    if omp.isdigit() and int(omp) > 0:
+        return int(omp)
     return available_cores()
 
 
