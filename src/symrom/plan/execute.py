@@ -16,7 +16,10 @@ alone):
    derived from torques (``data.preprocess``). Closed loop (``Feedback``): every
    ``period`` s of the push (from its first tick) the rest of the push is re-planned from
    the measured state (``plan.replan``) and F(t) and the push's end follow the new schedule.
-4. *Flight and landing*: the controller's own.
+4. *Flight and landing*: the controller's own. The froggy's follow its push at once; the
+   pronk first holds the legs without ground force for ``pronk.release_time`` (20 ms for the
+   Go1), as its own push ends, so that the feet leave the ground before its flight's joint PD
+   swings the legs to the landing posture, as in its data.
 
 The episode is the one loop every simulated jump runs (``sim.generation.episode``), on the
 engine's world with the ``Disturbances`` asked for (``sim.proxy.DisturbedWorld``).

@@ -42,7 +42,14 @@ every tick of the push with the measured state, it commands the summed ground
 force on the feet and its moment about the CoM (``PushCommand``), and says when
 the push ends and what flight follows (``PushTiming``); it may re-plan at any
 tick. The pronk turns the command into joint torques through massless legs
-(``push_torque``) and runs its own flight and landing after it. The jump's
+(``push_torque``) and runs its own flight and landing after it, handing over as
+its own push does: its MPC's forces end about ``release_time`` (20 ms) before its
+flight, the feet leave the ground in between with the legs held without ground
+force (their weight and the stance posture terms), and the flight's joint PD
+starts with the feet already off. A policy's push is followed by the same hold
+for ``release_time``; with the flight's PD started at the push's end instead, it
+would swing the legs towards the landing posture while the feet are still down.
+The jump's
 events (``push_start``, ``liftoff``, ``touchdown``) and ``phase`` are public,
 read-only. ``symrom.plan.execute`` runs a planned jump this way.
 
@@ -238,11 +245,20 @@ def plan_jump(params: PronkParams, brake_time: float, boost: float = 1.0) -> Jum
                     vx=float(boost * vx), vz=float(boost * vz), flight_time=float(flight_time))
 
 
+def release_time(gains: PronkGains) -> float:
+    """s from the end of the ground force to the flight's joint PD in the pronk's own push (20 ms
+    for the Go1): its MPC plans the feet off from one step (``mpc.dt``) before the take-off, so
+    its forces end at the first solve (every 1 / ``mpc_hz`` s) within that step, half a solve
+    period into it on average (docs/benchmarks.md has what its jumps do)."""
+    return gains.mpc.dt - 0.5 / gains.mpc_hz
+
+
 @dataclass(frozen=True)
 class PushTiming:
-    """The push a ``PushPolicy`` means to make: duration s from its first tick to lift-off, the
-    lift-off velocity vx (along the heading) and vz (up), m/s, and flight_time s, lift-off to
-    touchdown (the pronk waits for a touchdown at most 0.4 s longer)."""
+    """The push a ``PushPolicy`` means to make: duration s from its first tick to its end (where
+    its ground force ends: the plan's lift-off), the lift-off velocity vx (along the heading) and
+    vz (up), m/s, and flight_time s, lift-off to touchdown (the pronk waits for a touchdown at
+    most 0.4 s longer)."""
 
     duration: float
     vx: float
@@ -259,7 +275,8 @@ class PushPolicy(Protocol):
     (``since`` = 0), with the measured state and the time since the push began. Either may
     plan; ``command`` may re-plan the rest of the push at any tick (a closed loop), its
     ``PushCommand.timing`` then moving the push's end. The push ends at the first tick
-    ``duration`` s or more after it began; the pronk's flight and landing follow.
+    ``duration`` s or more after it began; the pronk holds the legs without ground force for
+    ``release_time`` s (module docstring), then its flight and landing follow.
     """
 
     def start(self, state: RobotState) -> PushTiming:
@@ -333,6 +350,9 @@ class PronkController:
                                   np.tile([self.gains.kd_hx, self.gains.kd_stance, self.gains.kd_stance], N_LEGS),
                                   standing_joints(robot)])
         self._q_land: np.ndarray | None = None
+        # a policy's push: how long the legs are held without ground force between its end and
+        # the flight (``release``), s; none in the pronk's own jumps
+        self._release = release_time(self.gains) if push is not None else 0.0
         # fixed parts of the references: heading (3,), take-off velocity (3,) m/s, CoM offset
         # from the base origin for a level body at the commanded heading (3,) m, world
         self._e = heading(params.yaw)
@@ -479,12 +499,13 @@ class PronkController:
         if self._phase == "crouch" and t >= pl.t_push:
             self._phase = "push"
             self._push_start = (t, state.q[BASE_POS].copy())
-        if self._phase == "push" and t >= pl.t_push + pl.push_time:
+        if self._phase == "push" and t >= pl.t_push + pl.push_time + self._release:
             self._phase = "flight"
             self._q_land = None
-            self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+            if self._liftoff is None:
+                self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
         if self._phase == "flight":
-            since = t - (pl.t_push + pl.push_time)
+            since = t - (pl.t_push + pl.push_time + self._release)
             if (np.any(state.contact) and since > 0.05) or since > pl.flight_time + 0.4:
                 self._phase = "land"
                 self._t_td = t
@@ -515,6 +536,10 @@ class PronkController:
                 if cmd.timing is not None:
                     self._set_timing(self.plan.t_push, cmd.timing)
                 return self.push_torque(state, cmd.force, cmd.moment)
+            if self._phase == "push" and state.t < self.plan.t_push + self.plan.push_time + self._release:
+                if self._liftoff is None:  # the push's force ended at this tick
+                    self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+                return self._released_torque(state)
         was_flight = self._phase == "flight"
         if was_flight and not state.contact.any():
             self._airborne = True
@@ -577,6 +602,20 @@ class PronkController:
         tau = np.empty(N_JOINTS)
         stance_torque(J, f_base, self._zero_tau, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
                       self._posture, qj, dqj, self._clip_at, tau)
+        if self.compensation.active:
+            return self.compensation.clipped(tau, dqj, self.torque_limit)
+        return tau
+
+    def _released_torque(self, state: RobotState) -> np.ndarray:
+        """Joint torques (12,) N m of the pronk's stance with no ground force: what its own push
+        commands once its MPC's schedule has the feet off (the legs' weight held, the stance
+        posture terms), within the limits."""
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        p_b, J = self._p_b, self._J
+        legs_one(qj, *self._chains, p_b, J)
+        tau = np.empty(N_JOINTS)
+        stance_torque(J, np.zeros((N_LEGS, 3)), self.leg_gravity.torques(qj, state.R), False, p_b, p_b,
+                      state.contact, p_b, 0.0, 0.0, 0.0, self._posture, qj, dqj, self._clip_at, tau)
         if self.compensation.active:
             return self.compensation.clipped(tau, dqj, self.torque_limit)
         return tau
