@@ -72,6 +72,24 @@ def test_closest_plans_the_closest_reachable_jump(tmp_path, model_path):
     assert d["control"] == "plan" and d["disturbances"] == {"payload_kg": 0.0, "friction": None, "motor_scale": 1.0}
 
 
+def test_an_apex_past_the_training_jumps_is_out_of_reach_not_unplannable():
+    """A target apex the model's bounds allow but its training jumps never reached, at which the
+    model's forward range misses the training jumps' (0.3-0.4 m), is out of reach at the highest
+    apex the data hold, not a model that cannot plan: refused naming that reach, or with
+    ``closest`` planned at that apex."""
+    from symrom.plan.jump import OutOfReach, aim, make_planner
+
+    env = dict(ENVELOPE, travel_x_m=[0.3, 0.4])
+    planner = make_planner("learned", "go1", model=planted_model(*GO1_LIKE, info={"envelope": env}))
+    reach = planner.reach(0.9)
+    assert reach.apex == pytest.approx(0.47) and reach.z_max == pytest.approx(0.47)
+    assert reach.x_min == pytest.approx(0.3) and reach.x_max == pytest.approx(0.4)
+    with pytest.raises(OutOfReach, match="apex 0.9 m is out of the learned planner's reach.*apex 0.400-0.470 m"):
+        aim(planner, 0.35, 0.9)
+    x, z, _, inside = aim(planner, 0.35, 0.9, closest=True)
+    assert not inside and z == pytest.approx(0.47, abs=5e-3) and x == pytest.approx(0.35, abs=5e-3)
+
+
 def test_a_model_that_cannot_plan_fails_in_one_line(tmp_path):
     """A model whose push cannot lift the base (its vertical force gain is negative)."""
     path = tmp_path / "model.json"

@@ -133,8 +133,8 @@ class JumpReach:
     """Where a planner can land from the motion's crouch (m): forward distance x_min..x_max
     and apex z_min..z_max, what the model's bounds allow (``model``: ``problem.Reach``) within
     what the training jumps did (``data``: the envelope's travel and apex ranges, None without
-    one); ``apex``: the apex the x range was found for (a target apex, or None: at or above
-    the nominal apex)."""
+    one); ``apex``: the apex the x range was found for (the reachable apex nearest a target
+    apex, or None: at or above the nominal apex)."""
 
     x_min: float
     x_max: float
@@ -223,7 +223,8 @@ class RobotPlanner:
 
     def reach(self, target_z: float | None = None) -> JumpReach:
         """Where the planner can land from the motion's crouch at rest (``JumpReach``): with the
-        apex at ``target_z`` m (if given) or at or above the nominal apex. Raises
+        apex at ``target_z`` m (if given; the x range at the reachable apex nearest it) or at or
+        above the nominal apex. Raises
         ``PlanModelError`` if no jump is feasible (a model that cannot plan)."""
         q = self.motion.q_crouch if self.motion is not None else start_pose(self.robot, self.crouch_height)
         s0 = self.state(q, np.zeros(18), float(q[BASE_POS][0]))
@@ -246,8 +247,12 @@ class RobotPlanner:
                                  "meets its force, friction, torque and stance bounds and its guards")
         z_min, z_max = full.z_min, full.z_max
         x_min, x_max = max(full.x_min, 0.0), full.x_max
+        zc = None
         if target_z is not None:
-            zc = float(np.clip(target_z, z_min, z_max))
+            # the x range at the reachable apex nearest the target: within the training jumps' apexes
+            # too, where they leave any (at an apex past them the model's x range can miss theirs)
+            lo_z, hi_z = (max(z_min, data[2]), min(z_max, data[3])) if data is not None else (z_min, z_max)
+            zc = float(np.clip(target_z, lo_z, hi_z) if lo_z <= hi_z else np.clip(target_z, z_min, z_max))
             at = self.nlp.reach(s0, z_lo, zc, max_apex=zc, z_touchdown=z_td, x_range=(lo_x, np.inf))
             if at is not None:
                 x_min, x_max = max(at.x_min, 0.0), at.x_max
@@ -262,8 +267,7 @@ class RobotPlanner:
                                  f"{model[2]:.3f}-{model[3]:.3f} m) and its training jumps "
                                  f"({data[0]:.3f}-{data[1]:.3f} m, apex {data[2]:.3f}-{data[3]:.3f} m) "
                                  f"leave no jump it can plan")
-        return JumpReach(x_min, x_max, z_min, z_max, model, data,
-                         None if target_z is None else float(np.clip(target_z, full.z_min, full.z_max)))
+        return JumpReach(x_min, x_max, z_min, z_max, model, data, zc)
 
     def _motion_name(self) -> str:
         return "froggy jump" if self.motion is not None and self.motion.motion == "froggy" else "pronk"
