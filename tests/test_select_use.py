@@ -110,6 +110,49 @@ def test_a_flight_that_does_not_fall_is_never_chosen(fitted):
     assert choose([{**row, "active_terms": 3, "score": 0.01}], 0.05) is None
 
 
+def _reading(model, ds, move, change: float = 50.0):
+    """The model with its flight's decoded forward acceleration reading what ``move`` (a
+    ``usability.Move``) changes, so that the move changes it by ``change`` m/s^2; its mean over
+    the flight's training rows kept."""
+    ae = model.autoencoder
+    f = model.phase_names.index("flight")
+    W = ae.W_e  # a latent's speed reads dq as its position reads q
+    j = int(np.argmax(np.abs(W[:, move.column])))  # the latent that reads the moved column most
+    k = int(np.argmax(np.abs(ae.W_d[BASE_POS.start])))  # the latent the decoded x reads most
+    c = change / (ae.W_d[BASE_POS.start, k] * W[j, move.column] * move.amount)
+    rows = ds.rows_of("train") & (ds.phase == ds.phase_names.index("flight"))
+    feature = f"xi{j + 1}" if move.array == "q" else f"dxi{j + 1}"
+    state = ae.encode(ds.q[rows]) if move.array == "q" else ae.encode_derivative(ds.dq[rows])
+    names = model.library.feature_names
+    Xi = model.Xi.copy()
+    Xi[f, names.index(feature), k] += c
+    Xi[f, names.index("1"), k] -= c * state[:, j].mean()
+    return replace(model, Xi=Xi, mask=Xi != 0)
+
+
+@pytest.mark.parametrize("kind", ["sideways", "sideways speed", "forward speed"])
+def test_a_law_that_reads_what_cannot_move_the_base_is_refused(fitted, kind):
+    """On flat ground the law of motion cannot depend on where the robot stands sideways or how
+    fast it drifts sideways, nor in flight on how fast the base goes: a flight whose forward
+    acceleration reads one of them (its mean on the data unchanged) is refused on physics."""
+    from symrom.evaluate.usability import MOVES
+
+    ds, model = fitted
+    move = next(m for m in MOVES if m.kind == kind)
+    assert all(a.ok for a in physics_check(model, ds) if a.kind == kind)
+    bad_model = _reading(model, ds, move)
+    checks = physics_check(bad_model, ds)
+    bad = [a for a in checks if a.kind == kind and not a.ok]
+    assert {(a.phase, a.split) for a in bad} == {("flight", "train"), ("flight", "val")}
+    assert max(a.model for a in bad if a.axis == "x") == pytest.approx(50.0, rel=0.02)
+    assert all(a.ok for a in checks if a.kind == kind and a.phase != "flight")
+    assert all(a.ok for a in checks if a.kind in ("momentum", "flight") and a.split == "train")  # its mean kept
+    cfg = SelectionConfig()
+    row = assess(bad_model, ds, cfg, cfg.yardstick(ds), plan_steps(ds, 2))
+    reasons = [x["reason"] for x in row["refused"] if x["check"] == "physics"]
+    assert any(move.what in r and move.reads in r for r in reasons)
+
+
 @pytest.fixture(scope="module")
 def randomized(tmp_path_factory):
     """Six randomised Go1 pronks in MuJoCo (masses, friction, motors drawn per jump)."""

@@ -30,11 +30,25 @@ every candidate; docs/design.md, "Model selection"):
   acceleration (what the flight test allows; without flight rows, of g).
   A model that trades the momentum balance for rollout accuracy (a flight that
   falls upward, a push without its force) is caught here whatever its scores.
+  Nor does the law read what cannot move the base (``MOVES``): on flat ground,
+  with the wrench the input holds, neither where the robot stands sideways nor
+  how fast it drifts sideways (the whole robot moved 5 cm along world y, the
+  base set moving 0.1 m/s along it), and in flight, where nothing but gravity
+  acts on the robot, not how fast the base goes forward or up (0.1 m/s added).
+  Each may change no phase's decoded base acceleration (its mean absolute change
+  over the phase's rows) by more than the same allowance. The data's jumps hardly
+  move sideways, so a law that reads it has fitted noise: a Go1 flight selected
+  on MuJoCo data read the lateral position and speed (-1.55e4 m/s^2 per m and
+  2.6e3 per m/s), and its closed loop with a payload landed 21 cm off (1.4 cm
+  without those two terms); the next candidate damped the flight's forward speed
+  (-8.2 /s) and its jumps landed backwards. The forward position is not checked:
+  every jump of a dataset starts at the same place, so there it also tells how
+  far the push has gone.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -46,6 +60,32 @@ STATES = 32  # states per phase where the modes are taken (evenly spaced over it
 FLIGHT_SHARE = 0.05  # the flight's z acceleration within this share of the data's
 NOISE_SE = 3.0  # standard errors of the data's phase mean a model's mean may differ by (beyond FLIGHT_SHARE)
 AXES = {"x": BASE_POS.start, "z": BASE_POS.start + 2}  # decoded base axes checked: index into q
+
+
+@dataclass(frozen=True)
+class Move:
+    """A change of the logged states the law of motion must not notice (module docstring):
+    ``amount`` (m or m/s) added to column ``column`` of ``q`` or ``dq`` (``array``), in every
+    phase or in flight only; ``what`` says the change, ``reads`` what a law that notices it reads."""
+
+    kind: str
+    array: str
+    column: int
+    amount: float
+    flight_only: bool
+    what: str
+    reads: str
+
+
+MOVES = (
+    Move("sideways", "q", BASE_POS.start + 1, 0.05, False, "moved 0.05 m sideways", "where the robot stands"),
+    Move("sideways speed", "dq", BASE_POS.start + 1, 0.1, False, "drifting 0.1 m/s sideways",
+         "how fast it drifts sideways"),
+    Move("forward speed", "dq", BASE_POS.start, 0.1, True, "0.1 m/s faster forward",
+         "how fast the base goes in flight"),
+    Move("vertical speed", "dq", BASE_POS.start + 2, 0.1, True, "0.1 m/s faster upward",
+         "how fast the base goes in flight"),
+)
 
 
 def rk4_map(z: np.ndarray) -> np.ndarray:
@@ -125,9 +165,10 @@ def integrator_check(model, ds: Dataset, rows: np.ndarray, steps: dict[str, dict
 @dataclass(frozen=True)
 class AccelerationCheck:
     """The decoded base acceleration of one phase, axis and split: kind (``flight``: z within
-    ``FLIGHT_SHARE`` of the data's and the noise; ``momentum``: within the noise); data and model: the mean
-    over the rows, m/s^2; allowed: the largest |model - data| that passes; ok; rows, stays:
-    how many rows and stays the mean is over."""
+    ``FLIGHT_SHARE`` of the data's and the noise; ``momentum``: within the noise; a ``Move``'s
+    kind: model the mean absolute change it makes, data 0); data and model: the mean over the
+    rows, m/s^2; allowed: the largest |model - data| that passes; ok;
+    rows, stays: how many rows and stays the mean is over."""
 
     kind: str
     phase: str
@@ -141,6 +182,10 @@ class AccelerationCheck:
     stays: int
 
     def text(self) -> str:
+        move = next((mv for mv in MOVES if mv.kind == self.kind), None)
+        if move is not None:
+            return (f"{self.phase} ({self.split} rows): {move.what}, the base's acceleration in {self.axis} changes "
+                    f"by {self.model:.3g} m/s^2 (allowed {self.allowed:.2g}): the law reads {move.reads}")
         what = "falls" if self.kind == "flight" else "accelerates"
         return (f"{self.phase} ({self.split} rows): the base {what} at {self.model:+.3g} m/s^2 in {self.axis} "
                 f"where the data {'do' if self.ok else 'do not'} allow it ({self.data:+.3g} +- {self.allowed:.2g})")
@@ -210,8 +255,18 @@ def physics_check(model, ds: Dataset, splits: tuple[str, ...] = ("train", "val")
     for split in splits:
         every |= ds.rows_of(split)
     pred = np.full((ds.n_samples, len(AXES)), np.nan)
+    moved = {mv.kind: np.full((ds.n_samples, len(AXES)), np.nan) for mv in MOVES}
     if every.any():
         pred[every] = decoded_acceleration(model, ds, every, list(AXES.values()))
+        in_flight = every & (ds.phase == flight) if flight is not None else np.zeros(ds.n_samples, bool)
+        for mv in MOVES:
+            at = in_flight if mv.flight_only else every
+            if not at.any():
+                continue
+            arr = getattr(ds, mv.array).copy()
+            arr[:, mv.column] += mv.amount
+            moved[mv.kind][at] = np.abs(decoded_acceleration(model, replace(ds, **{mv.array: arr}), at,
+                                                             list(AXES.values())) - pred[at])
     data = ds.ddq[:, list(AXES.values())]
     spread = _stay_spread(data, ds, every)
     for split in splits:
@@ -234,6 +289,12 @@ def physics_check(model, ds: Dataset, splits: tuple[str, ...] = ("train", "val")
                 allowed = noise_se * se + share * scale
                 out.append(AccelerationCheck("momentum", name, split, axis, d, m, allowed,
                                              bool(abs(m - d) <= allowed), int(sel.sum()), int(n_stays)))
+                for mv in MOVES:
+                    if mv.flight_only and k != flight:
+                        continue
+                    c = float(moved[mv.kind][sel, a].mean())
+                    out.append(AccelerationCheck(mv.kind, name, split, axis, 0.0, c, allowed, bool(c <= allowed),
+                                                 int(sel.sum()), int(n_stays)))
                 if k == flight and axis == "z":
                     allowed = share * abs(d) + noise_se * se
                     out.append(AccelerationCheck("flight", name, split, axis, d, m, allowed,

@@ -68,8 +68,10 @@ A model is chosen to be acted on, so every candidate is also checked for use
 each refusal is in the candidate's row (``refused``: the check and why):
 
 - ``physics``: its decoded base acceleration keeps the data's momentum balance
-  (in flight within 5 % of the data's fall, in every phase within the noise),
-  on the train and the val rows (``physics_check``). Never set aside.
+  (in flight within 5 % of the data's fall, in every phase within the noise)
+  and does not read what cannot move the base (the robot's sideways position
+  and speed; in flight, the base's speed), on the train and the val rows
+  (``physics_check``). Never set aside.
 - ``integrator``: the planner's RK4 step (``plan.problem.PlanConfig``: its
   longest stance over its force intervals and substeps; the data's median
   flight over the planner's rise and fall intervals and substeps; a partial
