@@ -127,7 +127,7 @@ from symrom.rollout.integrate import RolloutOptions
 HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is left behind
 
 SELECTION_VERSION = 3
-CELL_VERSION = 2
+CELL_VERSION = 3  # since 3 a cell's rows hold the physics check's moves (usability.MOVES)
 REFINED_VERSION = 1
 # The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
 CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
