@@ -127,8 +127,8 @@ def encode_states(ae: LinearMaps, q: np.ndarray, dq: np.ndarray, bounds: np.ndar
         raise ValueError(f"rows: shape {rows.shape}, expected ({n_max},) (the longest jump)")
     x, v = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
     f = np.ascontiguousarray
-    q, dq, W_e, B_e, k = f(q, dtype=float), f(dq, dtype=float), f(ae.W_e, dtype=float), f(ae.B_e, dtype=float), \
-        _kernels()["encode_states"]
+    k = _kernels()["encode_states"]
+    q, dq, W_e, B_e = f(q, dtype=float), f(dq, dtype=float), f(ae.W_e, dtype=float), f(ae.B_e, dtype=float)
     over_jumps(lambda r: k(q, dq, starts[r], lens[r], rows, W_e, B_e, x[r], v[r]), np.full(J, n_max))
     return x, v
 
@@ -142,8 +142,8 @@ def encode_inputs(ae: LinearMaps, u: np.ndarray, phase: np.ndarray,
     n_max = int(lens.max()) if J else 0
     nu, ph = np.empty((J, n_max, l)), np.empty((J, n_max), dtype=np.int64)
     f = np.ascontiguousarray
-    u, phase, M, k = f(u, dtype=float), f(phase, dtype=np.int64), f(ae.input_map.T, dtype=float), \
-        _kernels()["encode_inputs"]
+    k = _kernels()["encode_inputs"]
+    u, phase, M = f(u, dtype=float), f(phase, dtype=np.int64), f(ae.input_map.T, dtype=float)
     over_jumps(lambda r: k(u, phase, starts[r], lens[r], M, nu[r], ph[r]), np.full(J, n_max))
     return nu, ph
 

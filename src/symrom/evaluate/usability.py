@@ -66,7 +66,8 @@ AXES = {"x": BASE_POS.start, "z": BASE_POS.start + 2}  # decoded base axes check
 class Move:
     """A change of the logged states the law of motion must not notice (module docstring):
     ``amount`` (m or m/s) added to column ``column`` of ``q`` or ``dq`` (``array``), in every
-    phase or in flight only; ``what`` says the change, ``reads`` what a law that notices it reads."""
+    phase or in flight only; ``what`` says the change (``{}`` the amount), ``reads`` what a law that
+    notices it reads."""
 
     kind: str
     array: str
@@ -78,12 +79,12 @@ class Move:
 
 
 MOVES = (
-    Move("sideways", "q", BASE_POS.start + 1, 0.05, False, "moved 0.05 m sideways", "where the robot stands"),
-    Move("sideways speed", "dq", BASE_POS.start + 1, 0.1, False, "drifting 0.1 m/s sideways",
+    Move("sideways", "q", BASE_POS.start + 1, 0.05, False, "moved {:g} m sideways", "where the robot stands"),
+    Move("sideways speed", "dq", BASE_POS.start + 1, 0.1, False, "drifting {:g} m/s sideways",
          "how fast it drifts sideways"),
-    Move("forward speed", "dq", BASE_POS.start, 0.1, True, "0.1 m/s faster forward",
+    Move("forward speed", "dq", BASE_POS.start, 0.1, True, "{:g} m/s faster forward",
          "how fast the base goes in flight"),
-    Move("vertical speed", "dq", BASE_POS.start + 2, 0.1, True, "0.1 m/s faster upward",
+    Move("vertical speed", "dq", BASE_POS.start + 2, 0.1, True, "{:g} m/s faster upward",
          "how fast the base goes in flight"),
 )
 
@@ -184,8 +185,9 @@ class AccelerationCheck:
     def text(self) -> str:
         move = next((mv for mv in MOVES if mv.kind == self.kind), None)
         if move is not None:
-            return (f"{self.phase} ({self.split} rows): {move.what}, the base's acceleration in {self.axis} changes "
-                    f"by {self.model:.3g} m/s^2 (allowed {self.allowed:.2g}): the law reads {move.reads}")
+            return (f"{self.phase} ({self.split} rows): {move.what.format(move.amount)}, the base's acceleration in "
+                    f"{self.axis} changes by {self.model:.3g} m/s^2 (allowed {self.allowed:.2g}): the law reads "
+                    f"{move.reads}")
         what = "falls" if self.kind == "flight" else "accelerates"
         return (f"{self.phase} ({self.split} rows): the base {what} at {self.model:+.3g} m/s^2 in {self.axis} "
                 f"where the data {'do' if self.ok else 'do not'} allow it ({self.data:+.3g} +- {self.allowed:.2g})")

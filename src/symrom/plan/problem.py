@@ -168,6 +168,18 @@ def linear_bounds(tmap: TorqueMap) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.asarray(A, float), np.asarray(lo, float), np.asarray(hi, float)
 
 
+def force_rows(Fk, mu: float, tmap: TorqueMap | None) -> list[tuple]:
+    """The rows (expression, lower, upper) one interval's summed force Fk (2,) N (CasADi) must
+    meet: the friction pyramid |F_x| <= mu F_z and, with a ``TorqueMap``, lower <= A Fk <= upper
+    (the joint torques the force asks of the legs, and a rear pair's pitching moment)."""
+    rows = [(Fk[0] - mu * Fk[1], -ca.inf, 0.0), (Fk[0] + mu * Fk[1], 0.0, ca.inf)]
+    if tmap is not None:
+        A, lo, hi = linear_bounds(tmap)
+        tau = ca.mtimes(ca.DM(A), Fk)
+        rows += [(tau[i], float(lo[i]), float(hi[i])) for i in range(A.shape[0])]
+    return rows
+
+
 class JumpPlanner:
     """The NLP of one model, built once (module docstring); ``solve`` plans one jump.
 
@@ -225,11 +237,7 @@ class JumpPlanner:
                 eq(_rk4(lambda s, Fk=Fk, ph=st.phase: self.dyn.stance(s, Fk, ph), prev, h_st, M) - S[:, col])
                 prev = S[:, col]
                 add([(dyn.velocity(prev)[1], 0.0, ca.inf)])  # the base rises all through the push
-                add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
-                if tmap is not None:  # joint torques the force asks of the legs (and moment), within bounds
-                    A, lo_t, hi_t = linear_bounds(tmap)
-                    tau = ca.mtimes(ca.DM(A), Fk)
-                    add([(tau[i], float(lo_t[i]), float(hi_t[i])) for i in range(A.shape[0])])
+                add(force_rows(Fk, cfg.mu, tmap))  # friction, and the torques the force asks of the legs
                 col += 1
         add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):  # rise, then fall

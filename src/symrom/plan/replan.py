@@ -30,7 +30,7 @@ import daqp
 import numpy as np
 
 from symrom.names import GRAVITY
-from symrom.plan.problem import JumpPlanner, Plan, _rk4, linear_bounds
+from symrom.plan.problem import JumpPlanner, Plan, _rk4, force_rows
 
 
 @dataclass
@@ -144,11 +144,7 @@ class Replanner:
                 Fk = F[:, col]
                 s = _rk4(lambda v, Fk=Fk, ph=st.phase: dyn.stance(v, Fk, ph), s, h, M)
                 add([(dyn.velocity(s)[1], 0.0, ca.inf)])
-                add([(Fk[0] - cfg.mu * Fk[1], -ca.inf, 0.0), (Fk[0] + cfg.mu * Fk[1], 0.0, ca.inf)])
-                if tmap is not None:
-                    A, lo_t, hi_t = linear_bounds(tmap)
-                    tau = ca.mtimes(ca.DM(A), Fk)
-                    add([(tau[i], float(lo_t[i]), float(hi_t[i])) for i in range(A.shape[0])])
+                add(force_rows(Fk, cfg.mu, tmap))
                 col += 1
         add(nlp.guards.liftoff(dyn, s, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):

@@ -598,24 +598,26 @@ class PronkController:
         G = sum(state.R @ -np.linalg.solve(J[k].T, tau_pd[k]) for k in range(N_LEGS))
         p_com = state.q[BASE_POS] + state.R @ self.body.com_base
         f = distribute_wrench(force - G, moment, state.foot_pos - p_com)
-        f_base = -(f @ state.R)
-        tau = np.empty(N_JOINTS)
-        stance_torque(J, f_base, self._zero_tau, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
-                      self._posture, qj, dqj, self._clip_at, tau)
-        if self.compensation.active:
-            return self.compensation.clipped(tau, dqj, self.torque_limit)
-        return tau
+        return self._stance_off_landing(state, J, p_b, -(f @ state.R), self._zero_tau)
 
     def _released_torque(self, state: RobotState) -> np.ndarray:
         """Joint torques (12,) N m of the pronk's stance with no ground force: what its own push
         commands once its MPC's schedule has the feet off (the legs' weight held, the stance
         posture terms), within the limits."""
-        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
+        qj = state.q[JOINTS]
         p_b, J = self._p_b, self._J
         legs_one(qj, *self._chains, p_b, J)
+        return self._stance_off_landing(state, J, p_b, np.zeros((N_LEGS, 3)), self.leg_gravity.torques(qj, state.R))
+
+    def _stance_off_landing(self, state: RobotState, J: np.ndarray, p_b: np.ndarray, f_base: np.ndarray,
+                            tau_g: np.ndarray) -> np.ndarray:
+        """Joint torques (12,) N m of the stance before any landing: the feet's forces f_base (4, 3)
+        N (base frame) through the leg Jacobians J (4, 3, 3) at the feet p_b (4, 3) m, the legs'
+        torques tau_g (12,) N m and the posture terms, within the limits (one compiled call)."""
+        qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         tau = np.empty(N_JOINTS)
-        stance_torque(J, np.zeros((N_LEGS, 3)), self.leg_gravity.torques(qj, state.R), False, p_b, p_b,
-                      state.contact, p_b, 0.0, 0.0, 0.0, self._posture, qj, dqj, self._clip_at, tau)
+        stance_torque(J, f_base, tau_g, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
+                      self._posture, qj, dqj, self._clip_at, tau)
         if self.compensation.active:
             return self.compensation.clipped(tau, dqj, self.torque_limit)
         return tau
