@@ -86,6 +86,10 @@ def train_cmd(
     polish: Annotated[str | None, typer.Option(
         "--polish", help="With --refine: phases refined again, each alone, after the refinement and pruning, "
                          "e.g. flight (comma-separated; --select with --max-terms polishes flight).")] = None,
+    invariant: Annotated[str | None, typer.Option(
+        "--invariant", help="Base components the dynamics are held invariant to, so that where the robot "
+                            "stands is no clock or force: x, x,y or none (default: none for one model, "
+                            "the paper; x with --select).")] = None,
     select: Annotated[bool, typer.Option(
         "--select", help="Choose encoder, latent dimension, library, sparsity and refinement on the val "
                          "split (it refuses the options above, which it would not use).")] = False,
@@ -106,7 +110,8 @@ def train_cmd(
     """Train a hybrid symbolic model on the dataset's train split (or select it on val)."""
     if select:
         _refuse_ignored(ctx, SELECT_IGNORES, "--select chooses them on the val split")
-        return _train_select(data, out, select_dims, workers, backend, address, resume, force, max_terms)
+        return _train_select(data, out, select_dims, workers, backend, address, resume, force, max_terms,
+                             _invariant(invariant))
     if backend != "local" or address is not None or resume:
         raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
     from symrom.learn.training import AdamConfig, TrainConfig, train_into
@@ -117,7 +122,7 @@ def train_cmd(
                          encoder_components=_split_list(encoder_components), decoded_weight=decoded_weight,
                          alpha=alpha, measure=measure, collinearity=collinearity, encoder_scaling=encoder_scaling,
                          encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms,
-                         polish=_split_list(polish) or ())
+                         polish=_split_list(polish) or (), invariant=_invariant(invariant) or ())
     with progress_bar("training", total=1.0) as bar:
         model = train_into(out, data, config, force=force, progress=lambda stage, frac: bar.update(
             completed=frac, description=f"training: {stage}"))
@@ -126,8 +131,16 @@ def train_cmd(
     warn_all(model.warnings())
 
 
+def _invariant(text: str | None) -> tuple[str, ...] | None:
+    """``--invariant``: None when not given, () for ``none``, else the components."""
+    if text is None:
+        return None
+    return () if text.strip().lower() == "none" else _split_list(text)
+
+
 def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, backend: str,
-                  address: str | None, resume: bool, force: bool, max_terms: int | None = None) -> None:
+                  address: str | None, resume: bool, force: bool, max_terms: int | None = None,
+                  invariant: tuple[str, ...] | None = None) -> None:
     """``train --select``: the validation selection, its table and the chosen model. Each
     finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
     that ``--resume`` continues an interrupted selection."""
@@ -135,7 +148,7 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     from symrom.experiments.sweep import parse_latent_dims
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers,
-                          max_terms=max_terms)
+                          max_terms=max_terms, **({} if invariant is None else {"invariant": invariant}))
     parts = check_parts(out, resume, force, inputs=(data,))  # before connecting to a cluster
     runner = start_backend(backend, workers, address)
     try:

@@ -20,6 +20,9 @@ and 0.1 s resets). The grid spans
   refinement is what may make them meet it over the full jump too). A
   candidate the checks below already refuse (physics, integrator) is not
   refined;
+- nothing of where the robot stands forward: every candidate is held invariant to
+  the base's x (``invariant``, ``SymbolicROM.invariant``): x gets a latent of its
+  own, and no term or guard reads that latent's position;
 - a term budget: ``max_terms`` (None: none), or else ``compact_terms`` (60 by
   default). A refinement whose candidate has more terms than the budget prunes
   it to the budget (``Refine.max_terms``: the coefficients least needed by the
@@ -116,7 +119,7 @@ from symrom.evaluate.switching import predicted_rollout, switching_errors
 from symrom.evaluate.usability import integrator_check, physics_check
 from symrom.execution import Backend, LocalBackend
 from symrom.experiments.grid import Store, run_grid
-from symrom.learn.encoders import unit_floored
+from symrom.learn.encoders import check_invariant, unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
 from symrom.model.hybrid import HybridModel
 from symrom.model.persistence import model_from_dict, model_to_dict, write_model_files
@@ -127,11 +130,11 @@ from symrom.rollout.integrate import RolloutOptions
 HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is left behind
 
 SELECTION_VERSION = 3
-CELL_VERSION = 3  # since 3 a cell's rows hold the physics check's moves (usability.MOVES)
+CELL_VERSION = 4  # since 3 a cell's rows hold the physics check's moves (usability.MOVES); 4: invariant
 REFINED_VERSION = 1
 # The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
 CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
-                 "contact_phase", "substeps", "reference", "switch_tolerance", "checks")
+                 "contact_phase", "substeps", "reference", "switch_tolerance", "checks", "invariant")
 # ... and those of a refinement, besides its candidate's settings.
 REFINED_SETTINGS = CELL_SETTINGS[1:] + ("max_terms", "compact_terms", "polish", "acceleration_weight")
 BASE_SHARE = 3  # latents pose+joints gives the base pose at most (x, z and pitch of a jump)
@@ -145,6 +148,10 @@ SWITCH_TOLERANCE = 0.02  # s: a free prediction's median switching error per tra
 # froggy jumps) they broke the momentum balance or lost on val, at twice the selection's time.
 PRUNE_REACH = 3
 CHECKS = ("physics", "integrator", "free")  # what a refusal names; the last two are set aside in reverse order
+# Every candidate's dynamics are invariant to where the robot stands forward: the data's jumps all
+# start at x = 0, so a law free to read x can use it as the push's clock, right on the data and wrong
+# wherever a plan starts a phase elsewhere (docs/results.md).
+INVARIANT = ("x",)
 FREE = "free"  # the row's horizon key of the free prediction
 
 
@@ -215,7 +222,9 @@ class SelectionConfig:
     switching error of a free prediction; ``acceleration_weight``: the refinements'
     (``Refine.acceleration_weight``: the acceleration fit kept beside the rollouts); ``checks``:
     those of ``CHECKS`` that refuse a candidate (each row holds every check's numbers whatever
-    they are; fewer only for data too small to judge a model by, as the tests' three-jump files)."""
+    they are; fewer only for data too small to judge a model by, as the tests' three-jump files);
+    ``invariant``: the base components every candidate's dynamics are held invariant to
+    (``TrainConfig.invariant``)."""
 
     encoders: tuple[str, ...] = tuple(ENCODERS)
     latent_dims: tuple[int, ...] = (2, 3, 4)
@@ -238,6 +247,7 @@ class SelectionConfig:
     switch_tolerance: float = SWITCH_TOLERANCE
     acceleration_weight: float = 1.0
     checks: tuple[str, ...] = CHECKS
+    invariant: tuple[str, ...] = INVARIANT
 
     def __post_init__(self) -> None:
         bad = [e for e in self.encoders if e not in ENCODERS]
@@ -262,6 +272,10 @@ class SelectionConfig:
         if bad:
             raise ValueError(f"checks: unknown {bad}; choose from {list(CHECKS)}")
         self.checks = tuple(self.checks)
+        self.invariant = check_invariant(self.invariant)
+        if any(l <= len(self.invariant) for l in self.latent_dims):
+            raise ValueError(f"latent_dims {self.latent_dims}: each must exceed the {len(self.invariant)} invariant "
+                             f"component(s) ({', '.join(self.invariant)}), which take a latent each")
         if not self.acceleration_weight >= 0:
             raise ValueError(f"acceleration_weight must be >= 0, got {self.acceleration_weight}")
         if not self.switch_tolerance > 0:
@@ -312,7 +326,7 @@ class SelectionConfig:
         return TrainConfig(latent_dim=latent_dim, **parse_library(library), threshold=threshold,
                            measure=self.measure, collinearity=self.collinearity, alpha=self.alpha,
                            decoded_weight=self.decoded_weight, **ENCODERS[encoder].settings(latent_dim),
-                           contact_phase=self.contact_phase, refine=refine,
+                           contact_phase=self.contact_phase, refine=refine, invariant=self.invariant,
                            max_terms=max_terms if refine else None,
                            polish=self.polish if refine and max_terms is not None else ())
 

@@ -137,6 +137,63 @@ def check_components(components: tuple[str, ...] | None, latent_dim: int) -> tup
     return comps
 
 
+# Base components along which the dynamics may be held invariant: on flat, uniform ground the
+# same push moves the robot alike wherever it starts, in x and in y.
+TRANSLATIONS = ("x", "y")
+
+
+def check_invariant(components) -> tuple[str, ...]:
+    """``components`` as a tuple of ``TRANSLATIONS``; ValueError naming an unknown or repeated one."""
+    comps = tuple(components or ())
+    bad = [c for c in comps if c not in TRANSLATIONS]
+    if bad:
+        raise ValueError(f"invariant: {', '.join(map(str, bad))} is no horizontal translation; choose from "
+                         f"{', '.join(TRANSLATIONS)}")
+    if len(set(comps)) != len(comps):
+        raise ValueError("invariant: a component is named twice")
+    return comps
+
+
+def translation_basis(ae: LinearAutoencoder, components: tuple[str, ...]) -> LinearAutoencoder:
+    """The same latent space in a basis where moving the robot along ``components`` (base x,
+    y) moves one latent each and leaves the others still.
+
+    Gauss-Jordan on the encoder's columns of those components, pivoting on the latent that
+    loads each most: the pivot latent keeps its row, every other row loses its multiple of it
+    (at most 1, by the pivoting), so its loading on the component is exactly zero. The
+    decoder follows (W_d T^-1), so the reconstruction is unchanged. A component the encoder
+    barely reads (largest loading below 1e-9 of the encoder's largest) is dropped from it
+    instead. The other latents are then positions the dynamics may read without reading
+    where the robot stands (``reading_latents``)."""
+    W, B = ae.W_e.copy(), ae.B_e.copy()
+    l = W.shape[0]
+    T = np.eye(l)
+    pivots: list[int] = []
+    for name in components:
+        c = Q_NAMES.index(name)
+        free = [k for k in range(l) if k not in pivots]
+        if not free:
+            raise ValueError(f"invariant: latent_dim {l} leaves no latent to carry {name} (one per component)")
+        k = max(free, key=lambda j: abs(W[j, c]))
+        if abs(W[k, c]) <= 1e-9 * np.abs(W).max():
+            W[:, c] = 0.0
+            continue
+        E = np.eye(l)
+        E[:, k] = -W[:, c] / W[k, c]
+        E[k, k] = 1.0
+        W, B, T = E @ W, E @ B, E @ T
+        W[np.arange(l) != k, c] = 0.0
+        pivots.append(k)
+    return LinearAutoencoder(W, B, ae.W_d @ np.linalg.inv(T), ae.B_d.copy())
+
+
+def reading_latents(ae: LinearAutoencoder, components: tuple[str, ...]) -> np.ndarray:
+    """(l,) bool: the latents whose position moves with any of ``components`` (a nonzero
+    encoder loading)."""
+    cols = [Q_NAMES.index(c) for c in components]
+    return np.any(ae.W_e[:, cols] != 0.0, axis=1) if cols else np.zeros(ae.latent_dim, dtype=bool)
+
+
 @dataclass(frozen=True)
 class PCAEncoder:
     """The exact steps (a) and (b) (module docstring). components: names the encoder

@@ -44,7 +44,7 @@ import numpy as np
 from symrom.data.dataset import Dataset, jump_bounds
 from symrom.data.envelope import jump_envelope
 from symrom.learn.adam import Adam
-from symrom.learn.encoders import AdamAutoencoder, PCAEncoder
+from symrom.learn.encoders import AdamAutoencoder, PCAEncoder, check_invariant, reading_latents, translation_basis
 from symrom.learn.guards import GuardFit, guard_fit, refit_guards
 from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor_from_dict
 from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
@@ -105,17 +105,29 @@ def trajectories(ds: Dataset, rows: np.ndarray, ae: LinearAutoencoder,
     return out
 
 
-def logged_guard_fit(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder) -> GuardFit:
+def logged_guard_fit(ds: Dataset, rows: np.ndarray, val_rows: np.ndarray, ae: LinearAutoencoder,
+                     invariant: tuple[str, ...] = ()) -> GuardFit:
     """The contact guards (``symrom.model.guards``) of the phases of ``ds`` and their finalists
     (``symrom.learn.guards.GuardFit``), fitted on the logged states of the jumps of ``rows`` (N,)
-    bool and chosen on those of ``val_rows``, in the latent coordinates of ``ae``."""
+    bool and chosen on those of ``val_rows``, in the latent coordinates of ``ae``; none reads a
+    latent position that moves with the base components ``invariant``."""
     idx = np.flatnonzero(rows | val_rows)
     Z = np.c_[ae.encode(ds.q[idx]), ae.encode_derivative(ds.dq[idx]), ae.encode_input(ds.u[idx])]
     bounds = jump_bounds(ds.jump[idx])
     is_train = rows[idx[bounds[:, 0]]]
     trained = [n for k, n in enumerate(ds.phase_names) if (rows & (ds.phase == k)).any()]
+    barred = np.r_[reading_latents(ae, invariant), np.zeros(2 * ae.latent_dim, dtype=bool)]
     return guard_fit(Z, np.asarray(ds.phase[idx], dtype=int), bounds[is_train], bounds[~is_train],
-                     list(ds.phase_names), ds.dt, trained)
+                     list(ds.phase_names), ds.dt, trained, barred=barred)
+
+
+def invariant_terms(lib, ae: LinearAutoencoder, invariant: tuple[str, ...]) -> tuple[np.ndarray | None, str]:
+    """(p,) bool of the terms of ``lib`` that read a latent position moving with the base
+    components ``invariant`` under ``ae`` (None if none does), and the reason a report gives."""
+    moving = reading_latents(ae, invariant)
+    if not moving.any():
+        return None, ""
+    return lib.terms_reading(moving), f"reads where the robot stands ({', '.join(invariant)}): held invariant"
 
 
 OWN_PATH = "the model's own rollouts"  # what refit guards' reports name as their source
@@ -238,8 +250,11 @@ class SymbolicROM:
     path_thresholds: if set (and the regressor is ``STLSQ``), record each phase's
     sparsity path over these thresholds with its validation error; contact_guards: fit the
     contact guards (False: the model has none, ``guards`` None; for uses that follow the logged
-    phases only, as the latent-dimension sweep, where fitting them is most of a fit); settings: the flat
-    settings it was built from (``TrainConfig.estimator`` sets them: a ``TrainConfig``'s
+    phases only, as the latent-dimension sweep, where fitting them is most of a fit); invariant: base
+    components (``x``, ``y``) along which the dynamics are held invariant (``()``: none, the paper):
+    the latent basis gives each its own latent (``symrom.learn.encoders.translation_basis``) and no
+    term or guard reads that latent's position, so where the robot stands acts as no clock or
+    force; settings: the flat settings it was built from (``TrainConfig.estimator`` sets them: a ``TrainConfig``'s
     fields), recorded in the fitted model's provenance."""
 
     latent_dim: int = 2
@@ -250,6 +265,7 @@ class SymbolicROM:
     contact_phase: str = STANCE_PHASE
     path_thresholds: tuple[float, ...] | None = None
     contact_guards: bool = True
+    invariant: tuple[str, ...] = ()
     settings: dict | None = field(default=None, repr=False)
     model_: HybridModel | None = field(default=None, init=False, repr=False)
 
@@ -267,6 +283,7 @@ class SymbolicROM:
             raise ValueError(f"latent_dim must be within 1..{len(Q_NAMES)}, got {self.latent_dim}")
         if not self.decoded_weight >= 0:
             raise ValueError(f"decoded_weight must be >= 0, got {self.decoded_weight}")
+        self.invariant = check_invariant(self.invariant)
 
     # ------------------------------------------------------------------ fit
     def fit(self, ds: Dataset, rows: np.ndarray | None = None, progress: Progress | None = None) -> SymbolicROM:
@@ -313,6 +330,8 @@ class SymbolicROM:
         cp = self.contact_phase
         has_contact = cp in ds.phase_names and bool((rows & (ds.phase == ds.phase_names.index(cp))).any())
         ae = self.encoder.fit(ds.q[contact_rows(ds, rows, cp)], ds.q[rows], l)
+        if self.invariant:
+            ae = translation_basis(ae, self.invariant)
         val_rows = ds.rows_of("val") & ~rows
         xi, dxi, nu = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]), ae.encode_input(ds.u[rows])
         phases = []
@@ -330,7 +349,7 @@ class SymbolicROM:
                                   latent_mean=tuple(xi.mean(axis=0).tolist()),
                                   latent_spread=tuple(xi.std(axis=0).tolist()))
         say("contact guards", 0.3)
-        guards = logged_guard_fit(ds, rows, val_rows, ae) if self.contact_guards else None
+        guards = logged_guard_fit(ds, rows, val_rows, ae, self.invariant) if self.contact_guards else None
         return {"ds": ds, "rows": rows, "val_rows": val_rows, "ae": ae, "phases": phases, "data": data,
                 "training": training, "guards": guards, "phase_names": list(ds.phase_names),
                 "with_trajectories": with_trajectories, "problems": {},
@@ -344,11 +363,13 @@ class SymbolicROM:
             ds, rows, val_rows, ae = prep["ds"], prep["rows"], prep["val_rows"], prep["ae"]
             lib = spec.bind(ae.latent_dim)
             ddxi_all = ae.encode_derivative(ds.ddq[rows])
+            barred, why = invariant_terms(lib, ae, self.invariant)
             prep["problems"][key] = lib, RegressionProblem(
                 lib, list(ds.phase_names), phase_data(ds, rows, ae, lib, self.decoded_weight),
                 target_spread=np.maximum(ddxi_all.std(axis=0), 1e-12), dt=ds.dt,
                 trajectories=trajectories(ds, rows, ae) if prep["with_trajectories"] else [],
-                validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None)
+                validation=phase_data(ds, val_rows, ae, lib, self.decoded_weight) if val_rows.any() else None,
+                excluded=barred, excluded_reason=why)
         return prep["problems"][key]
 
     def fit_pruned(self, ds: Dataset, rows: np.ndarray | None = None) -> tuple[HybridModel, HybridModel | None]:
@@ -415,7 +436,8 @@ class SymbolicROM:
         file keeps as ``estimator``. ``regressor``: the one that fitted (default: this one's)."""
         return {"encoder": self.encoder.to_dict(), "regressor": (regressor or self.regressor).to_dict(),
                 "decoded_weight": float(self.decoded_weight), "contact_phase": self.contact_phase,
-                "path_thresholds": None if self.path_thresholds is None else list(self.path_thresholds)}
+                "path_thresholds": None if self.path_thresholds is None else list(self.path_thresholds),
+                **({"invariant": list(self.invariant)} if self.invariant else {})}
 
     # ------------------------------------------------------------------ use
     @property
@@ -494,6 +516,7 @@ class SymbolicROM:
                   decoded_weight=float(est.get("decoded_weight", 1.0)),
                   contact_phase=str(est.get("contact_phase", "contact")),
                   path_thresholds=None if paths is None else tuple(float(t) for t in paths),
+                  invariant=tuple(est.get("invariant", ())),
                   settings=thaw(model.provenance.training.settings))
         rom.model_ = model
         return rom

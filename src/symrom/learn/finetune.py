@@ -60,7 +60,7 @@ import numpy as np
 from symrom.data.dataset import Dataset
 from symrom.learn.adam import Adam
 from symrom.learn.calibrate import CALIBRATION_TERMS, calibrate, flight_gravity, nothing_to_adapt
-from symrom.learn.estimator import data_hash, phase_data, trajectories
+from symrom.learn.estimator import data_hash, invariant_terms, phase_data, trajectories
 from symrom.learn.plugins import PluginConfigError, regressor_from_dict
 from symrom.learn.regressors.base import Coefficients, RegressionProblem
 from symrom.learn.regressors.prior import FineTune
@@ -232,8 +232,10 @@ def finetune(model: HybridModel, ds: Dataset, rows: np.ndarray | None = None,
         trajs, regressor = [], FineTune(prior_weight=config.prior_weight,
                                         threshold=threshold if config.threshold is None else config.threshold,
                                         measure=measure, alpha=alpha)
+    barred, why = invariant_terms(model.library, ae, tuple(model.estimator.get("invariant", ())))
     problem = RegressionProblem(model.library, list(model.phase_names), phases,
-                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs)
+                                np.maximum(all_ddxi.std(axis=0), 1e-12), ds.dt, trajs,
+                                excluded=barred, excluded_reason=why)
     fit = regressor.fit(problem, init=init)
     Xi, mask = fit.Xi.copy(), fit.mask.copy()
     for k, p in enumerate(phases):  # a phase the rows do not hold keeps the source's, whatever the regressor

@@ -166,7 +166,7 @@ def fit_guards(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_b
 
 def guard_fit(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_bounds: np.ndarray,
               phase_names: list[str], dt: float, trained: list[str] | None = None,
-              use_inputs: bool = False) -> GuardFit:
+              use_inputs: bool = False, barred: np.ndarray | None = None) -> GuardFit:
     """One guard per transition seen in the training jumps, and its finalists.
 
     Z (N, 3l): [xi, dxi, nu] of every row; phase (N,): the model's phase index per row;
@@ -174,9 +174,12 @@ def guard_fit(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_bo
     jumps; dt: s; trained: the phases a guard may switch into (default: all); use_inputs:
     let guards read nu too (off by default: a dataset's wrench is computed with its logged
     contact flags, so on logged data an input feature reads the switch it should predict,
-    and a planner's inputs would not carry it).
+    and a planner's inputs would not carry it); barred (3l,) bool: columns of Z no guard may
+    read (the latent positions that say where the robot stands, for a model held invariant
+    to it).
     """
     l = Z.shape[1] // 3
+    barred = np.zeros(3 * l, dtype=bool) if barred is None else np.asarray(barred, dtype=bool)
     names = feature_names(l)
     train_stays, val_stays = stays(phase, train_bounds), stays(phase, val_bounds)
     pairs = sorted({(int(phase[s.start]), s.after) for s in train_stays if s.after >= 0})
@@ -190,7 +193,7 @@ def guard_fit(Z: np.ndarray, phase: np.ndarray, train_bounds: np.ndarray, val_bo
         tw = _thin(_windows(train_stays, phase, src, tgt, dwell))
         vw = _thin(_windows(val_stays, phase, src, tgt, dwell))
         single = []  # (val-or-train loss, train loss, val loss, terms idx, weights, level)
-        cand = [(i, sign) for i in range(3 * l if use_inputs else 2 * l) for sign in (1.0, -1.0)]
+        cand = [(i, sign) for i in range(3 * l if use_inputs else 2 * l) if not barred[i] for sign in (1.0, -1.0)]
         fits = _fit_levels(np.stack([sign * Z[:, i] for i, sign in cand]), tw, vw, dt)
         for (i, sign), (c, lt, lv) in zip(cand, fits):
             single.append((lv if vw else lt, lt, lv, (i,), np.array([sign]), c))

@@ -38,6 +38,7 @@ from symrom.learn.encoders import (
     AdamAutoencoder,
     PCAEncoder,
     check_components,
+    check_invariant,
     fit_decoder,
     principal_encoder,
     varimax,
@@ -75,7 +76,9 @@ class TrainConfig:
     refinement prunes the model to at most this many active terms (``Refine.max_terms``;
     None = the support STLSQ chose); ``polish``: with ``refine``, phases refined
     again alone after it (``Refine.polish``); ``path``: thresholds of a sparsity
-    path to record with validation errors (None = none).
+    path to record with validation errors (None = none); ``invariant``: base components
+    (``x``, ``y``) along which the dynamics are held invariant (``SymbolicROM.invariant``;
+    () = none, the paper).
     """
 
     latent_dim: int = 2
@@ -97,6 +100,7 @@ class TrainConfig:
     max_terms: int | None = None
     polish: tuple[str, ...] = ()
     path: tuple[float, ...] | None = None
+    invariant: tuple[str, ...] = ()
     adam: AdamConfig = field(default_factory=AdamConfig)
 
     def __post_init__(self) -> None:
@@ -109,6 +113,10 @@ class TrainConfig:
         if isinstance(self.adam, dict):
             self.adam = AdamConfig(**self.adam)
         self.encoder_components = check_components(self.encoder_components, self.latent_dim)
+        self.invariant = check_invariant(self.invariant)
+        if len(self.invariant) >= self.latent_dim:
+            raise ValueError(f"invariant={','.join(self.invariant)}: latent_dim {self.latent_dim} leaves no latent "
+                             "position the dynamics may read (each component takes one)")
         if self.encoder_base_latents is not None and not 1 <= self.encoder_base_latents < self.latent_dim:
             raise ValueError(f"encoder_base_latents must lie within 1..{self.latent_dim - 1} (latent_dim "
                              f"{self.latent_dim}, at least one latent left for the joints), got "
@@ -160,7 +168,8 @@ class TrainConfig:
         return SymbolicROM(latent_dim=self.latent_dim,
                            library=LibrarySpec.standard(self.poly_order, self.trig, self.inputs),
                            encoder=encoder, regressor=regressor, decoded_weight=self.decoded_weight,
-                           contact_phase=self.contact_phase, path_thresholds=self.path, settings=asdict(self))
+                           contact_phase=self.contact_phase, path_thresholds=self.path, invariant=self.invariant,
+                           settings=asdict(self))
 
     @classmethod
     def from_provenance(cls, provenance: Provenance, **changes) -> TrainConfig:

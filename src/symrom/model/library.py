@@ -387,6 +387,13 @@ class Library:
     def feature_names(self) -> list[str]:
         return [n for b in self.blocks for n in b.names(self.latent_dim)]
 
+    def terms_reading(self, positions: np.ndarray) -> np.ndarray:
+        """(p,) bool: the terms whose expression holds the latent position xi_k of any k
+        where ``positions`` (l,) bool is set (their velocities dxi_k do not count)."""
+        s, _ = symbols(self.latent_dim)
+        read = {s[k] for k in np.flatnonzero(np.asarray(positions, dtype=bool))}
+        return np.array([bool(read & e.free_symbols) for e in self.sympy_features()], dtype=bool)
+
     @cached_property
     def feature_ranks(self) -> np.ndarray:
         """(p,) preference of each term among near-collinear ones (lower = simpler)."""

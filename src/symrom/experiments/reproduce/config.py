@@ -58,6 +58,13 @@ class ExperimentSpec:
 MAX_TERMS = 60
 
 
+# The paper's latent dynamics may read every latent: its experiments select without the invariance
+# ``train --select`` holds models for use to (``SelectionConfig.invariant``). Held invariant to x, the
+# SIM A1 model keeps 60 terms but its pitch misses the paper over the full jump (9 of 12 components
+# at both horizons), and the randomised A1 source drifts on the A1 target (docs/results.md).
+PAPER_SELECTION = SelectionConfig(invariant=())
+
+
 @dataclass
 class ReproduceConfig:
     """What ``symrom reproduce`` runs; ``quick()`` gives the reduced version."""
@@ -83,7 +90,7 @@ class ReproduceConfig:
         # room for a pruned model's dynamics (docs/results.md).
         ExperimentSpec("a1_sim", "a1_sim", 4, (4, 5, 6, 7)),
     )
-    selection: SelectionConfig = field(default_factory=SelectionConfig)
+    selection: SelectionConfig = field(default_factory=lambda: PAPER_SELECTION)
     paper_reference: bool = True
     finetune: FineTuneConfig = field(default_factory=FineTuneConfig)
     sweep_dims: tuple[int, ...] = tuple(range(1, 19))
@@ -139,8 +146,8 @@ def paper_reference(experiment: str) -> dict[str, dict[str, float]] | None:
 
 # A small grid for quick runs and the demo: the two encoders that matter most on
 # jumping data, two sparsity levels, one refined candidate.
-QUICK_SELECTION = SelectionConfig(encoders=("base_position", "standardised"), libraries=("poly1+inputs",),
-                                  thresholds=(1e-3, 1e-2), refine_top=1)
+QUICK_SELECTION = replace(PAPER_SELECTION, encoders=("base_position", "standardised"), libraries=("poly1+inputs",),
+                          thresholds=(1e-3, 1e-2), refine_top=1)
 
 
 

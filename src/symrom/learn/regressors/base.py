@@ -52,7 +52,8 @@ class RegressionProblem:
     target_spread (l,): standard deviation of each latent acceleration over all training rows,
     the yardstick of scale-free sparsity; trajectories: the training jumps for
     rollout-based regressors, sampled every ``dt`` s; validation: per phase its
-    validation rows (for the sparsity path), or None.
+    validation rows (for the sparsity path), or None; excluded (p,) bool: terms no phase
+    may use, ``excluded_reason`` saying why (the reports name it).
     """
 
     library: Library
@@ -62,6 +63,8 @@ class RegressionProblem:
     dt: float
     trajectories: list[Trajectory] = field(default_factory=list)
     validation: list[PhaseData | None] | None = None
+    excluded: np.ndarray | None = None
+    excluded_reason: str = ""
 
     @property
     def shape(self) -> tuple[int, int, int]:
@@ -106,17 +109,23 @@ class Regressor(ABC):
                                  f"do not match a library of {p} terms and l = {l}")
         if init is not None and np.shape(init.Xi) != (P, p, l):
             raise ValueError(f"initial coefficients: shape {np.shape(init.Xi)}, expected {(P, p, l)}")
+        if problem.excluded is not None and np.shape(problem.excluded) != (p,):
+            raise ValueError(f"excluded: shape {np.shape(problem.excluded)}, expected ({p},)")
         allowed = np.zeros((P, p), dtype=bool)
         report: dict[str, dict[str, Any]] = {}
         names, ranks = problem.library.feature_names, problem.library.feature_ranks
         for k, (name, ph) in enumerate(zip(problem.phase_names, problem.phases)):
             if ph is None:  # no evidence: only a starting solution (init) can fill it
-                allowed[k] = True
+                allowed[k] = True if problem.excluded is None else ~problem.excluded
                 report[name] = {"trained": False, "dropped": []}
                 continue
             null = null_terms(ph.theta)
             keep, dropped = ~null, [{"term": names[i], "reason": "zero on this phase's rows"}
                                     for i in np.flatnonzero(null)]
+            if problem.excluded is not None:
+                out = problem.excluded & keep
+                keep = keep & ~problem.excluded
+                dropped += [{"term": names[i], "reason": problem.excluded_reason} for i in np.flatnonzero(out)]
             if self.collinearity is not None:
                 more_keep, more = audit_collinearity(ph.theta, names, ranks, self.collinearity, keep)
                 keep, dropped = more_keep, dropped + more
