@@ -120,17 +120,23 @@ def component_mask(components: tuple[str, ...] | None) -> np.ndarray:
     return np.isin(np.array(Q_NAMES), components)
 
 
+def _named(components, allowed, key: str, unknown: str) -> tuple[str, ...]:
+    """``components`` as a tuple; ValueError under ``key`` naming those not in ``allowed``
+    (``unknown``: the message, ``{}`` where they go) or one named twice."""
+    comps = tuple(components)
+    bad = [str(c) for c in comps if c not in allowed]
+    if bad:
+        raise ValueError(f"{key}: {unknown.format(', '.join(bad))}; choose from {', '.join(allowed)}")
+    if len(set(comps)) != len(comps):
+        raise ValueError(f"{key}: a component is named twice")
+    return comps
+
+
 def check_components(components: tuple[str, ...] | None, latent_dim: int) -> tuple[str, ...] | None:
     """The components as a tuple; ValueError naming unknown, repeated or too few."""
     if components is None:
         return None
-    comps = tuple(components)
-    bad = [c for c in comps if c not in Q_NAMES]
-    if bad:
-        raise ValueError(f"encoder_components: unknown component(s) {', '.join(bad)}; "
-                         f"choose from {', '.join(Q_NAMES)}")
-    if len(set(comps)) != len(comps):
-        raise ValueError("encoder_components: a component is named twice")
+    comps = _named(components, Q_NAMES, "encoder_components", "unknown component(s) {}")
     if len(comps) < latent_dim:
         raise ValueError(f"encoder_components: {len(comps)} component(s) cannot span "
                          f"latent_dim {latent_dim}")
@@ -144,14 +150,7 @@ TRANSLATIONS = ("x", "y")
 
 def check_invariant(components) -> tuple[str, ...]:
     """``components`` as a tuple of ``TRANSLATIONS``; ValueError naming an unknown or repeated one."""
-    comps = tuple(components or ())
-    bad = [c for c in comps if c not in TRANSLATIONS]
-    if bad:
-        raise ValueError(f"invariant: {', '.join(map(str, bad))} is no horizontal translation; choose from "
-                         f"{', '.join(TRANSLATIONS)}")
-    if len(set(comps)) != len(comps):
-        raise ValueError("invariant: a component is named twice")
-    return comps
+    return _named(components or (), TRANSLATIONS, "invariant", "{} is no horizontal translation")
 
 
 def translation_basis(ae: LinearAutoencoder, components: tuple[str, ...]) -> LinearAutoencoder:
