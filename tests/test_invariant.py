@@ -37,6 +37,23 @@ def test_the_basis_gives_x_one_latent_and_keeps_the_reconstruction():
     assert reading_latents(out, ("x",)).sum() == 1
 
 
+def test_a_component_no_latent_holds_is_dropped_not_given_a_latent():
+    rng = np.random.default_rng(1)
+    Y = Q_NAMES.index("y")
+    W_e = rng.normal(size=(3, 18))
+    W_e[:, Y] = 1e-3  # the data hardly move sideways: no latent is mostly y
+    q = rng.normal(size=(200, 18))
+    ae = LinearAutoencoder(W_e, np.zeros(3), np.zeros((18, 3)), np.zeros(18))
+    with pytest.raises(ValueError, match="no latent holds y"):
+        translation_basis(ae, ("x", "y"))
+    out = translation_basis(ae, ("x", "y"), q)
+    assert reading_latents(out, ("y",)).sum() == 0 and reading_latents(out, ("x",)).sum() == 1
+    # the decoder is step (b)'s least squares for the new encoder
+    xi = out.encode(q)
+    X = np.c_[xi, np.ones(len(q))]
+    np.testing.assert_allclose(X.T @ (q - out.decode(xi)), 0.0, atol=1e-8)
+
+
 def _shifted(ds, dx: float):
     q = ds.q.copy()
     q[:, X] += dx
@@ -100,5 +117,8 @@ def test_train_holds_the_named_components_invariant_and_refuses_others(tmp_path)
                                  "--encoder-components", "x,y,z", "--invariant", "x"])
     assert r.exit_code == 0, r.output
     model = load_model(tmp_path / "m" / "model.json")
+    from symrom.learn.estimator import SymbolicROM
+
+    assert SymbolicROM.load(tmp_path / "m" / "model.json").invariant == ("x",)  # refits hold it too
     moving = reading_latents(model.autoencoder, ("x",))
     assert moving.sum() == 1 and not (model.mask & model.library.terms_reading(moving)[None, :, None]).any()

@@ -153,29 +153,37 @@ def check_invariant(components) -> tuple[str, ...]:
     return _named(components or (), TRANSLATIONS, "invariant", "{} is no horizontal translation")
 
 
-def translation_basis(ae: LinearAutoencoder, components: tuple[str, ...]) -> LinearAutoencoder:
+PIVOT_SHARE = 0.1  # a component gets a latent of its own only where it is at least this share of one's largest loading
+
+
+def translation_basis(ae: LinearAutoencoder, components: tuple[str, ...],
+                      q: np.ndarray | None = None) -> LinearAutoencoder:
     """The same latent space in a basis where moving the robot along ``components`` (base x,
     y) moves one latent each and leaves the others still.
 
     Gauss-Jordan on the encoder's columns of those components, pivoting on the latent that
     loads each most: the pivot latent keeps its row, every other row loses its multiple of it
     (at most 1, by the pivoting), so its loading on the component is exactly zero. The
-    decoder follows (W_d T^-1), so the reconstruction is unchanged. A component the encoder
-    barely reads (largest loading below 1e-9 of the encoder's largest) is dropped from it
-    instead. The other latents are then positions the dynamics may read without reading
-    where the robot stands (``reading_latents``)."""
+    decoder follows (W_d T^-1), so the reconstruction is unchanged. A component no latent
+    holds as a main part (its largest loading below ``PIVOT_SHARE`` of that latent's largest:
+    y in jumps that hardly move sideways) would cost a latent for little; the encoder stops
+    reading it instead, and the decoder is fitted again to the configurations ``q`` (N, 18)
+    (step (b); ValueError without them). The latents left are positions the dynamics may read
+    without reading where the robot stands (``reading_latents``)."""
     W, B = ae.W_e.copy(), ae.B_e.copy()
     l = W.shape[0]
     T = np.eye(l)
     pivots: list[int] = []
+    dropped = []
     for name in components:
         c = Q_NAMES.index(name)
         free = [k for k in range(l) if k not in pivots]
         if not free:
             raise ValueError(f"invariant: latent_dim {l} leaves no latent to carry {name} (one per component)")
         k = max(free, key=lambda j: abs(W[j, c]))
-        if abs(W[k, c]) <= 1e-9 * np.abs(W).max():
+        if abs(W[k, c]) < PIVOT_SHARE * np.abs(W[k]).max():
             W[:, c] = 0.0
+            dropped.append(name)
             continue
         E = np.eye(l)
         E[:, k] = -W[:, c] / W[k, c]
@@ -183,7 +191,13 @@ def translation_basis(ae: LinearAutoencoder, components: tuple[str, ...]) -> Lin
         W, B, T = E @ W, E @ B, E @ T
         W[np.arange(l) != k, c] = 0.0
         pivots.append(k)
-    return LinearAutoencoder(W, B, ae.W_d @ np.linalg.inv(T), ae.B_d.copy())
+    if not dropped:
+        return LinearAutoencoder(W, B, ae.W_d @ np.linalg.inv(T), ae.B_d.copy())
+    if q is None:
+        raise ValueError(f"invariant: no latent holds {', '.join(dropped)} as a main part; refitting the decoder "
+                         "without it needs the configurations (q)")
+    W_d, B_d = fit_decoder(q @ W.T + B, q)
+    return LinearAutoencoder(W, B, W_d, B_d)
 
 
 def reading_latents(ae: LinearAutoencoder, components: tuple[str, ...]) -> np.ndarray:

@@ -331,7 +331,7 @@ class SymbolicROM:
         has_contact = cp in ds.phase_names and bool((rows & (ds.phase == ds.phase_names.index(cp))).any())
         ae = self.encoder.fit(ds.q[contact_rows(ds, rows, cp)], ds.q[rows], l)
         if self.invariant:
-            ae = translation_basis(ae, self.invariant)
+            ae = translation_basis(ae, self.invariant, ds.q[rows])
         val_rows = ds.rows_of("val") & ~rows
         xi, dxi, nu = ae.encode(ds.q[rows]), ae.encode_derivative(ds.dq[rows]), ae.encode_input(ds.u[rows])
         phases = []
