@@ -1,7 +1,8 @@
 """Benchmark of jumps to a target (not a test): landing accuracy under disturbances, open and closed
 loop, per planner; re-planning time; froggy jumps.
 
-Pronk (``--model``, a learned Go1 model; ``--aslip``, fitted aSLIP parameters): seeded
+Pronk (``--model``, a learned pronk model, planned for the robot it was trained on; ``--aslip``,
+fitted aSLIP parameters): seeded
 targets (``--targets`` of them, seed ``--seed``) drawn uniformly over the learned planner's
 reach (``RobotPlanner.reach``: its bounds within its training jumps' envelope), each planned
 by every planner (learned, point mass on the description's mass, aSLIP; height guards) and
@@ -101,9 +102,10 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
     return out
 
 
-def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: int, robot: str = "go1",
+def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: int, robot: str | None = None,
         planners=PLANNERS, controls=CONTROLS, world_names=WORLDS, progress=print) -> dict:
     model = load_model(model_path)
+    robot = robot or model.provenance.data.robot or "go1"  # the jumps of the model's own robot
     aslip = read_aslip_params(aslip_path) if aslip_path else None
     built = {k: make_planner(k, robot, model=model, aslip=aslip) for k in planners if k != "aslip" or aslip}
     reach = built["learned"].reach()
