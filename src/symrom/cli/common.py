@@ -83,6 +83,7 @@ FLAGS: dict[str, str] = {
     "mpc_solver": "--mpc-solver", "motion": "--motion", "robot": "--robot", "jump": "--jump", "frames": "--frames",
     "seeds": "--seeds", "lam": "--lambda", "control": "--control", "payload": "--payload", "friction": "--friction",
     "motor_scale": "--motor-scale", "period": "--period", "repair": "--repair", "log_faults": "--log-faults",
+    "invariant": "--invariant",
 }
 _PARAMETER = re.compile(r"(?<![\w./-])([a-z][a-z0-9_]*)=(?:(True|False|None)|'([\w.,/+-]+)')?")
 

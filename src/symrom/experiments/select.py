@@ -274,8 +274,9 @@ class SelectionConfig:
         self.checks = tuple(self.checks)
         self.invariant = check_invariant(self.invariant)
         if any(l <= len(self.invariant) for l in self.latent_dims):
-            raise ValueError(f"latent_dims {self.latent_dims}: each must exceed the {len(self.invariant)} invariant "
-                             f"component(s) ({', '.join(self.invariant)}), which take a latent each")
+            raise ValueError(f"latent dimensions {self.latent_dims}: each must exceed the {len(self.invariant)} "
+                             f"component(s) held invariant (invariant={','.join(self.invariant)!r}), which take a "
+                             "latent each")
         if not self.acceleration_weight >= 0:
             raise ValueError(f"acceleration_weight must be >= 0, got {self.acceleration_weight}")
         if not self.switch_tolerance > 0:

@@ -150,7 +150,8 @@ TRANSLATIONS = ("x", "y")
 
 def check_invariant(components) -> tuple[str, ...]:
     """``components`` as a tuple of ``TRANSLATIONS``; ValueError naming an unknown or repeated one."""
-    return _named(components or (), TRANSLATIONS, "invariant", "{} is no horizontal translation")
+    comps = tuple(components or ())
+    return _named(comps, TRANSLATIONS, f"invariant={','.join(map(str, comps))!r}", "{} is no horizontal translation")
 
 
 PIVOT_SHARE = 0.1  # a component gets a latent of its own only where it is at least this share of one's largest loading
