@@ -122,3 +122,13 @@ def test_train_holds_the_named_components_invariant_and_refuses_others(tmp_path)
     assert SymbolicROM.load(tmp_path / "m" / "model.json").invariant == ("x",)  # refits hold it too
     moving = reading_latents(model.autoencoder, ("x",))
     assert moving.sum() == 1 and not (model.mask & model.library.terms_reading(moving)[None, :, None]).any()
+
+
+def test_reproduce_keeps_the_papers_formulation_unless_asked():
+    from symrom.experiments.reproduce.config import reproduce_config
+
+    for quick in (False, True):
+        cfg = reproduce_config(quick)
+        assert all(cfg.selection_for(e).invariant == () for e in cfg.experiments)
+        held = reproduce_config(quick, invariant=("x",))
+        assert all(held.selection_for(e).invariant == ("x",) for e in held.experiments)

@@ -42,16 +42,22 @@ def reproduce_cmd(
     max_terms: Annotated[int | None, typer.Option(
         "--max-terms", help="Term budget of the SIM selections: refinements pruned to at most N active terms "
                             "(compact models; e.g. 60). Default: none.")] = None,
+    invariant: Annotated[str | None, typer.Option(
+        "--invariant", help="Base components the selections hold the dynamics invariant to, as train --select "
+                            "does: x or x,y. Default: none, the paper's formulation.")] = None,
 ) -> None:
     """Run the paper's experiments end to end into one directory (resumable)."""
     from symrom.atomic import check_writable
     from symrom.experiments.reproduce import reproduce, reproduce_config, summary_lines
 
-    cfg = reproduce_config(quick, seed=seed, engine=engine, max_terms=max_terms, only=only)  # checked first
+    held = () if invariant is None or invariant.strip().lower() == "none" else \
+        tuple(c.strip() for c in invariant.split(",") if c.strip())
+    cfg = reproduce_config(quick, seed=seed, engine=engine, max_terms=max_terms, only=only,
+                           invariant=held)  # checked first
     check_writable(out, inside=True)  # a run directory is written into, in place
     runner = start_backend(backend, workers, address, local_default=2)
     cfg = reproduce_config(quick, seed=seed, engine=engine, max_terms=max_terms, workers=runner.workers,
-                           backend=backend, address=getattr(runner, "address", None))
+                           backend=backend, address=getattr(runner, "address", None), invariant=held)
     with console.status("reproduce") as status:
         summary = reproduce(out, cfg, command=command_line(), say=status_say(status, "reproduce"), only=only)
         if not no_report:

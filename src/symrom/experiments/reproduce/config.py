@@ -156,10 +156,11 @@ PARTS = ("sim2real",)  # what ``only`` may restrict a run to
 
 def reproduce_config(quick: bool = False, seed: int = 0, engine: str = "pybullet", max_terms: int | None = None,
                      workers: int | None = None, backend: str = "local", address: str | None = None,
-                     only: str | None = None) -> ReproduceConfig:
+                     only: str | None = None, invariant: tuple[str, ...] = ()) -> ReproduceConfig:
     """The run ``symrom reproduce`` makes: the full one or ``quick``, with its seed, the engine of
-    its datasets, the selections' term budget ``max_terms`` and where it runs; every option
-    checked (``only``: a part of the run, ``PARTS``)."""
+    its datasets, the selections' term budget ``max_terms``, the base components its selections
+    hold the dynamics invariant to (``invariant``; () the paper's, ``PAPER_SELECTION``) and where
+    it runs; every option checked (``only``: a part of the run, ``PARTS``)."""
     from symrom.sim.engines.registry import check_engine
 
     if only is not None and only not in PARTS:
@@ -171,4 +172,6 @@ def reproduce_config(quick: bool = False, seed: int = 0, engine: str = "pybullet
                   workers=cfg.workers if workers is None else workers)
     if max_terms is not None:
         cfg = replace(cfg, selection=replace(cfg.selection, max_terms=max_terms))
+    if invariant:
+        cfg = replace(cfg, selection=replace(cfg.selection, invariant=tuple(invariant)))
     return cfg
