@@ -231,6 +231,14 @@ def status_say(status, label: str) -> Callable[..., None]:
     return say_
 
 
+def invariant_components(text: str | None) -> tuple[str, ...] | None:
+    """``--invariant``: None when not given, () for ``none``, else the comma-separated components
+    (the library checks them)."""
+    if text is None:
+        return None
+    return () if text.strip().lower() == "none" else tuple(c.strip() for c in text.split(",") if c.strip())
+
+
 def command_line() -> str:
     """The command as typed (for a run's record)."""
     import shlex

@@ -18,6 +18,7 @@ from symrom.cli.common import (
     console,
     flag_text,
     guarded,
+    invariant_components,
     progress_bar,
     say,
     start_backend,
@@ -111,7 +112,7 @@ def train_cmd(
     if select:
         _refuse_ignored(ctx, SELECT_IGNORES, "--select chooses them on the val split")
         return _train_select(data, out, select_dims, workers, backend, address, resume, force, max_terms,
-                             _invariant(invariant))
+                             invariant_components(invariant))
     if backend != "local" or address is not None or resume:
         raise ValueError("--backend, --address and --resume apply to --select (training one model is one task)")
     from symrom.learn.training import AdamConfig, TrainConfig, train_into
@@ -122,20 +123,13 @@ def train_cmd(
                          encoder_components=_split_list(encoder_components), decoded_weight=decoded_weight,
                          alpha=alpha, measure=measure, collinearity=collinearity, encoder_scaling=encoder_scaling,
                          encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms,
-                         polish=_split_list(polish) or (), invariant=_invariant(invariant) or ())
+                         polish=_split_list(polish) or (), invariant=invariant_components(invariant) or ())
     with progress_bar("training", total=1.0) as bar:
         model = train_into(out, data, config, force=force, progress=lambda stage, frac: bar.update(
             completed=frac, description=f"training: {stage}"))
     say(f"training rows: {model.training_rows()}")
     say(f"model: {out / 'model.json'}  ({model.summary()})")
     warn_all(model.warnings())
-
-
-def _invariant(text: str | None) -> tuple[str, ...] | None:
-    """``--invariant``: None when not given, () for ``none``, else the components."""
-    if text is None:
-        return None
-    return () if text.strip().lower() == "none" else _split_list(text)
 
 
 def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, backend: str,

@@ -19,6 +19,7 @@ from symrom.cli.common import (
     command_line,
     console,
     guarded,
+    invariant_components,
     say,
     start_backend,
     status_say,
@@ -50,8 +51,7 @@ def reproduce_cmd(
     from symrom.atomic import check_writable
     from symrom.experiments.reproduce import reproduce, reproduce_config, summary_lines
 
-    held = () if invariant is None or invariant.strip().lower() == "none" else \
-        tuple(c.strip() for c in invariant.split(",") if c.strip())
+    held = invariant_components(invariant) or ()
     cfg = reproduce_config(quick, seed=seed, engine=engine, max_terms=max_terms, only=only,
                            invariant=held)  # checked first
     check_writable(out, inside=True)  # a run directory is written into, in place

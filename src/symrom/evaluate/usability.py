@@ -41,9 +41,10 @@ every candidate; docs/design.md, "Model selection"):
   on MuJoCo data read the lateral position and speed (-1.55e4 m/s^2 per m and
   2.6e3 per m/s), and its closed loop with a payload landed 21 cm off (1.4 cm
   without those two terms); the next candidate damped the flight's forward speed
-  (-8.2 /s) and its jumps landed backwards. The forward position is not checked:
+  (-8.2 /s) and its jumps landed backwards. The forward position is not moved:
   every jump of a dataset starts at the same place, so there it also tells how
-  far the push has gone.
+  far the push has gone and every law of the paper's formulation reads it; the
+  selection keeps it out of its candidates instead (``SymbolicROM.invariant``).
 """
 
 from __future__ import annotations
