@@ -12,17 +12,24 @@ import pytest
 from symrom.data.preprocess import input_from_torques
 from symrom.export import export
 from symrom.learn.training import TrainConfig, train
+from symrom.model.guards import Guard
 
 
-@pytest.fixture(scope="module")
-def case(planted_block):
+@pytest.fixture(scope="module", params=["state", "clock"])
+def case(planted_block, request):
     """A planted model read as a Go1 model (the input map needs a robot), one test jump with
-    torques, and symrom's paths from them: guards deciding, and the logged schedule."""
+    torques, and symrom's paths from them: guards deciding, and the logged schedule. ``clock``:
+    its lift-off guard replaced by a clock (``Guard.clock``) at the jump's logged lift-off."""
     ds, _ = planted_block
     model = train(ds, TrainConfig(latent_dim=2, poly_order=2))
     model = replace(model, provenance=replace(model.provenance, data=replace(model.provenance.data, robot="go1")))
     j = int(ds.jumps_in("test")[0])
     a, b = ds.jump_bounds()[j]
+    if request.param == "clock":
+        lift = int(np.flatnonzero(np.diff(model.phase_index(ds)[a:b]))[0]) + 1
+        model = replace(model, guards=[Guard("contact", "flight", [], [], 0.0, lift * ds.dt) if g.target == "flight"
+                                       else g for g in model.guards])
+        assert sum(g.clock for g in model.guards) == 1
     rng = np.random.default_rng(0)
     q = ds.q[a:b].copy()
     q[:, :12] = np.tile([0.0, 0.8, -1.6] * 4, (b - a, 1)) + 0.1 * np.sin(q[:, :12])  # a standing leg shape
@@ -33,6 +40,8 @@ def case(planted_block):
     paths = {"guards": model.predict_path(ds.q[a], ds.dq[a], u, ds.dt),
              "schedule": model.predict_path(ds.q[a], ds.dq[a], u, ds.dt, phases=sched)}
     assert paths["guards"].switches and not paths["guards"].diverged
+    if request.param == "clock":
+        assert paths["guards"].switches[0]["k"] == lift
     return model, ds, (a, b), q, tau, contact, u, sched, paths
 
 

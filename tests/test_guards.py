@@ -9,7 +9,7 @@ from conftest import as_format
 from symrom.learn.guards import fit_guards
 from symrom.learn.training import TrainConfig, train
 from symrom.model.guards import Guard, feature_names, first_switch, switch
-from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
+from symrom.model.persistence import FORMAT_VERSION, ModelFileError, load_model, model_to_dict, save_model
 
 DT = 0.002
 
@@ -86,7 +86,7 @@ def test_fit_learns_guards_that_round_trip_and_print(model, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     d = json.loads(path.read_text())
-    assert d["format_version"] == 5 and len(d["guards"]) == 2
+    assert d["format_version"] == FORMAT_VERSION and len(d["guards"]) == 2
     back = load_model(path)
     for g, h in zip(model.guards, back.guards):
         assert (g.source, g.target, g.terms, g.bias, g.min_dwell_s) == (h.source, h.target, h.terms, h.bias,
@@ -172,3 +172,82 @@ def test_guards_refit_on_a_drifting_path_follow_its_drift():
     # on the logged path itself the first fit stays
     same = refit_guards(fit, Z, phase, bounds[:8], bounds[8:], names, DT, "the logged path")
     assert [(g.terms, g.bias) for g in same] == [(g.terms, g.bias) for g in fit.guards]
+
+
+def _planted_froggy(n_jumps: int, seed: int, push_s: float = 0.2):
+    """Hops of a 1-latent body through contact (0), partial (1), flight (2) and a landing stay
+    (3, the label ``free_path_guards`` gives a stay at another place of the sequence): the
+    controller ends contact ``push_s`` (+ one sample for some jumps) after it began, whatever
+    the state (its push and the start differ from jump to jump); lift-off when the height
+    reaches 0.40 m rising, touchdown when it falls to 0.30 m."""
+    rng = np.random.default_rng(seed)
+    Z, phase, bounds, start = [], [], [], 0
+    for _ in range(n_jumps):
+        push, extra = rng.uniform(13.0, 22.0), int(rng.integers(0, 2))
+        x, v, p, k_in, rows = rng.uniform(0.1, 0.25), rng.uniform(-0.5, 0.5), 0, 0, []
+        for _k in range(500):
+            if p == 0 and k_in >= round(push_s / DT) + extra:
+                p, k_in = 1, 0
+            elif p == 1 and x >= 0.40 and v > 0:
+                p, k_in = 2, 0
+            elif p == 2 and x <= 0.30:
+                p, k_in = 3, 0
+            nu = push if p == 0 else 1.3 * push if p == 1 else 0.0
+            rows.append((x, v, nu, p))
+            a = nu - 9.81 - (8.0 * v if p in (0, 1) else 0.0) if p != 3 else -20.0 * v
+            x, v, k_in = x + DT * v, v + DT * a, k_in + 1
+        rows = np.array(rows)
+        Z.append(rows[:, :3])
+        phase.append(rows[:, 3].astype(int))
+        bounds.append((start, start + len(rows)))
+        start += len(rows)
+    return np.concatenate(Z), np.concatenate(phase), np.array(bounds)
+
+
+def test_a_switch_on_the_controllers_clock_is_learned_as_a_clock_and_a_state_switch_is_not():
+    from symrom.learn.guards import CLOCK, GuardFit, clock, guard_fit, refit_guards
+
+    Z, phase, bounds = _planted_froggy(14, seed=0)
+    names = ["contact", "partial", "flight", "landing"]
+    fit = guard_fit(Z, phase, bounds[:10], bounds[10:], names, DT)
+    state = {(g.source, g.target): g for g in fit.guards}
+    offered = GuardFit(fit.guards, {k: v + [CLOCK] for k, v in fit.finalists.items()})
+    got = {(g.source, g.target): g for g in refit_guards(offered, Z, phase, bounds[:10], bounds[10:], names, DT,
+                                                         "the logged path")}
+    front = got[("contact", "partial")]
+    assert front.clock and front.terms == [] and front.bias == 0.0
+    assert abs(front.min_dwell_s - 0.2) <= DT + 1e-12
+    assert front.report["refit_val_loss_s"] <= DT  # half the jumps switch a sample later
+    assert front.report["first_fit_loss_s"] > 3 * front.report["refit_val_loss_s"]  # no state marks it
+    assert front.text() == f"contact -> partial: after {front.min_dwell_s:.3g} s in contact"
+    # lift-off and touchdown are the state's: the clock is offered there too and loses
+    for pair in (("partial", "flight"), ("flight", "landing")):
+        assert not got[pair].clock and got[pair].terms == state[pair].terms
+    # the clock reads on past the logged switch (what the model would do had it stayed) and
+    # starts again at the next stay in the source phase
+    t = clock(np.array([0, 0, 1, 1, 0, 2]), np.array([[0, 6]]), DT, 0)
+    np.testing.assert_allclose(t, np.array([0, 1, 2, 3, 0, 1]) * DT)
+
+
+def test_a_clock_guard_switches_round_trips_and_is_refused_where_a_plan_needs_the_state(model, tmp_path):
+    from dataclasses import replace
+
+    from symrom.plan.guards import LearnedGuards
+
+    names = ["contact", "partial", "flight"]
+    tick = Guard("contact", "partial", [], [], 0.0, min_dwell_s=10 * DT)
+    assert tick.clock and tick.indices(2).dtype == np.int64
+    z = np.zeros(6)
+    assert switch([tick], names, 0, 9, DT, z) == 0 and switch([tick], names, 0, 10, DT, z) == 1
+    assert first_switch([tick], names, 0, -4, DT, np.zeros((20, 6)), 0) == (6, 1)
+    with pytest.raises(ValueError, match="a clock .* has bias 0"):
+        Guard("contact", "partial", [], [], 1.0, 0.1)
+    lift = next(g for g in model.guards if g.target == "flight")
+    clocked = replace(model, guards=[Guard(lift.source, lift.target, [], [], 0.0, 0.3) if g is lift else g
+                                     for g in model.guards])
+    save_model(clocked, tmp_path / "m.json")
+    back = load_model(tmp_path / "m.json")
+    assert [(g.terms, g.min_dwell_s) for g in back.guards] == [(g.terms, g.min_dwell_s) for g in clocked.guards]
+    assert "contact -> flight: after 0.3 s in contact" in back.equations().text()
+    with pytest.raises(ValueError, match="contact -> flight guard is a clock"):
+        LearnedGuards.of(back)

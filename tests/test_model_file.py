@@ -5,7 +5,7 @@ import pytest
 from conftest import as_format
 
 from symrom.learn.training import TrainConfig, train
-from symrom.model.persistence import ModelFileError, load_model, model_to_dict, save_model
+from symrom.model.persistence import FORMAT_VERSION, ModelFileError, load_model, model_to_dict, save_model
 from symrom.rollout.integrate import rollout
 
 
@@ -15,7 +15,7 @@ def test_round_trip_is_exact(planted_block, tmp_path):
     path = tmp_path / "model.json"
     save_model(model, path)
     text = path.read_text()
-    assert "pickle" not in text and json.loads(text)["format_version"] == 5
+    assert "pickle" not in text and json.loads(text)["format_version"] == FORMAT_VERSION
     back = load_model(path)
     for a, b in [(model.autoencoder.W_e, back.autoencoder.W_e), (model.autoencoder.W_d, back.autoencoder.W_d),
                  (model.Xi, back.Xi), (model.mask, back.mask)]:

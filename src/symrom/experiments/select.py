@@ -131,7 +131,7 @@ HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is 
 
 SELECTION_VERSION = 3
 CELL_VERSION = 4  # since 3 a cell's rows hold the physics check's moves (usability.MOVES); 4: invariant
-REFINED_VERSION = 1
+REFINED_VERSION = 2  # 2: a switch between two stance phases may be a clock (symrom.learn.guards.CLOCK)
 # The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
 CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
                  "contact_phase", "substeps", "reference", "switch_tolerance", "checks", "invariant")

@@ -69,7 +69,7 @@ def header(t: ExportTables) -> str:
 
 def _guards(t: ExportTables) -> list[str]:
     """The guard tables: at least one row (C has no empty arrays), rows padded to K terms."""
-    G, K = max(len(t.guards), 1), max((len(g.terms) for g in t.guards), default=1)
+    G, K = max(len(t.guards), 1), max([1] + [len(g.terms) for g in t.guards])
     col, weight = np.zeros((G, K), dtype=np.int64), np.zeros((G, K))
     source, target, n_terms = (np.zeros(G, dtype=np.int64) for _ in range(3))
     dwell, bias = np.zeros(G), np.zeros(G)

@@ -84,6 +84,13 @@ def functions(t: ExportTables) -> dict:
     return fns
 
 
+def _guard_value(g, z, ca):
+    """The guard row ``g``'s g(z) as a CasADi expression (a clock's: 0, an SX constant)."""
+    if not g.terms:
+        return ca.SX(g.bias)
+    return g.bias + sum((w * z[c] for c, w in g.terms[1:]), g.terms[0][1] * z[g.terms[0][0]])
+
+
 def _guards(t: ExportTables, fns: dict, ca) -> None:
     """``guard_switch``, ``guard_switch_staged`` and one ``guard_<source>_<target>`` per guard,
     added to ``fns``."""
@@ -93,8 +100,7 @@ def _guards(t: ExportTables, fns: dict, ca) -> None:
     z = ca.vertcat(s, nu)
     best, best_v = phase, ca.SX(-np.inf)
     for g in t.guards:
-        terms = g.terms
-        v = g.bias + sum((w * z[c] for c, w in terms[1:]), terms[0][1] * z[terms[0][0]])
+        v = _guard_value(g, z, ca)
         name = f"guard_{t.phase_names[g.source]}_{t.phase_names[g.target]}"
         fns[name] = ca.Function(name, [s, nu], [v], ["s", "nu"], ["g"])
         fire = ca.logic_and(ca.logic_and(phase == g.source, k_in * dt + t.eps_t >= g.dwell),
@@ -109,8 +115,7 @@ def _guards(t: ExportTables, fns: dict, ca) -> None:
     seq = t.sequence
     best, best_v = phase, ca.SX(-np.inf)
     for g in t.guards:
-        terms = g.terms
-        v = g.bias + sum((w * z[c] for c, w in terms[1:]), terms[0][1] * z[terms[0][0]])
+        v = _guard_value(g, z, ca)
         later = ca.SX(0)
         for j, p in enumerate(seq):
             if p == g.target:

@@ -45,7 +45,7 @@ from symrom.data.dataset import Dataset, jump_bounds
 from symrom.data.envelope import jump_envelope
 from symrom.learn.adam import Adam
 from symrom.learn.encoders import AdamAutoencoder, PCAEncoder, check_invariant, reading_latents, translation_basis
-from symrom.learn.guards import GuardFit, guard_fit, refit_guards
+from symrom.learn.guards import CLOCK, GuardFit, guard_fit, refit_guards
 from symrom.learn.plugins import PluginConfigError, encoder_from_dict, regressor_from_dict
 from symrom.learn.regressors.base import PhaseData, RegressionProblem, Regressor, Trajectory
 from symrom.learn.regressors.stlsq import STLSQ
@@ -54,7 +54,7 @@ from symrom.model.guards import Guard
 from symrom.model.hybrid import HybridModel, PhaseInfo, PhaseStability
 from symrom.model.library import LibrarySpec, TermBlock
 from symrom.model.provenance import DataRecord, Provenance, TrainingRecord, freeze, thaw
-from symrom.names import Q_NAMES, STANCE_PHASE
+from symrom.names import FLIGHT_PHASE, Q_NAMES, STANCE_PHASE
 
 Progress = Callable[[str, float], None]  # (stage description, fraction done 0..1)
 
@@ -192,6 +192,9 @@ def free_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows
     jumps of ``rows`` and ``val_rows`` (N,) bool made with the guards before it already
     levelled and none from it on (the prediction stays in the transition's source phase), its
     loss against the logged switch times. A guard stays as it was unless better on that path.
+    Between two stance phases (a froggy's front feet lifting) the time in the source phase is a
+    finalist too (``symrom.learn.guards.CLOCK``): the controller may switch on its clock; lift-off
+    and touchdown are the state's.
     Only the logged stays at the transition's place in the sequence count (a pronk's landing
     stay is contact too, but no lift-off follows it in a prediction). The guards as they are
     without a phase sequence (the motion is not in the registry)."""
@@ -226,8 +229,8 @@ def free_path_guards(model: HybridModel, ds: Dataset, rows: np.ndarray, val_rows
         labels = np.where((logged == pair[0]) & (stage != i), len(names), logged)
         path = _path_rows(model, ds, jumps, rows, sel, ro.xi, ro.dxi, labels)
         if path is not None:
-            guards[k] = refit_guards(GuardFit([guards[k]], {pair: fit.finalists[pair]}), *path, names, ds.dt,
-                                     FREE_PATH)[0]
+            cands = fit.finalists[pair] + ([CLOCK] if FLIGHT_PHASE not in (names[pair[0]], names[pair[1]]) else [])
+            guards[k] = refit_guards(GuardFit([guards[k]], {pair: cands}), *path, names, ds.dt, FREE_PATH)[0]
     return guards
 
 

@@ -19,6 +19,14 @@ the shortest training stay ending in the transition: it keeps a condition that
 already holds at a phase's start from firing at once. The losses of many levels
 come from one pass per window (``symrom.learn.compiled.timing_losses``).
 
+A switch between two stance phases may be the controller's, on its own clock
+(the froggy's front feet lift a set time after the push begins), and no state
+marks it. Where a transition's stays are known by their place in the motion's
+sequence (``symrom.learn.estimator.free_path_guards``), its finalists also hold
+the clock (``CLOCK``: the time in the source phase, a ``Guard`` of no terms),
+levelled like any feature and kept only if its validation loss is below the
+state guard's.
+
 A model predicts from its own states, not the logged ones, and its path drifts
 from the logged one (a height a few millimetres off moves a touchdown by tens
 of milliseconds). ``refit_guards`` therefore levels the finalists of the first
@@ -46,6 +54,9 @@ GRID_ROWS = 8192  # rows whose quantiles are a candidate's levels (evenly spaced
 REFIT_ROWS = 4096  # the same for a refit's finalists
 
 
+CLOCK: tuple[tuple[int, ...], np.ndarray] = ((), np.zeros(0))  # the finalist that reads the time in the source
+
+
 @dataclass
 class _Stay:
     """One logged stay: rows [start, stop) of the stacked z in the source phase, the
@@ -66,6 +77,20 @@ def stays(phase: np.ndarray, bounds: np.ndarray) -> list[_Stay]:
         starts, stops = np.r_[0, cut], np.r_[cut, b - a]
         for s, e in zip(starts, stops):
             out.append(_Stay(a + int(s), a + int(e), int(b), int(p[e]) if e < b - a else -1))
+    return out
+
+
+def clock(phase: np.ndarray, bounds: np.ndarray, dt: float, source: int) -> np.ndarray:
+    """Per row (N,) of ``phase`` (N,), the time (s) since the last stay in phase ``source``
+    began within its jump of ``bounds`` (J, 2): in a stay of ``source`` its time there, and past
+    its end the time it would have had, had the model stayed (what a window reads beyond its
+    logged switch); rows before any such stay, or outside every jump: 0."""
+    out = np.zeros(phase.shape[0])
+    for a, b in bounds:
+        p = phase[a:b]
+        begins = np.flatnonzero((p == source) & np.r_[True, p[:-1] != source])
+        for s, e in zip(begins, np.r_[begins[1:], b - a]):
+            out[a + s:a + e] = np.arange(e - s) * dt
     return out
 
 
@@ -244,14 +269,18 @@ def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: 
     path's states. Per transition, each finalist gets the level the timing loss on the new
     path's training stays likes best (candidate levels: ``LEVELS`` quantiles over at most
     ``REFIT_ROWS`` of its rows); the single best on the validation stays is kept unless a pair
-    brings the loss below ``PAIR_GAIN`` of it, and the first fit's guard stays if it is as
-    good on the new path. The dwell is the first fit's."""
+    brings the loss below ``PAIR_GAIN`` of it, a finalist ``CLOCK`` (the time in the source phase)
+    replaces that if its loss is lower, and the first fit's guard stays if it is as good on the
+    new path. The dwell is the first fit's (a clock's: its level)."""
     l = Z.shape[1] // 3
     names = feature_names(l)
     train_stays, val_stays = stays(phase, train_bounds), stays(phase, val_bounds)
+    every = np.r_[train_bounds, np.reshape(val_bounds, (-1, 2))]
     out = []
     for g in fit.guards:
         src, tgt = phase_names.index(g.source), phase_names.index(g.target)
+        # each row's time in the source, if the guard or a finalist reads it
+        t_in = clock(phase, every, dt, src) if g.clock or any(not idx for idx, _ in fit.finalists[(src, tgt)]) else None
         dwell = int(round(g.min_dwell_s / dt))
         tw = _thin(_windows(train_stays, phase, src, tgt, dwell))
         vw = _thin(_windows(val_stays, phase, src, tgt, dwell))
@@ -259,7 +288,7 @@ def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: 
             out.append(g)
             continue
         cands = fit.finalists[(src, tgt)]
-        P = np.stack([Z[:, list(idx)] @ w for idx, w in cands])
+        P = np.stack([Z[:, list(idx)] @ w if idx else t_in for idx, w in cands])
         levels, n = _grid(P, tw, REFIT_ROWS)
         loss = _losses(P, _arrays(tw), levels, n, dt)
         best = np.argmin(loss, axis=1)
@@ -268,14 +297,17 @@ def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: 
         use = vw if vw else tw
         lv = _losses(P, _arrays(use), c[:, None], np.ones(len(cands), dtype=np.int64), dt)[:, 0]
         # the first fit's guard, as it is, on the new path
-        first = _losses((Z[:, g.indices(l)] @ g.weights)[None], _arrays(use), np.array([[-g.bias]]),
-                        np.ones(1, dtype=np.int64), dt)[0, 0]
+        first = _losses((t_in if g.clock else Z[:, g.indices(l)] @ g.weights)[None], _arrays(use),
+                        np.array([[g.min_dwell_s if g.clock else -g.bias]]), np.ones(1, dtype=np.int64), dt)[0, 0]
         order = sorted(range(len(cands)), key=lambda k: (lv[k], lt[k]))
         single = next((k for k in order if len(cands[k][0]) == 1), None)
         pair = next((k for k in order if len(cands[k][0]) == 2), None)
         k = single if single is not None else pair
         if pair is not None and single is not None and lv[pair] < PAIR_GAIN * lv[single]:
             k = pair
+        timer = next((k for k in order if not cands[k][0]), None)
+        if timer is not None and (k is None or lv[timer] < lv[k]):
+            k = timer
         if not lv[k] < first:
             out.append(g)
             continue
@@ -283,5 +315,8 @@ def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: 
         report = {**g.report, "refit_on": source, "refit_train_loss_s": float(lt[k]),
                   "refit_val_loss_s": float(lv[k]) if vw else None, "first_fit_loss_s": float(first),
                   "selected_on": f"val ({source})" if vw else f"train ({source})"}
+        if not idx:  # the clock: it fires at its level of time in the source
+            out.append(Guard(g.source, g.target, [], [], 0.0, max(float(c[k]), g.min_dwell_s), report))
+            continue
         out.append(Guard(g.source, g.target, [names[i] for i in idx], w, -float(c[k]), g.min_dwell_s, report))
     return out

@@ -7,6 +7,12 @@ there at least ``min_dwell_s``, the first sample k at which g(z_k) >= 0
 switches it to ``target`` (the step from k on is taken in ``target``). When
 several guards of one phase fire at the same sample, the largest g wins.
 
+A guard of no terms (and bias 0) is a *clock*: it fires as soon as the dwell
+has passed, whatever the state. It stands for a switch a controller makes on
+its own schedule (the froggy's front feet lift a set time after the push
+begins), which no feature of the state marks; ``symrom.learn`` offers it only
+between two stance phases, and a planner's lift-off and touchdown never are.
+
 A motion's jump passes through its phases in one order (``symrom.motions``: a
 pronk's contact, flight, contact). Along such a sequence of phase indices a
 prediction keeps its *stage*, the place in the sequence it is at: from stage i
@@ -43,7 +49,8 @@ def feature_names(l: int) -> list[str]:
 class Guard:
     """The switch ``source -> target`` (phase names): fires when
     ``bias + sum(weights[i] * z[terms[i]]) >= 0`` after ``min_dwell_s`` (s) in ``source``.
-    terms: feature names (``feature_names``), weights (k,) per unit of the feature;
+    terms: feature names (``feature_names``), weights (k,) per unit of the feature; no terms
+    (and bias 0): a clock, firing once ``min_dwell_s`` has passed;
     report: the fit's record (losses in s on train and val, candidates tried)."""
 
     source: str
@@ -56,9 +63,12 @@ class Guard:
 
     def __post_init__(self) -> None:
         self.weights = np.asarray(self.weights, dtype=float).reshape(-1)
-        if len(self.terms) != self.weights.size or not self.terms:
+        if len(self.terms) != self.weights.size:
             raise ValueError(f"guard {self.source}->{self.target}: {len(self.terms)} terms, "
                              f"{self.weights.size} weights")
+        if not self.terms and self.bias != 0.0:
+            raise ValueError(f"guard {self.source}->{self.target}: a clock (no terms) has bias 0, "
+                             f"got {self.bias!r}")
         if not (np.isfinite(self.weights).all() and np.isfinite(self.bias) and self.min_dwell_s >= 0):
             raise ValueError(f"guard {self.source}->{self.target}: weights, bias and dwell must be finite "
                              "(dwell >= 0)")
@@ -69,7 +79,12 @@ class Guard:
         bad = [t for t in self.terms if t not in names]
         if bad:
             raise ValueError(f"guard {self.source}->{self.target}: term {bad[0]!r} is not one of {names}")
-        return np.array([names.index(t) for t in self.terms])
+        return np.array([names.index(t) for t in self.terms], dtype=np.int64)
+
+    @property
+    def clock(self) -> bool:
+        """Whether the guard reads no feature: it fires once its dwell has passed."""
+        return not self.terms
 
     def value(self, z: np.ndarray) -> np.ndarray:
         """g (N,) at z (N, 3l) (or (3l,) -> scalar array)."""
@@ -85,7 +100,13 @@ class Guard:
         return num(self.bias) + sympy.Add(*[num(w) * sympy.Symbol(t) for w, t in zip(self.weights, self.terms)])
 
     def condition(self, latex: bool = False, digits: int = 3) -> str:
-        """The firing condition as text: ``nu3 <= -12.3`` for one feature, ``... >= 0`` for two."""
+        """The firing condition as text: ``nu3 <= -12.3`` for one feature, ``... >= 0`` for two,
+        ``t >= 0.858`` (s in the source phase) for a clock."""
+        if self.clock:
+            if latex:
+                src = self.source.replace("_", r"\_")
+                return rf"t_{{\mathrm{{{src}}}}} \geq {self.min_dwell_s:.{digits}g}\,\mathrm{{s}}"
+            return f"t >= {self.min_dwell_s:.{digits}g} s"
         if len(self.terms) == 1:
             w, t = float(self.weights[0]), self.terms[0]
             level = -self.bias / w
@@ -103,7 +124,12 @@ class Guard:
         return f"{sympy.sstr(expr)} >= 0"
 
     def text(self, latex: bool = False, digits: int = 3) -> str:
-        """One line: the transition, its condition and dwell."""
+        """One line: the transition, its condition and dwell (a clock: its time in the source)."""
+        if self.clock:
+            if latex:
+                src, tgt = (n.replace("_", r"\_") for n in (self.source, self.target))
+                return rf"\mathrm{{{src}}} \to \mathrm{{{tgt}}}:\ {self.condition(True, digits)}"
+            return f"{self.source} -> {self.target}: after {self.min_dwell_s:.{digits}g} s in {self.source}"
         if latex:
             src, tgt = (n.replace("_", r"\_") for n in (self.source, self.target))
             return (rf"\mathrm{{{src}}} \to \mathrm{{{tgt}}}:\ {self.condition(True, digits)} "

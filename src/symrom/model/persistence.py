@@ -1,5 +1,9 @@
 """The model file: versioned JSON, human-readable, no pickle (``docs/design.md``).
 
+format_version 6 lets a guard hold no terms: a clock (``Guard.clock``), firing once
+its ``min_dwell_s`` in the source phase has passed. Files of format 5 and older are
+read as before.
+
 format_version 5 replaces the untyped ``info`` object by ``provenance``
 (``symrom.model.provenance.Provenance``: data, training, selection, fine-tuning,
 extra). Files of format 4 and older are still read, their ``info`` read into the
@@ -36,8 +40,8 @@ from symrom.model.hybrid import HybridModel, PhaseInfo
 from symrom.model.library import Library
 from symrom.model.provenance import Provenance
 
-FORMAT_VERSION = 5
-READABLE_VERSIONS = (1, 2, 3, 4, 5)
+FORMAT_VERSION = 6
+READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
 # what format 2 kept in ``info`` and format 3 keeps in ``estimator``
 LEGACY_ESTIMATOR_KEYS = ("encoder", "regressor", "decoded_weight")
 

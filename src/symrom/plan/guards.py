@@ -81,12 +81,16 @@ class LearnedGuards:
     def of(cls, model, stance: str = STANCE_PHASE, flight: str = FLIGHT_PHASE,
            landing: str = STANCE_PHASE) -> LearnedGuards:
         """The guards of ``model`` (a ``HybridModel``): lift-off ``stance -> flight`` (the push's
-        last stance phase), touchdown ``flight -> landing``; ValueError if it lacks either."""
+        last stance phase), touchdown ``flight -> landing``; ValueError if it lacks either or
+        either is a clock (``Guard.clock``)."""
         found = {(g.source, g.target): g for g in getattr(model, "guards", None) or []}
         for pair in ((stance, flight), (flight, landing)):
             if pair not in found:
                 raise ValueError(f"the model has no learned {pair[0]} -> {pair[1]} guard (a model trained "
                                  "before guards were learned, or without that transition)")
+            if found[pair].clock:
+                raise ValueError(f"the model's {pair[0]} -> {pair[1]} guard is a clock ({found[pair].text()}): "
+                                 "a plan's lift-off and touchdown need a guard on the state")
         return cls(found[(stance, flight)], found[(flight, landing)])
 
     @staticmethod

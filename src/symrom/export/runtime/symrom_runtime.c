@@ -87,8 +87,8 @@ static int guard_switch_at(int stage, int phase, int k_in, double dt, const doub
     for (int g = 0; g < SYMROM_N_GUARDS; g++) {
         if (phase != GUARD_SOURCE[g] || !(k_in * dt + SYMROM_EPS_T >= GUARD_DWELL[g])) continue;
         if (stage >= 0 && later_stage(stage, GUARD_TARGET[g]) < 0) continue;
-        double sum = GUARD_WEIGHT[g][0] * z[GUARD_COL[g][0]];
-        for (int i = 1; i < GUARD_N_TERMS[g]; i++) sum += GUARD_WEIGHT[g][i] * z[GUARD_COL[g][i]];
+        double sum = 0.0; /* a clock (no terms) fires once its dwell has passed */
+        for (int i = 0; i < GUARD_N_TERMS[g]; i++) sum += GUARD_WEIGHT[g][i] * z[GUARD_COL[g][i]];
         double v = GUARD_BIAS[g] + sum;
         if (v >= 0.0 && v > best_v) { best = GUARD_TARGET[g]; best_v = v; }
     }

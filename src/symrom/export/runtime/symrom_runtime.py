@@ -73,8 +73,8 @@ class Runtime:
                 continue
             if stage >= 0 and target not in self.sequence[stage + 1:]:
                 continue
-            total = terms[0][1] * z[terms[0][0]]
-            for c, w in terms[1:]:
+            total = 0.0  # a clock (no terms) fires once its dwell has passed
+            for c, w in terms:
                 total = total + w * z[c]
             v = bias + total
             if v >= 0 and v > best_v:
