@@ -14,11 +14,19 @@ from symrom.model.persistence import FORMAT_VERSION, ModelFileError, load_model,
 DT = 0.002
 
 
+def _stacked(jumps: list[np.ndarray]):
+    """Jumps of rows (x, v, nu, phase) as z (N, 3), phase (N,) and bounds (J, 2)."""
+    lengths = np.array([len(r) for r in jumps])
+    ends = np.cumsum(lengths)
+    rows = np.concatenate(jumps)
+    return rows[:, :3], rows[:, 3].astype(int), np.c_[ends - lengths, ends]
+
+
 def _planted_hops(n_jumps: int, seed: int):
     """Hops of a 1-latent ball (l = 1): z = [xi, dxi, nu]. Contact -> flight once the height
     reaches 0.30 m rising (after 20 ms in contact); flight -> contact when it falls to 0.25 m."""
     rng = np.random.default_rng(seed)
-    Z, phase, bounds, start = [], [], [], 0
+    jumps = []
     for _ in range(n_jumps):
         push = rng.uniform(14.0, 20.0)
         x, v, p, k_in, rows = 0.2, 0.0, 0, 0, []
@@ -32,12 +40,8 @@ def _planted_hops(n_jumps: int, seed: int):
             rows.append((x, v, nu, p))
             a = nu - 9.81 - (8.0 * v if p == 0 else 0.0)
             x, v, k_in = x + DT * v, v + DT * a, k_in + 1
-        rows = np.array(rows)
-        Z.append(rows[:, :3])
-        phase.append(rows[:, 3].astype(int))
-        bounds.append((start, start + len(rows)))
-        start += len(rows)
-    return np.concatenate(Z), np.concatenate(phase), np.array(bounds)
+        jumps.append(np.array(rows))
+    return _stacked(jumps)
 
 
 def test_a_planted_switching_rule_is_recovered():
@@ -181,7 +185,7 @@ def _planted_froggy(n_jumps: int, seed: int, push_s: float = 0.2):
     the state (its push and the start differ from jump to jump); lift-off when the height
     reaches 0.40 m rising, touchdown when it falls to 0.30 m."""
     rng = np.random.default_rng(seed)
-    Z, phase, bounds, start = [], [], [], 0
+    jumps = []
     for _ in range(n_jumps):
         push, extra = rng.uniform(13.0, 22.0), int(rng.integers(0, 2))
         x, v, p, k_in, rows = rng.uniform(0.1, 0.25), rng.uniform(-0.5, 0.5), 0, 0, []
@@ -196,12 +200,8 @@ def _planted_froggy(n_jumps: int, seed: int, push_s: float = 0.2):
             rows.append((x, v, nu, p))
             a = nu - 9.81 - (8.0 * v if p in (0, 1) else 0.0) if p != 3 else -20.0 * v
             x, v, k_in = x + DT * v, v + DT * a, k_in + 1
-        rows = np.array(rows)
-        Z.append(rows[:, :3])
-        phase.append(rows[:, 3].astype(int))
-        bounds.append((start, start + len(rows)))
-        start += len(rows)
-    return np.concatenate(Z), np.concatenate(phase), np.array(bounds)
+        jumps.append(np.array(rows))
+    return _stacked(jumps)
 
 
 def test_a_switch_on_the_controllers_clock_is_learned_as_a_clock_and_a_state_switch_is_not():

@@ -305,9 +305,9 @@ def refit_guards(fit: GuardFit, Z: np.ndarray, phase: np.ndarray, train_bounds: 
         k = single if single is not None else pair
         if pair is not None and single is not None and lv[pair] < PAIR_GAIN * lv[single]:
             k = pair
-        timer = next((k for k in order if not cands[k][0]), None)
-        if timer is not None and (k is None or lv[timer] < lv[k]):
-            k = timer
+        ticking = next((k for k in order if not cands[k][0]), None)  # the clock, if offered
+        if ticking is not None and (k is None or lv[ticking] < lv[k]):
+            k = ticking
         if not lv[k] < first:
             out.append(g)
             continue

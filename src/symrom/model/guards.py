@@ -10,8 +10,9 @@ several guards of one phase fire at the same sample, the largest g wins.
 A guard of no terms (and bias 0) is a *clock*: it fires as soon as the dwell
 has passed, whatever the state. It stands for a switch a controller makes on
 its own schedule (the froggy's front feet lift a set time after the push
-begins), which no feature of the state marks; ``symrom.learn`` offers it only
-between two stance phases, and a planner's lift-off and touchdown never are.
+begins), which no feature of the state marks. ``symrom.learn`` offers it only
+between two stance phases; a planner refuses it for lift-off and touchdown
+(``symrom.plan.guards.LearnedGuards``).
 
 A motion's jump passes through its phases in one order (``symrom.motions``: a
 pronk's contact, flight, contact). Along such a sequence of phase indices a
