@@ -251,3 +251,20 @@ def test_a_clock_guard_switches_round_trips_and_is_refused_where_a_plan_needs_th
     assert "contact -> flight: after 0.3 s in contact" in back.equations().text()
     with pytest.raises(ValueError, match="contact -> flight guard is a clock"):
         LearnedGuards.of(back)
+
+
+def test_a_clock_counts_from_the_phase_start_in_a_prediction_started_inside_the_phase(model, planted_block):
+    from dataclasses import replace
+
+    ds, _ = planted_block
+    a, b = ds.jump_bounds()[int(ds.jumps_in("test")[0])]
+    clocked = replace(model, guards=[Guard("contact", "flight", [], [], 0.0, 0.2) if g.target == "flight" else g
+                                     for g in model.guards])
+    at = round(0.2 / ds.dt)
+    whole = clocked.predict_path(ds.q[a], ds.dq[a], ds.u[a:b], ds.dt)
+    assert whole.switches[0]["k"] == at and whole.switches[0]["target"] == "flight"
+    k0 = 30  # started 30 samples into the contact phase: the clock has run that long
+    late = clocked.predict_path(ds.q[a + k0], ds.dq[a + k0], ds.u[a + k0:b], ds.dt, dwell0=k0 * ds.dt)
+    assert late.switches[0]["k"] == at - k0
+    fresh = clocked.predict_path(ds.q[a + k0], ds.dq[a + k0], ds.u[a + k0:b], ds.dt)
+    assert fresh.switches[0]["k"] == at
