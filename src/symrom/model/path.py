@@ -111,7 +111,8 @@ def predict_path(model, q0: np.ndarray, dq0: np.ndarray, inputs: np.ndarray | Ca
     ``inputs(t, PathState) -> u (18,)`` (then ``n`` samples are predicted);
     dt: sample period, s; phases: a schedule (n,) of phase names or model phase
     indices, or None to let the guards decide, starting in ``phase0`` (default: the
-    model's first phase) entered ``dwell0`` s before sample 0, at ``stage0`` of the model's phase
+    model's first phase) entered ``dwell0`` s before sample 0 (a clock guard, ``Guard.clock``, counts
+    from that entry: pass it when starting inside a phase), at ``stage0`` of the model's phase
     sequence (default: phase0's first place in it; -1: no sequence, any guard of a phase may
     fire); options: ``RolloutOptions`` (method
     ``rk4``; its substeps, bound and backend; not its reset: there is no truth to reset
