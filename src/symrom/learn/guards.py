@@ -86,11 +86,10 @@ def clock(phase: np.ndarray, bounds: np.ndarray, dt: float, source: int) -> np.n
     its end the time it would have had, had the model stayed (what a window reads beyond its
     logged switch); rows before any such stay, or outside every jump: 0."""
     out = np.zeros(phase.shape[0])
-    for a, b in bounds:
-        p = phase[a:b]
-        begins = np.flatnonzero((p == source) & np.r_[True, p[:-1] != source])
-        for s, e in zip(begins, np.r_[begins[1:], b - a]):
-            out[a + s:a + e] = np.arange(e - s) * dt
+    mine = [s for s in stays(phase, bounds) if phase[s.start] == source]
+    for s, nxt in zip(mine, mine[1:] + [None]):
+        stop = nxt.start if nxt is not None and nxt.end == s.end else s.end  # the next such stay of its jump
+        out[s.start:stop] = np.arange(stop - s.start) * dt
     return out
 
 
