@@ -17,9 +17,12 @@ learned planner's open-loop median over its closed-loop one, and each baseline's
 median over the learned one, per world.
 
 Froggy (``--froggy-model``, a learned froggy model, planned for the robot it was trained on):
-``--froggy-targets`` targets over its reach, learned ``plan`` and ``mpc``, no disturbance, in
-each of ``--froggy-engines``; besides the landing, how many jumps end with the trunk pitched
-over (more than ``PITCHED`` rad from level at the end of the run: on its nose or its tail).
+``--froggy-targets`` targets over its reach, learned ``plan`` and ``mpc``, in each of
+``--froggy-engines`` and each of ``--froggy-worlds`` (the pronk's worlds; ``none`` alone by
+default); besides the landing, how many jumps end with the trunk pitched
+over (more than ``PITCHED`` rad from level at the end of the run: on its nose or its tail) and
+how many ended fallen (``fell``: not ``Execution.upright``: pitched or rolled over, or lying on
+the ground; an upside-down trunk reads pitch near 0).
 Without ``--model`` only the froggy jumps run.
 
 Prints Markdown tables and the targets' verdicts; with ``--out``, writes JSON.
@@ -40,6 +43,7 @@ import numpy as np
 from provenance import provenance
 
 from symrom.model.persistence import load_model
+from symrom.plan.execute import TILTED
 from symrom.plan.jump import jump, make_planner, read_aslip_params
 from symrom.robots import get_robot
 from symrom.sim.proxy import Disturbances
@@ -78,7 +82,9 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
         ex = r.execution
         row = {"target_x": float(x), "landing_x": ex.landing_x, "error_x": r.error_x, "apex_z": ex.apex_z,
                "plan_solve_time_s": ex.plan.solve_time_s, "push_s": ex.push_s, "settled": ex.finished,
-               "rest_pitch": float(ex.trajectory["base"][-1, 4])}
+               "rest_pitch": float(ex.trajectory["base"][-1, 4]), "rest_roll": float(ex.trajectory["base"][-1, 3]),
+               "rest_z": float(ex.trajectory["base"][-1, 2]), "stand_z": float(ex.trajectory["base"][0, 2]),
+               "upright": ex.upright}
         if ex.replans is not None:
             st = ex.replans
             row.update(replans=len(st.t), replan_solve_time_s=st.solve_time_s, replan_solve_cpu_s=st.solve_cpu_s,
@@ -124,25 +130,29 @@ def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: in
     return res
 
 
-PITCHED = 0.3  # rad: a trunk pitched more than this at the end of the run has fallen over
+PITCHED = TILTED  # rad: a trunk pitched more than this at the end of the run has fallen over
 
 
 def run_froggy(model_path: Path, engines: list[str], n: int, seed: int, robot: str | None = None,
-               progress=print) -> dict:
+               world_names=("none",), progress=print) -> dict:
     model = load_model(model_path)
     robot = robot or model.provenance.data.robot or "a1"
     planner = make_planner("learned", robot, model=model)
     reach = planner.reach()
     tx = targets(reach, n, seed)
     out = {"robot": robot, "model": str(model_path), "targets": tx.tolist(), "reach": reach.to_dict(), "results": {}}
+    all_worlds = worlds(robot)
     for engine in engines:
-        for c in CONTROLS:
-            r = run_setup(planner, tx, engine, c, Disturbances())
-            r.update(engine=engine, control=c)
-            out["results"][f"{engine}/{c}"] = r
-            r["pitched_over"] = sum(abs(j["rest_pitch"]) > PITCHED for j in r["jumps"] if "failed" not in j)
-            progress(f"froggy {engine} {c}: median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
-                     f"pitched over {r['pitched_over']} ({r['wall_s']:.0f} s)")
+        for w in world_names:
+            for c in CONTROLS:
+                r = run_setup(planner, tx, engine, c, all_worlds[w])
+                r.update(engine=engine, control=c, world=w, disturbances=all_worlds[w].to_dict())
+                # the nominal world keeps its key of the files written before the worlds
+                out["results"][f"{engine}/{c}" if w == "none" else f"{engine}/{c}/{w}"] = r
+                r["pitched_over"] = sum(abs(j["rest_pitch"]) > PITCHED for j in r["jumps"] if "failed" not in j)
+                r["fell"] = sum(not j["upright"] for j in r["jumps"] if "failed" not in j)
+                progress(f"froggy {engine} {c} {w}: median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
+                         f"pitched over {r['pitched_over']} fell {r['fell']} ({r['wall_s']:.0f} s)")
     return out
 
 
@@ -181,13 +191,14 @@ def replan_table(res: dict) -> str:
 
 
 def froggy_table(fr: dict) -> str:
-    lines = ["| engine | control | \\|error x\\| median | p95 | max | failed | settled | pitched over |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| engine | world | control | \\|error x\\| median | p95 | max | failed | settled | pitched over | fell |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in fr["results"].values():
         e = r["abs_error_x_m"]
         settled = sum(bool(j.get("settled")) for j in r["jumps"] if "failed" not in j)
-        lines.append(f"| {r['engine']} | {r['control']} | {_cm(r['median_with_failures_m'])} | {_cm(e['p95'])} | "
-                     f"{_cm(e['max'])} | {r['failed']} | {settled} | {r.get('pitched_over', '-')} |")
+        lines.append(f"| {r['engine']} | {r.get('world', 'none')} | {r['control']} | "
+                     f"{_cm(r['median_with_failures_m'])} | {_cm(e['p95'])} | {_cm(e['max'])} | {r['failed']} | "
+                     f"{settled} | {r.get('pitched_over', '-')} | {r.get('fell', '-')} |")
     return "\n".join(lines)
 
 
@@ -242,6 +253,7 @@ def main() -> None:
     ap.add_argument("--froggy-model", type=Path)
     ap.add_argument("--froggy-engines", default="pybullet,mujoco")
     ap.add_argument("--froggy-targets", type=int, default=20)
+    ap.add_argument("--froggy-worlds", default="none")
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
     if a.model is None and a.froggy_model is None:
@@ -251,7 +263,8 @@ def main() -> None:
     if a.model is not None:
         res = run(a.model, a.aslip, a.engine, a.targets, a.seed, planners=a.planners.split(","),
                   world_names=a.worlds.split(","))
-    fr = run_froggy(a.froggy_model, a.froggy_engines.split(","), a.froggy_targets, a.seed) if a.froggy_model else None
+    fr = (run_froggy(a.froggy_model, a.froggy_engines.split(","), a.froggy_targets, a.seed,
+                     world_names=a.froggy_worlds.split(",")) if a.froggy_model else None)
     res["froggy"] = fr
     res["wall_time_s"] = time.perf_counter() - t0
     res["machine"] = platform.platform()

@@ -213,7 +213,8 @@ def test_jump_cli_end_to_end(tmp_path):
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output
     d = json.loads((out / "landing.json").read_text())
-    assert d["format_version"] == 2 and d["planner"] == "learned"
+    assert d["format_version"] == 3 and d["planner"] == "learned"
+    assert d["upright"] and d["rest"]["z"] > 0.2 and abs(d["rest"]["pitch"]) < 0.3
     assert d["error_x"] == pytest.approx(d["landing_x"] - 0.3)
     assert abs(d["error_x"]) < 0.06  # Go1-like gains land near the target
     assert 0.38 < d["apex_z"] < 0.5 and 0 < d["solve_time_s"] < 1.0

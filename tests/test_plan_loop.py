@@ -234,6 +234,26 @@ def test_froggy_jump_end_to_end(tmp_path):
     assert np.all(before[:, :2] == 0) and np.all(before[:, 2:].sum(axis=1) > 0)
     phases = tr["phase"]
     assert "push_all" in phases and "push_rear" in phases and phases[-1] == "land"
+    # this planted law is free of the rear push's pitching moment: the trunk spins in flight and
+    # lands upside down, which landing.json and the command's warning say
+    assert not d["upright"]
+    assert "fell after landing" in res.output
+
+
+@pytest.mark.parametrize(("end", "upright"), [((0.29, 0.0, 0.03), True), ((0.08, np.pi, -0.18), False),
+                                              ((0.25, 0.0, 1.2), False), ((0.27, 0.0, -0.45), False),
+                                              ((0.12, 0.0, 0.0), False)])
+def test_upright_reads_roll_pitch_and_height_at_the_end(end, upright):
+    """An executed jump ended upright only on its feet: not pitched over (nose or tail), not
+    upside down (roll pi, pitch near 0: the pitch alone would pass it), not lying low."""
+    from symrom.plan.execute import Execution
+
+    base = np.zeros((3, 6))
+    base[:, 2] = 0.29  # standing when the run began
+    base[-1, 2], base[-1, 3], base[-1, 4] = end
+    ex = Execution(0.3, 0.4, 0.3, 1.0, 1.3, True, None, np.zeros(4), trajectory={"base": base})
+    assert ex.upright is upright
+    assert ex.rest == {"z": end[0], "roll": end[1], "pitch": end[2]}
 
 
 def test_a_pitch_blind_model_keeps_the_rear_push_s_pitching_moment_to_its_data():

@@ -91,9 +91,10 @@ def test_force_distribution_matches_the_pseudo_inverse(legs):
 
 
 @pytest.mark.slow
-def test_compiled_froggy_torque_matches_numpy_through_a_jump():
+@pytest.mark.parametrize("landing", ["body", "low_plumb"])
+def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing):
     params = sample_params(np.random.default_rng(3))
-    ctrl = FroggyController("a1", params)
+    ctrl = FroggyController("a1", params, landing=landing)
     world = World("a1")
     stages = set()
     try:

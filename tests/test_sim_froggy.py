@@ -124,3 +124,40 @@ def _hx_travel(hold: bool) -> float:
 
 def test_hx_moves_when_not_held():
     assert _hx_travel(False) > 100 * _hx_travel(True)
+
+
+def _rear_feet_up_after_landing(landing: str, seed: int) -> tuple[float, float]:
+    """Seconds the rear feet spend off the ground from 0.15 s after touchdown (the landing's
+    first compression over), and the trunk's pitch at the end, for one A1 froggy jump."""
+    from symrom.sim.controllers.froggy import FroggyController, sample_params
+    from symrom.sim.engines.registry import make_world
+    from symrom.sim.generation.episode import run_episode
+
+    params = sample_params(np.random.default_rng(seed))
+    ctrl = FroggyController("a1", params, landing=landing)
+    world = make_world("mujoco", "a1")
+    log = []
+    try:
+        run_episode(world, ctrl, ctrl.reset(world), params.max_time,
+                    on_sample=lambda tick, s, applied: log.append((s.t, s.q[16], s.contact[2] or s.contact[3])))
+    finally:
+        world.close()
+    t, pitch, rear_down = (np.array(v, float) for v in zip(*log))
+    late = t > ctrl.touchdown[0] + 0.15
+    return float(np.sum(late & (rear_down == 0)) * (t[1] - t[0])), float(pitch[-1])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_plumb_low_legs_bring_the_rear_feet_down_sooner(seed):
+    # Body-fixed landing targets put the front feet under the CoM: the trunk pivots over them,
+    # rear feet in the air, for half a second or more; the low end's legs plumb end that sooner.
+    body, body_pitch = _rear_feet_up_after_landing("body", seed)
+    plumb, plumb_pitch = _rear_feet_up_after_landing("low_plumb", seed)
+    assert body > 0.45
+    assert plumb < min(0.85 * body, 0.5)
+    assert abs(plumb_pitch) < 0.15
+
+
+def test_unknown_landing_is_refused():
+    with pytest.raises(ValueError, match="low_plumb"):
+        froggy.FroggyController("a1", froggy.FroggyParams(), landing="level")

@@ -70,6 +70,10 @@ def jump_cmd(
     if not result.reachable:
         warn(f"the target is out of the {planner} planner's reach; planned the closest reachable jump, "
              f"x = {ex.plan.landing_x:.3f} m, apex {ex.plan.apex_z:.3f} m")
+    if not ex.upright:
+        r = ex.rest
+        warn(f"the robot fell after landing: at the end its base is {r['z']:.3f} m high, roll {r['roll']:+.2f} rad, "
+             f"pitch {r['pitch']:+.2f} rad")
     loop = ""
     if ex.replans is not None and ex.replans.solve_time_s:
         times = sorted(ex.replans.solve_time_s)

@@ -16,10 +16,14 @@ alone):
    derived from torques (``data.preprocess``). Closed loop (``Feedback``): every
    ``period`` s of the push (from its first tick) the rest of the push is re-planned from
    the measured state (``plan.replan``) and F(t) and the push's end follow the new schedule.
-4. *Flight and landing*: the controller's own. The froggy's follow its push at once; the
-   pronk first holds the legs without ground force for ``pronk.release_time`` (20 ms for the
-   Go1), as its own push ends, so that the feet leave the ground before its flight's joint PD
-   swings the legs to the landing posture, as in its data.
+4. *Flight and landing*: the controller's own. The froggy's follow its push at once, and it
+   lands with the legs at the trunk's lower end plumb under their hips
+   (``FroggyController(landing="low_plumb")``: with the data's body-fixed targets a froggy
+   pivots over its front feet after touchdown, and a long planned jump went over onto its
+   nose); the pronk first holds the legs without ground
+   force for ``pronk.release_time`` (20 ms for the Go1), as its own push ends, so that the feet
+   leave the ground before its flight's joint PD swings the legs to the landing posture, as in
+   its data.
 
 The episode is the one loop every simulated jump runs (``sim.generation.episode``), on the
 engine's world with the ``Disturbances`` asked for (``sim.proxy.DisturbedWorld``).
@@ -53,6 +57,8 @@ from symrom.sim.generation.episode import run_episode
 from symrom.sim.proxy import Disturbances, DisturbedWorld
 
 MOTIONS = ("pronk", "froggy")
+TILTED = 0.3  # rad: a trunk further than this from level in roll or pitch at the end has fallen over
+LYING = 0.6  # a base below this fraction of its standing height at the end lies on the ground
 
 
 class ExecutionError(RuntimeError):
@@ -158,7 +164,8 @@ class Execution:
     liftoff (4,): the base's x (from the push start), z (m), vx, vz (m/s) when the push ended,
     the trajectory at log_hz: t (n,) s, base (n, 6) x, y, z, roll, pitch, yaw, contact (n, 4),
     phase (n,) names; motion; disturbances; replans: each re-plan's record (closed loop), else
-    None; push_s: how long the executed push lasted, s."""
+    None; push_s: how long the executed push lasted, s. ``upright``: whether the robot ended
+    on its feet (``TILTED``, ``LYING``)."""
 
     landing_x: float
     apex_z: float
@@ -173,6 +180,21 @@ class Execution:
     disturbances: Disturbances = field(default_factory=Disturbances)
     replans: ReplanStats | None = None
     push_s: float = float("nan")
+
+    @property
+    def rest(self) -> dict[str, float]:
+        """The base at the end of the run: height z m, roll and pitch rad."""
+        z, roll, pitch = (float(v) for v in self.trajectory["base"][-1, [2, 3, 4]])
+        return {"z": z, "roll": roll, "pitch": pitch}
+
+    @property
+    def upright(self) -> bool:
+        """Whether the robot ended on its feet: roll and pitch within ``TILTED`` rad of level
+        and the base at least ``LYING`` times its height when the run began (standing). An
+        upside-down trunk reads roll pi and pitch near 0, so the pitch alone does not tell."""
+        r = self.rest
+        return (abs(r["roll"]) <= TILTED and abs(r["pitch"]) <= TILTED
+                and r["z"] >= LYING * float(self.trajectory["base"][0, 2]))
 
 
 def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "pybullet",
@@ -194,7 +216,7 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
         yaw = 0.0
     push = PlannedPush(robot, yaw, plan_fn, attitude, motion, feedback)
     ctrl = (PronkController(robot, params, push=push) if motion == "pronk"
-            else FroggyController(robot, params, push=push))
+            else FroggyController(robot, params, push=push, landing="low_plumb"))
     world = make_world(engine, robot, config)
     if not disturbances.none:
         world = DisturbedWorld(world, disturbances)
@@ -239,4 +261,5 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
                      replans=feedback.stats if feedback is not None else None, push_s=float(push_s))
 
 
-__all__ = ["MOTIONS", "AttitudeGains", "Execution", "ExecutionError", "Feedback", "PlannedPush", "execute"]
+__all__ = ["LYING", "MOTIONS", "TILTED", "AttitudeGains", "Execution", "ExecutionError", "Feedback", "PlannedPush",
+           "execute"]

@@ -58,7 +58,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 2  # 2: apex_rule, apex_floor
+LANDING_FORMAT = 3  # 2: apex_rule, apex_floor; 3: rest, upright
 TRAJECTORY_FORMAT = 2
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
@@ -478,10 +478,13 @@ class JumpResult:
              "solve_time_s": plan.solve_time_s, "rest_x": ex.rest_x,
              "liftoff": dict(zip(("x", "z", "vx", "vz"), ex.liftoff.tolist())), "t_push_s": ex.t_push,
              "push_duration_s": ex.push_s, "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,
+             "rest": ex.rest, "upright": ex.upright,
              "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
                            "start of the push (m); error_x: landing_x - target_x; error_z: apex_z - target_z; "
                            "apex_z: largest base height between lift-off and touchdown (m); rest_x: base x at "
-                           "the end of the run, from the same start (m)",
+                           "the end of the run, from the same start (m); rest: base height (m), roll and "
+                           "pitch (rad) at the end; upright: roll and pitch within 0.3 rad of level and the "
+                           "base at least 0.6 of its standing height at the end",
              "plan": plan.to_dict()}
         if ex.replans is not None:
             r = ex.replans

@@ -169,13 +169,16 @@ def smooth(s):
 
 @njit
 def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact, foot_pos, feet0,
-                  feet_w, b0, limit, n_el, xyz, rot, axis, col):
+                  feet_w, b0, limit, plumb_land, n_el, xyz, rot, axis, col):
     """Joint torques (12,) N m of the froggy controller (``FroggyController.torque``) in
     ``stage`` at time t s; prm: the parameters in ``FROGGY_PARAMS`` order; t_push: start of
     the push, s; t_land: touch-down time, s; mass kg; the state q, dq (18,), R (3, 3),
     omega (3,), contact (4,), foot_pos (4, 3) m; feet0 (4, 3) level-frame feet; feet_w
-    (4, 3), b0 (3,): feet and base in the world when the push began; limit (12,) N m; the
-    leg chains as ``symrom.robots.compiled.legs_one`` takes them."""
+    (4, 3), b0 (3,): feet and base in the world when the push began; limit (12,) N m;
+    plumb_land: 1 to hold the pair of legs at the trunk's lower end (the front pair while it is
+    pitched nose down, else the rear) at level-frame (plumb) targets in the landing, 0 to keep
+    every landing target body-fixed; the leg chains as
+    ``symrom.robots.compiled.legs_one`` takes them."""
     pos, J = np.empty((4, 3)), np.empty((4, 3, 3))
     legs_one(q[:12], n_el, xyz, rot, axis, col, pos, J)
     vel = np.zeros((4, 3))
@@ -189,8 +192,15 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     Y[0, 0], Y[0, 1], Y[1, 0], Y[1, 1], Y[2, 2] = cyaw, -syaw, syaw, cyaw, 1.0
     to_base = np.zeros((3, 3))
     to_base[0, 0], to_base[1, 1], to_base[2, 2] = 1.0, 1.0, 1.0
+    plumb = R.T @ Y  # level frame to base frame
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
-        to_base = R.T @ Y
+        to_base = plumb
+    plumb_lo, plumb_hi = 0, 0  # the legs k with plumb_lo <= k < plumb_hi are held plumb
+    if stage == LAND and plumb_land != 0:
+        if q[16] > 0.0:
+            plumb_hi = 2
+        else:
+            plumb_lo, plumb_hi = 2, 4
     weight = mass * GRAVITY
     shift = 0.0
     kp, kd, z_leg = np.empty(4), np.empty(4), np.empty(4)
@@ -285,7 +295,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     lv = np.empty(3)
     for k in range(4):
         lv[0], lv[1], lv[2] = feet0[k, 0] + x_off[k] + shift, feet0[k, 1], feet0[k, 2] + z_leg[k]
-        r = to_base @ lv
+        r = (plumb if plumb_lo <= k < plumb_hi else to_base) @ lv
         for a in range(3):
             p_d[k, a] = r[a]
     if stage == PUSH_ALL or stage == PUSH_REAR:
@@ -341,4 +351,4 @@ def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
         q, dq = np.zeros(18), np.zeros(18)
         q[14] = 0.3
         froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
-                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), *kin.chain_arrays())
+                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), 0, *kin.chain_arrays())

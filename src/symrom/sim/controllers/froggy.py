@@ -60,6 +60,9 @@ from symrom.sim.proxy import RANDOMIZED_RANGES, ProxyConfig, sample_proxy, sampl
 STAGES = ("settle", "crouch", "hold", "push_all", "push_rear", "flight", "land")  # as compiled.SETTLE ...
 FRONT = (0, 1)  # FR, FL
 REAR = (2, 3)  # RR, RL
+# The landing's leg targets (``FroggyController(landing=...)``), as ``compiled.froggy_torque``
+# codes them: all body-fixed, or the pair at the trunk's lower end plumb under its hips.
+LANDINGS = {"body": 0, "low_plumb": 1}
 
 
 @dataclass(frozen=True)
@@ -368,12 +371,27 @@ class FroggyController:
     ``torque(state)`` -> (12,) N m requested joint torques; ``done(state)`` once
     the robot has settled after landing. ``phase`` names the controller's
     current stage (settle, crouch, hold, push_all, push_rear, flight, land).
+
+    ``landing`` (``LANDINGS``): ``body``, every leg's landing target body-fixed, as the
+    generated data's jumps land; ``low_plumb``, the pair of legs at the trunk's lower end (the
+    front pair while it is pitched nose down, else the rear) held plumb under their hips, the
+    other pair body-fixed (the two agree when the trunk is level). A froggy touches down nose
+    first; with body-fixed targets the front feet sit behind their hips, close under the CoM,
+    so the trunk pivots over them with the rear feet in the air for half a second or more, and
+    a jump that comes down turning a little faster goes over. Plumb front legs keep the CoM
+    behind the front feet and the trunk settles back onto the rear feet; if it rocks on past
+    level, the rear pair does the same. The planned jumps land this way (``plan.execute``).
     """
 
-    def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None):
+    def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None,
+                 landing: str = "body"):
+        if landing not in LANDINGS:
+            raise ValueError(f"unknown froggy landing {landing!r}; choose from {', '.join(LANDINGS)}")
         self.robot = robot
         self.params = params
         self.push = push
+        self.landing = landing
+        self._plumb_land = LANDINGS[landing]
         self.kin = leg_kinematics(robot)
         self.limit = np.asarray(get_robot(robot).torque_limit, dtype=float)  # (12,) N m
         # the description's actuator effects, fed forward (sim/controllers/actuators.py): the
@@ -483,7 +501,7 @@ class FroggyController:
         tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                     self._fit_at, *self._chains)
+                                     self._fit_at, self._plumb_land, *self._chains)
         if self.compensation.active:
             return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
         return tau
@@ -613,6 +631,9 @@ class FroggyController:
                 grf = a * distribute(s.foot_pos, base, down, np.array([0, 0, weight]), level)
         targets_level = self.feet0 + np.stack([x_off + shift, np.zeros(N_LEGS), z_leg], axis=1)
         p_d = targets_level @ to_base.T
+        if self.phase == "land" and self._plumb_land:
+            pair = list(FRONT if s.q[16] > 0.0 else REAR)
+            p_d[pair] = targets_level[pair] @ (s.R.T @ yaw_matrix(s.q[17])).T
         if self.phase in ("push_all", "push_rear"):
             stroke_legs = list(all_legs) if self.phase == "push_all" else list(REAR)
             p_d[stroke_legs] = p_stroke[stroke_legs]
