@@ -11,7 +11,7 @@ executed in ``--engine`` (MuJoCo by default) with each control (``plan``: open l
 fixed to the base; ``friction``: ground friction 0.5; ``motors``: every motor delivers 85 %
 of its command). A jump that never lands (the loaded or weakened robot that cannot leave the
 ground) counts as failed, and as an infinite error in the median. Per planner, control and
-world: |landing x - target x| (median, p95, max), failures; for the closed loop each
+world: |landing x - target x| (median, p95, max), failures, falls (``Execution.upright``); for the closed loop each
 re-plan's solve time (wall and CPU, median and p95, one core). Ratios in the same run: the
 learned planner's open-loop median over its closed-loop one, and each baseline's closed-loop
 median over the learned one, per world.
@@ -95,7 +95,8 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
     err = np.abs([r["error_x"] for r in ok])
     # failures count as infinite errors in the median
     with_failed = np.concatenate([err, np.full(len(rows) - len(ok), np.inf)])
-    out = {"jumps": rows, "failed": len(rows) - len(ok), "abs_error_x_m": _stats(err),
+    out = {"jumps": rows, "failed": len(rows) - len(ok), "fell": sum(not r["upright"] for r in ok),
+           "abs_error_x_m": _stats(err),
            "median_with_failures_m": float(np.median(with_failed)) if rows else None,
            "signed_error_x_mean_m": float(np.mean([r["error_x"] for r in ok])) if ok else None,
            "wall_s": time.perf_counter() - t0}
@@ -126,7 +127,7 @@ def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: in
                 r.update(world=w, planner=kind, control=c, disturbances=all_worlds[w].to_dict())
                 res["results"][f"{kind}/{c}/{w}"] = r
                 progress(f"{kind:10s} {c:4s} {w:8s} median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
-                         f"({r['wall_s']:.0f} s)")
+                         f"fell {r['fell']} ({r['wall_s']:.0f} s)")
     return res
 
 
@@ -150,7 +151,6 @@ def run_froggy(model_path: Path, engines: list[str], n: int, seed: int, robot: s
                 # the nominal world keeps its key of the files written before the worlds
                 out["results"][f"{engine}/{c}" if w == "none" else f"{engine}/{c}/{w}"] = r
                 r["pitched_over"] = sum(abs(j["rest_pitch"]) > PITCHED for j in r["jumps"] if "failed" not in j)
-                r["fell"] = sum(not j["upright"] for j in r["jumps"] if "failed" not in j)
                 progress(f"froggy {engine} {c} {w}: median {_cm(r['median_with_failures_m'])} failed {r['failed']} "
                          f"pitched over {r['pitched_over']} fell {r['fell']} ({r['wall_s']:.0f} s)")
     return out
@@ -162,7 +162,7 @@ def _cm(v) -> str:
 
 def table(res: dict) -> str:
     ws = [w for w in WORLDS if any(k.endswith("/" + w) for k in res["results"])]
-    lines = ["| planner | control | " + " | ".join(f"{w}: median (p95), failed" for w in ws) + " |",
+    lines = ["| planner | control | " + " | ".join(f"{w}: median (p95), failed, fell" for w in ws) + " |",
              "|---|---|" + "---|" * len(ws)]
     for kind in PLANNERS:
         for c in CONTROLS:
@@ -171,7 +171,8 @@ def table(res: dict) -> str:
                 r = res["results"].get(f"{kind}/{c}/{w}")
                 if r is None:
                     break
-                cells.append(f"{_cm(r['median_with_failures_m'])} ({_cm(r['abs_error_x_m']['p95'])}), {r['failed']}")
+                cells.append(f"{_cm(r['median_with_failures_m'])} ({_cm(r['abs_error_x_m']['p95'])}), {r['failed']}, "
+                             f"{r.get('fell', '-')}")
             if len(cells) == len(ws):
                 lines.append(f"| {kind} | {c} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
