@@ -287,6 +287,9 @@ def test_train_term_budget_is_an_option_of_the_refinement(data, tmp_path):
                    "--encoder-base-latents")
     one_line_error(_run("train", data[1], "--polish", "flight", "--out", out), "--polish flight", "needs --refine")
     one_line_error(_run("train", data[1], "--refine", "--polish", "air", "--out", out), "polish", "air")
+    one_line_error(_run("train", data[1], "--refine", "--keep", "flight", "--out", out), "--keep flight",
+                   "needs --max-terms")
+    one_line_error(_run("train", data[1], "--refine", "--max-terms", 5, "--keep", "air", "--out", out), "keep", "air")
     assert not out.exists()
 
 

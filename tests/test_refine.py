@@ -219,3 +219,38 @@ def test_budget_settings_are_checked():
     assert regressor_from_dict(record).after_pruning == "schedule"
     with pytest.raises(ValueError, match="needs refine"):
         TrainConfig(max_terms=10)
+
+
+def test_keep_leaves_a_phase_whole_while_the_others_are_pruned(lagged):
+    """``keep``: the pruning holds the kept phase at the refinement's coefficients (bit for bit)
+    and prunes the others until the whole model is within the budget; if the kept phase alone
+    fills the budget, every phase is pruned as without ``keep``."""
+    ds, _ = lagged
+    problem, init = _problem(ds, train(ds, TrainConfig(threshold=0.0)))
+    n_flight, n = int(init.mask[1].sum()), int(init.mask.sum())
+    assert 0 < n_flight < n - 3
+    windows = (0.05, None)
+    plain = Refine(windows=windows).fit(problem, init)
+    budget = n_flight + 2
+    kept = Refine(windows=windows, max_terms=budget, keep=("flight",)).fit(problem, init)
+    assert kept.mask.sum() == budget and kept.mask[0].sum() == 2
+    np.testing.assert_array_equal(kept.mask[1], plain.mask[1])
+    np.testing.assert_array_equal(kept.Xi[1], plain.Xi[1])
+    np.testing.assert_array_equal(kept.unpruned.Xi, plain.Xi)  # the refinement before the pruning
+    assert kept.report["contact"]["refinement"]["prunings"]
+    everything = Refine(windows=windows, max_terms=budget).fit(problem, init)
+    assert everything.mask[1].sum() < n_flight  # without keep the flight is pruned too
+    filled = Refine(windows=windows, max_terms=n_flight, keep=("flight",)).fit(problem, init)
+    same = Refine(windows=windows, max_terms=n_flight).fit(problem, init)
+    np.testing.assert_array_equal(filled.Xi, same.Xi)
+    np.testing.assert_array_equal(filled.mask, same.mask)
+    record = Refine(max_terms=5, keep=("flight",))
+    assert regressor_from_dict(record.to_dict()) == record and "keep" not in Refine(max_terms=5).to_dict()
+    with pytest.raises(ValueError, match="needs max_terms"):
+        Refine(keep=("flight",))
+    with pytest.raises(ValueError, match="are held"):
+        Refine(max_terms=5, keep=("flight",), hold=("flight",))
+    with pytest.raises(ValueError, match="keep: no phase named"):
+        Refine(max_terms=5, keep=("air",)).fit(problem, init)
+    with pytest.raises(ValueError, match="needs max_terms"):
+        TrainConfig(refine=True, keep=("flight",))

@@ -189,6 +189,20 @@ def test_an_unrefined_model_drops_what_only_the_refinement_reads():
     plain = unrefined(refined)
     assert not plain.refine and plain.max_terms is None and plain.polish == ()
     assert plain.latent_dim == 3 and unrefined(plain) == plain
+    assert unrefined(TrainConfig(refine=True, max_terms=60, keep=("flight",))).keep == ()
+
+
+def test_sim_to_real_leaves_out_the_soft_budget_s_pruning():
+    """A SIM pick pruned to the soft budget (``keep``) gives the sources and targets its
+    unpruned refinement's settings; a hard budget (``reproduce --max-terms``) stays."""
+    from symrom.experiments.reproduce.sim2real import transferred
+    from symrom.learn.training import TrainConfig
+
+    soft = TrainConfig(latent_dim=4, refine=True, max_terms=60, keep=("flight",))
+    unpruned = transferred(soft, None)
+    assert unpruned.refine and unpruned.max_terms is None and unpruned.keep == () and unpruned.latent_dim == 4
+    hard = TrainConfig(latent_dim=4, refine=True, max_terms=60, polish=("flight",))
+    assert transferred(hard, 60) == hard
 
 
 def test_the_solver_comparison_beside_the_run_gives_what_it_gives_in_the_run(run, tmp_path):

@@ -73,6 +73,7 @@ FLAGS: dict[str, str] = {
     "positions": "--positions", "segment": "--segment", "dt": "--dt", "max_gap": "--max-gap", "topics": "--topics",
     "method": "--method", "engine": "--engine", "address": "--address", "backend": "--backend",
     "target_x": "--target-x", "target_z": "--target-z", "mass": "--mass", "m": "--mass", "polish": "--polish",
+    "keep": "--keep",
     "latent_dims": "--latent-dims", "select_dims": "--select-dims", "to": "--to", "planner": "--planner",
     "guards": "--guards", "only": "--only", "n_jumps": "--jumps", "fit": "--fit", "k_s": "--k-s", "l_0": "--l0",
     "latent_dim": "--latent-dim", "poly_order": "--poly-order", "solver": "--solver", "measure": "--measure",

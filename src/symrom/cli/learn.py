@@ -29,7 +29,7 @@ from symrom.cli.common import (
 # train's options that --select does not use (it chooses them on the val split)
 SELECT_IGNORES = ("latent_dim", "poly_order", "solver", "threshold", "epochs", "seed", "encoder_components",
                   "decoded_weight", "alpha", "measure", "collinearity", "encoder_scaling", "encoder_base_latents",
-                  "trig", "refine", "polish")
+                  "trig", "refine", "keep", "polish")
 
 
 def _given(ctx: typer.Context, names: tuple[str, ...]) -> list[str]:
@@ -87,6 +87,9 @@ def train_cmd(
     polish: Annotated[str | None, typer.Option(
         "--polish", help="With --refine: phases refined again, each alone, after the refinement and pruning, "
                          "e.g. flight (comma-separated; --select with --max-terms polishes flight).")] = None,
+    keep: Annotated[str | None, typer.Option(
+        "--keep", help="With --max-terms: phases the pruning leaves whole (their refined terms held while the "
+                       "others are pruned), e.g. flight (comma-separated).")] = None,
     invariant: Annotated[str | None, typer.Option(
         "--invariant", help="Base components the dynamics are held invariant to, so that where the robot "
                             "stands is no clock or force: x, x,y or none (default: none for one model, "
@@ -123,7 +126,8 @@ def train_cmd(
                          encoder_components=_split_list(encoder_components), decoded_weight=decoded_weight,
                          alpha=alpha, measure=measure, collinearity=collinearity, encoder_scaling=encoder_scaling,
                          encoder_base_latents=encoder_base_latents, refine=refine, max_terms=max_terms,
-                         polish=_split_list(polish) or (), invariant=invariant_components(invariant) or ())
+                         keep=_split_list(keep) or (), polish=_split_list(polish) or (),
+                         invariant=invariant_components(invariant) or ())
     with progress_bar("training", total=1.0) as bar:
         model = train_into(out, data, config, force=force, progress=lambda stage, frac: bar.update(
             completed=frac, description=f"training: {stage}"))

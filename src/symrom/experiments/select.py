@@ -26,10 +26,13 @@ and 0.1 s resets). The grid spans
 - a term budget: ``max_terms`` (None: none), or else ``compact_terms`` (60 by
   default). A refinement whose candidate has more terms than the budget prunes
   it to the budget (``Refine.max_terms``: the coefficients least needed by the
-  training rollouts go, a share at a time, and the rest are refined again) and
-  then refines the phases of ``polish`` the data has again, each alone
-  (``Refine.polish``); the model before the pruning (the refinement without a
-  budget, bit for bit) is a candidate too. When a usual pick has more terms than
+  training rollouts go, a share at a time, and the rest are refined again). Under
+  the hard budget it then refines the phases of ``polish`` the data has again,
+  each alone (``Refine.polish``); under the soft one the pruning leaves those
+  phases whole (``Refine.keep``: their refined coefficients held while the others
+  are pruned, unless they alone fill the budget): pruned with the rest, the SIM
+  A1's flight lost the touchdown its refinement predicted. The model before the
+  pruning (the refinement without a budget, bit for bit) is a candidate too. When a usual pick has more terms than
   the budget, the cell (encoder, latent dimension, library) of the exact
   candidate with the best 0.1 s score is refined from ``refine_top`` more of its
   thresholds with at most ``PRUNE_REACH`` (3) times the budget's terms, the
@@ -131,7 +134,9 @@ HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is 
 
 SELECTION_VERSION = 3
 CELL_VERSION = 4  # since 3 a cell's rows hold the physics check's moves (usability.MOVES); 4: invariant
-REFINED_VERSION = 2  # 2: a switch between two stance phases may be a clock (symrom.learn.guards.CLOCK)
+# 2: a switch between two stance phases may be a clock (symrom.learn.guards.CLOCK); 3: the soft
+# budget's pruning keeps the polished phases whole (Refine.keep)
+REFINED_VERSION = 3
 # The settings the rows of a cell depend on (besides the data, the integrator steps and the cell itself).
 CELL_SETTINGS = ("libraries", "thresholds", "floor", "measure", "collinearity", "alpha", "decoded_weight",
                  "contact_phase", "substeps", "reference", "switch_tolerance", "checks", "invariant")
@@ -319,17 +324,20 @@ class SelectionConfig:
 
     def train_config(self, encoder: str, latent_dim: int, library: str, threshold: float,
                      refine: bool = False, max_terms: int | None = None) -> TrainConfig:
-        """The settings of one candidate; a refinement prunes to ``max_terms`` (None: no pruning),
-        then polishes ``polish``; with the hard budget (``SelectionConfig.max_terms``) every
-        refinement prunes to it and polishes."""
-        if refine and self.max_terms is not None:
+        """The settings of one candidate; a refinement prunes to ``max_terms`` (None: no pruning):
+        with the hard budget (``SelectionConfig.max_terms``) every refinement prunes to it, then
+        polishes ``polish``; under the soft one the pruning keeps ``polish`` whole."""
+        hard = self.max_terms is not None
+        if refine and hard:
             max_terms = self.max_terms
+        pruned = refine and max_terms is not None
         return TrainConfig(latent_dim=latent_dim, **parse_library(library), threshold=threshold,
                            measure=self.measure, collinearity=self.collinearity, alpha=self.alpha,
                            decoded_weight=self.decoded_weight, **ENCODERS[encoder].settings(latent_dim),
                            contact_phase=self.contact_phase, refine=refine, invariant=self.invariant,
                            max_terms=max_terms if refine else None,
-                           polish=self.polish if refine and max_terms is not None else ())
+                           keep=self.polish if pruned and not hard else (),
+                           polish=self.polish if pruned and hard else ())
 
 
 def component_spread(ds: Dataset, floor: float) -> np.ndarray:
@@ -462,7 +470,7 @@ def _row(cfg: SelectionConfig, encoder: str, l: int, library: str, threshold: fl
          assessed: dict, seconds: float) -> dict[str, Any]:
     reg = model.estimator.get("regressor", {})
     refine = reg.get("kind") == "refine"
-    budget = ({"max_terms": reg["max_terms"], **({"polish": list(reg["polish"])} if reg.get("polish") else {})}
+    budget = ({"max_terms": reg["max_terms"], **{k: list(reg[k]) for k in ("keep", "polish") if reg.get(k)}}
               if refine and reg.get("max_terms") is not None else {})
     return {"encoder": encoder, "latent_dim": l, "library": library, "threshold": threshold, "refine": refine,
             **budget, "active_terms": int(model.mask.sum()), "active_per_phase": model.active_terms(),
@@ -539,8 +547,9 @@ def run_refinement(ds: Dataset, cfg: SelectionConfig, steps: dict, encoder: str,
     for m in (model, unpruned):
         if m is None:
             continue
-        settings = replace(tc, max_terms=m.estimator["regressor"].get("max_terms"),
-                           polish=tuple(m.estimator["regressor"].get("polish", ())))
+        reg = m.estimator["regressor"]
+        settings = replace(tc, max_terms=reg.get("max_terms"), keep=tuple(reg.get("keep", ())),
+                           polish=tuple(reg.get("polish", ())))
         m = replace(m, provenance=m.provenance.with_settings(asdict(settings)))
         t1 = time.perf_counter()
         assessed = assess(m, ds, cfg, yardstick, steps)
@@ -627,7 +636,7 @@ def selection_rule(cfg: SelectionConfig) -> str:
     elif cfg.compact_terms is not None:
         budget = (f"; refinements of candidates with more than {cfg.compact_terms} terms also pruned to "
                   f"{cfg.compact_terms}"
-                  + (f" ({', '.join(cfg.polish)} then refined again alone)" if cfg.polish else "")
+                  + (f" ({', '.join(cfg.polish)} kept whole)" if cfg.polish else "")
                   + ", the pruned models competing with the rest")
     checks = ("; a candidate must keep the data's momentum balance (physics: never set aside), have every mode "
               "carried by the planner's and the rollouts' RK4 steps (integrator) and, rolled out free from each "

@@ -385,8 +385,8 @@ class SymbolicROM:
         model = self._model(prep, lib, coefs, regressor, say, free=True)
         if coefs.unpruned is None:
             return model, None
-        return model, self._model(prep, lib, coefs.unpruned, replace(regressor, max_terms=None, polish=()), say,
-                                  free=True)
+        return model, self._model(prep, lib, coefs.unpruned, replace(regressor, max_terms=None, keep=(), polish=()),
+                                  say, free=True)
 
     def _finish(self, prep: dict, regressor: Regressor, say: Progress,
                 library: LibrarySpec | None = None, free: bool = False) -> HybridModel:

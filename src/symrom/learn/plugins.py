@@ -78,7 +78,7 @@ def regressor_from_dict(d: dict, where: str = "regressor") -> Regressor:
             body["initial"] = regressor_from_dict(body["initial"], f"{where}.initial")
         if "windows" in body:
             body["windows"] = tuple(body["windows"])
-        for key in ("hold", "polish", "polish_windows"):
+        for key in ("hold", "keep", "polish", "polish_windows"):
             if key in body:
                 body[key] = tuple(body[key])
     if cls is Adam and "config" in body:

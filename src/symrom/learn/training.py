@@ -74,7 +74,8 @@ class TrainConfig:
     (None = keep all, the paper); ``refine``: refine the coefficients on rollout
     error (``symrom.learn.regressors.refine``); ``max_terms``: with ``refine``, the
     refinement prunes the model to at most this many active terms (``Refine.max_terms``;
-    None = the support STLSQ chose); ``polish``: with ``refine``, phases refined
+    None = the support STLSQ chose); ``keep``: with ``max_terms``, phases the pruning
+    leaves whole (``Refine.keep``); ``polish``: with ``refine``, phases refined
     again alone after it (``Refine.polish``); ``path``: thresholds of a sparsity
     path to record with validation errors (None = none); ``invariant``: base components
     (``x``, ``y``) along which the dynamics are held invariant (``SymbolicROM.invariant``;
@@ -98,6 +99,7 @@ class TrainConfig:
     collinearity: float | None = None
     refine: bool = False
     max_terms: int | None = None
+    keep: tuple[str, ...] = ()
     polish: tuple[str, ...] = ()
     path: tuple[float, ...] | None = None
     invariant: tuple[str, ...] = ()
@@ -139,6 +141,9 @@ class TrainConfig:
         if self.max_terms is not None and not self.refine:
             raise ValueError(f"max_terms={self.max_terms}: a budget of the refinement; needs refine=True (or "
                              "select=True, where it is the budget of the selection's refinements)")
+        self.keep = tuple(self.keep)
+        if self.keep and self.max_terms is None:
+            raise ValueError(f"keep={','.join(self.keep)}: a rule of the pruning; needs max_terms=N")
         self.polish = tuple(self.polish)
         if self.polish and not self.refine:
             raise ValueError(f"polish={','.join(self.polish)}: a stage of the refinement; needs refine=True")
@@ -152,7 +157,7 @@ class TrainConfig:
         if self.refine:
             from symrom.learn.regressors.refine import Refine
 
-            return Refine(base, max_terms=self.max_terms, polish=self.polish)
+            return Refine(base, max_terms=self.max_terms, keep=self.keep, polish=self.polish)
         return base
 
     def estimator(self, progress: Progress | None = None) -> SymbolicROM:
@@ -200,17 +205,18 @@ def train_into(out: str | os.PathLike, data: str | os.PathLike, config: TrainCon
     """``train`` on the dataset file ``data``, written as the model folder ``out`` (``model.json``,
     ``equations.txt``; atomically, an existing folder only with ``force``, never one holding
     ``data``); the model, which records ``data`` as where it was trained. Refused before any
-    work: an output in the way, polished phases the data do not have."""
+    work: an output in the way, kept or polished phases the data do not have."""
     from symrom.atomic import atomic_dir, check_output_file
     from symrom.data.io import read_dataset
     from symrom.model.persistence import write_model_files
 
     check_output_file(out, force, inputs=(data,))
     ds = read_dataset(data)
-    unknown = [p for p in config.polish if p not in ds.phase_names]
-    if unknown:
-        raise ValueError(f"polish={','.join(unknown)}: no such phase in {data} (its phases are "
-                         f"{', '.join(ds.phase_names)})")
+    for key in ("keep", "polish"):
+        unknown = [p for p in getattr(config, key) if p not in ds.phase_names]
+        if unknown:
+            raise ValueError(f"{key}={','.join(unknown)}: no such phase in {data} (its phases are "
+                             f"{', '.join(ds.phase_names)})")
     model = train(ds, config, progress=progress, data_path=str(data))
     with atomic_dir(out, force) as tmp:
         write_model_files(model, tmp)

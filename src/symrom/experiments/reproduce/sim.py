@@ -48,7 +48,7 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
     entry = experiment_entry(model, metrics, run, data, d / "model.json")
     chosen = table["rows"][table["chosen"]]
     entry["config"] = {**{k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")},
-                       "max_terms": chosen.get("max_terms"),
+                       "max_terms": chosen.get("max_terms"), "keep": chosen.get("keep", []),
                        **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight")},
                        "selection_score": chosen["score"], "candidates": len(table["rows"])}
     say(f"{exp.name}: training with the paper's defaults")

@@ -99,10 +99,18 @@ def source_models(run: Path, data: dict[str, Path], target: Sim2RealTarget, sett
     return out
 
 
+def transferred(settings: TrainConfig, hard_budget: int | None) -> TrainConfig:
+    """The SIM selection's ``settings`` as sim-to-real trains its sources and targets with them.
+    Without a hard budget (``hard_budget`` None) the selection's pruning to the soft one
+    (``Refine.keep``) is left out: it was chosen because the pruned model stood on the SIM data's
+    val against its own unpruned refinement, which no source or target is checked against."""
+    return replace(settings, max_terms=None, keep=()) if hard_budget is None else settings
+
+
 def unrefined(settings: TrainConfig) -> TrainConfig:
     """``settings`` without the refinement and what only the refinement reads (its term budget,
     its polish stages): the exact source's and an unrefined target-alone model's settings."""
-    return replace(settings, refine=False, max_terms=None, polish=())
+    return replace(settings, refine=False, max_terms=None, keep=(), polish=())
 
 
 def repaired_target(run: Path, name: str, logged: Path, say: Say) -> Path:
@@ -348,10 +356,11 @@ def run_sim2real(run: Path, data: dict[str, Path], settings: dict[str, TrainConf
     for target in SIM2REAL:
         if target.name not in data or target.settings not in settings:
             continue
-        sources = source_models(run, data, target, settings[target.settings], say)
+        tc = transferred(settings[target.settings], cfg.selection.max_terms)
+        sources = source_models(run, data, target, tc, say)
         if not sources:
             continue
         repaired = repaired_target(run, target.name, data[target.name], say)
         entries[target.name], tables[target.name] = run_target(run, target, data[target.name], repaired, sources,
-                                                               settings[target.settings], cfg, say)
+                                                               tc, cfg, say)
     return entries, tables

@@ -38,6 +38,12 @@ in every rollout but are not fitted (a flight phase whose gravity must stay).
 the stages they join (1: every sample alike; more: short-horizon accuracy first,
 the whole jump still kept in view).
 
+``keep`` names phases the pruning leaves whole: their refined coefficients are held while
+the others are pruned until the whole model is within the budget (the kept phases' terms
+count) and refined again. A froggy jump's flight, pruned with the rest, lost the touchdown
+its unpruned refinement predicted (docs/results.md); kept, it keeps it. If the kept phases alone
+fill the budget, every phase is pruned as without ``keep``.
+
 ``polish`` names phases refined once more after the schedule and the pruning, one
 at a time in that order, each alone with every other phase held, on the windows
 ``polish_windows`` with the shortest weighted ``polish_weight`` (the support is
@@ -94,7 +100,8 @@ class Refine(Regressor):
     the largest |xi|, |dxi| of the training jumps; substeps: RK4 steps per sample;
     stride: score every stride-th sample of a window; hold: names of phases whose
     coefficients are kept as the start has them (simulated, not fitted); short_weight:
-    weight of the shortest windows' squared error in the stages they join; polish: phases
+    weight of the shortest windows' squared error in the stages they join; keep: phases the
+    pruning leaves whole (module docstring); polish: phases
     refined again, each alone, after the schedule and pruning, on ``polish_windows`` (s)
     with the shortest weighted ``polish_weight``; backend: ``auto``, ``table`` or ``numpy``
     (module docstring); acceleration_weight: weight of the acceleration fit kept (module
@@ -113,6 +120,7 @@ class Refine(Regressor):
     prune_share: float = 0.25
     after_pruning: str = "last"
     hold: tuple[str, ...] = ()
+    keep: tuple[str, ...] = ()
     short_weight: float = 1.0
     polish: tuple[str, ...] = ()
     polish_windows: tuple[float | None, ...] = (0.1, None)
@@ -138,6 +146,10 @@ class Refine(Regressor):
             raise ValueError("polish needs at least one window length")
         if set(self.polish) & set(self.hold):
             raise ValueError(f"polish: phase(s) {sorted(set(self.polish) & set(self.hold))} are held")
+        if set(self.keep) & set(self.hold):
+            raise ValueError(f"keep: phase(s) {sorted(set(self.keep) & set(self.hold))} are held")
+        if self.keep and self.max_terms is None:
+            raise ValueError(f"keep={','.join(self.keep)}: a rule of the pruning; needs max_terms=N")
         if not 0 < self.prune_share <= 1:
             raise ValueError(f"prune_share must lie in (0, 1], got {self.prune_share}")
         if self.after_pruning not in AFTER_PRUNING:
@@ -151,7 +163,7 @@ class Refine(Regressor):
         """The refinement that polishes ``phase`` alone: on ``polish_windows``, the shortest
         weighted ``polish_weight``, every other of ``phase_names`` held, no budget."""
         return replace(self, windows=self.polish_windows, short_weight=self.polish_weight, max_terms=None,
-                       polish=(), hold=tuple(n for n in phase_names if n != phase))
+                       polish=(), keep=(), hold=tuple(n for n in phase_names if n != phase))
 
     @property
     def collinearity(self) -> float | None:  # the support is the initial regressor's
@@ -164,6 +176,7 @@ class Refine(Regressor):
                 "stride": self.stride, "max_terms": self.max_terms, "prune_share": self.prune_share,
                 **({"after_pruning": self.after_pruning} if self.max_terms is not None else {}),
                 **({"hold": list(self.hold)} if self.hold else {}),
+                **({"keep": list(self.keep)} if self.keep else {}),
                 **({"short_weight": self.short_weight} if self.short_weight != 1.0 else {}),
                 **({"polish": list(self.polish), "polish_windows": list(self.polish_windows),
                     "polish_weight": self.polish_weight} if self.polish else {}),
@@ -176,7 +189,7 @@ class Refine(Regressor):
         start = init if init is not None else self.initial.fit(problem)
         if not problem.trajectories:
             raise ValueError("refinement needs the training jumps (problem.trajectories)")
-        for key in ("hold", "polish"):
+        for key in ("hold", "keep", "polish"):
             unknown = sorted(set(getattr(self, key)) - set(problem.phase_names))
             if unknown:
                 raise ValueError(f"{key}: no phase named {unknown} (the phases are {list(problem.phase_names)})")
@@ -228,14 +241,20 @@ class Refine(Regressor):
                 name: {**start.report.get(name, {}), "refinement": {"stages": list(stages), "jumps": len(trajs)}}
                 for name in problem.phase_names})
         prunings = []
-        while self.max_terms is not None and mask.sum() > self.max_terms:
+        budget, whole = self.max_terms, np.zeros_like(mask)
+        kept = np.array([name in self.keep for name in problem.phase_names])[:, None, None] & mask
+        if budget is not None and mask.sum() > budget and 0 < kept.sum() < budget:
+            # the kept phases join the held ones (``cost`` reads ``fixed`` when called)
+            fixed, whole = fixed + Xi * kept, kept
+            mask, Xi, budget = mask & ~kept, Xi * (mask & ~kept), budget - int(kept.sum())
+        while budget is not None and mask.sum() > budget:
             n = int(mask.sum())
-            drop = min(n - self.max_terms, max(1, int(np.ceil(self.prune_share * n))))
+            drop = min(n - budget, max(1, int(np.ceil(self.prune_share * n))))
             Xi, mask, record = prune(Xi, mask, [cost(mask, [w]) for w in windows[last]], drop)
             first = last if self.after_pruning == "last" else 0
             Xi, more, last = self._schedule(Xi, mask, windows, lengths, problem.dt, cost, first)
             prunings.append({**record, "stages": more})
-        Xi, mask = Xi + fixed, mask | (start.mask & held[:, None, None])
+        Xi, mask = Xi + fixed, mask | whole | (start.mask & held[:, None, None])
         report = {name: {**start.report.get(name, {}), "refinement": {
             "stages": stages, "jumps": len(trajs), **({"prunings": prunings} if self.max_terms is not None else {})}}
             for name in problem.phase_names}
