@@ -32,8 +32,9 @@ and 0.1 s resets). The grid spans
   phases whole (``Refine.keep``: their refined coefficients held while the others
   are pruned, unless they alone fill the budget): pruned with the rest, the SIM
   A1's flight lost the touchdown its refinement predicted. The model before the
-  pruning (the refinement without a budget, bit for bit) is a candidate too. When a usual pick has more terms than
-  the budget, the cell (encoder, latent dimension, library) of the exact
+  pruning (the refinement without a budget, bit for bit) is a candidate too. When
+  a usual pick has more terms than the budget, the cell (encoder, latent
+  dimension, library) of the exact
   candidate with the best 0.1 s score is refined from ``refine_top`` more of its
   thresholds with at most ``PRUNE_REACH`` (3) times the budget's terms, the
   sparsest with at least the budget's terms first (an exact
