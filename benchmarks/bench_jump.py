@@ -80,11 +80,11 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
             rows.append({"target_x": float(x), "failed": f"{type(e).__name__}: {e}"})
             continue
         ex = r.execution
+        rest = ex.rest
         row = {"target_x": float(x), "landing_x": ex.landing_x, "error_x": r.error_x, "apex_z": ex.apex_z,
                "plan_solve_time_s": ex.plan.solve_time_s, "push_s": ex.push_s, "settled": ex.finished,
-               "rest_pitch": float(ex.trajectory["base"][-1, 4]), "rest_roll": float(ex.trajectory["base"][-1, 3]),
-               "rest_z": float(ex.trajectory["base"][-1, 2]), "stand_z": float(ex.trajectory["base"][0, 2]),
-               "upright": ex.upright}
+               "rest_pitch": rest["pitch"], "rest_roll": rest["roll"], "rest_z": rest["z"],
+               "stand_z": float(ex.trajectory["base"][0, 2]), "upright": ex.upright}
         if ex.replans is not None:
             st = ex.replans
             row.update(replans=len(st.t), replan_solve_time_s=st.solve_time_s, replan_solve_cpu_s=st.solve_cpu_s,

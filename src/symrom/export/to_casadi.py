@@ -85,10 +85,8 @@ def functions(t: ExportTables) -> dict:
 
 
 def _guard_value(g, z, ca):
-    """The guard row ``g``'s g(z) as a CasADi expression (a clock's: 0, an SX constant)."""
-    if not g.terms:
-        return ca.SX(g.bias)
-    return g.bias + sum((w * z[c] for c, w in g.terms[1:]), g.terms[0][1] * z[g.terms[0][0]])
+    """The guard row ``g``'s g(z) as a CasADi expression (a clock, of no terms: its bias, 0)."""
+    return g.bias + sum((w * z[c] for c, w in g.terms), ca.SX(0.0))
 
 
 def _guards(t: ExportTables, fns: dict, ca) -> None:

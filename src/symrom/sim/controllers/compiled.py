@@ -192,7 +192,9 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     Y[0, 0], Y[0, 1], Y[1, 0], Y[1, 1], Y[2, 2] = cyaw, -syaw, syaw, cyaw, 1.0
     to_base = np.zeros((3, 3))
     to_base[0, 0], to_base[1, 1], to_base[2, 2] = 1.0, 1.0, 1.0
-    plumb = R.T @ Y  # level frame to base frame
+    plumb = to_base  # level frame to base frame, where a leg is held plumb
+    if stage == FLIGHT or (stage == LAND and plumb_land != 0):
+        plumb = R.T @ Y
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
         to_base = plumb
     plumb_lo, plumb_hi = 0, 0  # the legs k with plumb_lo <= k < plumb_hi are held plumb
