@@ -91,12 +91,13 @@ def test_force_distribution_matches_the_pseudo_inverse(legs):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("landing", ["body", "low_plumb"])
-def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing):
+# a flight_pitch below the flight's pitch, so that the turned targets are compared too
+@pytest.mark.parametrize("landing, flight_pitch", [("body", None), ("low_plumb", 0.1)])
+def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing, flight_pitch):
     params = sample_params(np.random.default_rng(3))
-    ctrl = FroggyController("a1", params, landing=landing)
+    ctrl = FroggyController("a1", params, landing=landing, flight_pitch=flight_pitch)
     world = World("a1")
-    stages = set()
+    stages, turned = set(), False
     try:
         world.reset(ctrl.reset(world))
         for tick in range(int(2.2 * 1000)):
@@ -107,12 +108,15 @@ def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing):
             tau = ctrl.torque(s)
             if ref is not None:
                 np.testing.assert_allclose(tau, ref.torque_numpy(s), rtol=1e-12, atol=1e-10)
+                turned = turned or (ctrl.phase == "flight" and abs(s.q[16]) > ctrl.flight_pitch)
                 assert ref.phase == ctrl.phase
                 stages.add(ctrl.phase)
             world.step(tau, report=False)
     finally:
         world.close()
     assert {"settle", "crouch", "hold", "push_all", "push_rear", "flight", "land"} <= stages
+    if flight_pitch is not None:
+        assert turned, "the flight never pitched past flight_pitch: the turned targets went untested"
 
 
 def test_step_without_report_steps_the_same():

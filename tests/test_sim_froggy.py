@@ -161,3 +161,52 @@ def test_plumb_low_legs_bring_the_rear_feet_down_sooner(seed):
 def test_unknown_landing_is_refused():
     with pytest.raises(ValueError, match="low_plumb"):
         froggy.FroggyController("a1", froggy.FroggyParams(), landing="level")
+
+
+@pytest.mark.parametrize("pitch", [0.6, 0.95, -0.9])
+def test_flight_targets_past_flight_pitch_keep_the_feet_depth(pitch):
+    # Past flight_pitch the flight's targets sit in the trunk's frame at the clipped pitch, each
+    # foot at the depth below the base its level target has: the controller pulls nowhere when
+    # the feet are there, and (past the limit) pulls hard there without the limit. Checked on
+    # the pair at the trunk's lower end, the legs that land: the other pair's targets are out
+    # of reach at these pitches, limit or not.
+    from symrom.names import JOINTS
+    from symrom.robots import leg_kinematics
+    from symrom.robots.kinematics import rpy_to_matrix
+    from symrom.robots.stance import leg_ik
+    from symrom.sim.controllers.compiled import FLIGHT, froggy_torque
+
+    cap = 0.75
+    ctrl = froggy.FroggyController("a1", froggy.FroggyParams(), flight_pitch=cap)
+    stand = ctrl.params.stand_height
+    R = rpy_to_matrix(np.array([[0.0, pitch, 0.0]]))[0]
+    e = pitch - np.clip(pitch, -cap, cap)
+    # in the frame pitched by e from level, the depth d puts each foot stand below the base
+    x = ctrl.feet0[:, 0]
+    d = (x * np.sin(e) - stand) / np.cos(e)
+    P = rpy_to_matrix(np.array([[0.0, e, 0.0]]))[0]
+    target_body = (R.T @ P @ np.stack([x, ctrl.feet0[:, 1], d], axis=1).T).T
+    np.testing.assert_allclose((R @ target_body.T).T[:, 2], -stand, atol=1e-12)
+    q, dq = np.zeros(18), np.zeros(18)
+    q[JOINTS] = leg_ik("a1", target_body)
+    low = slice(0, 6) if pitch > 0 else slice(6, 12)  # the lower pair's joints
+    feet = slice(0, 2) if pitch > 0 else slice(2, 4)
+    np.testing.assert_allclose(leg_kinematics("a1").foot_positions(q[JOINTS][None])[0][feet], target_body[feet],
+                               atol=1e-6)
+    q[14], q[16] = 0.4, pitch
+
+    def tau(limit_pitch):
+        feet = ctrl.feet0
+        return froggy_torque(FLIGHT, 2.0, ctrl._prm, 1.0, 0.0, 12.0, q, dq, R, np.zeros(3),
+                             np.zeros(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), ctrl.limit, 0,
+                             limit_pitch, *ctrl._chains)
+
+    assert np.max(np.abs(tau(cap)[low])) < 1e-2
+    if e != 0.0:
+        assert np.max(np.abs(tau(np.inf)[low])) > 1.0
+
+
+def test_flight_pitch_must_be_a_positive_angle():
+    for bad in (0.0, -0.5, float("nan")):
+        with pytest.raises(ValueError, match="flight_pitch"):
+            froggy.FroggyController("a1", froggy.FroggyParams(), flight_pitch=bad)

@@ -20,7 +20,9 @@ alone):
    lands with the legs at the trunk's lower end plumb under their hips
    (``FroggyController(landing="low_plumb")``: with the data's body-fixed targets a froggy
    pivots over its front feet after touchdown, and a long planned jump went over onto its
-   nose); the pronk first holds the legs without ground
+   nose), and its flight's leg targets turn with the trunk past ``FLIGHT_PITCH`` (a trunk
+   pitched further put the front feet's level targets out of the legs' reach: the knees folded,
+   and the jump touched down late and long); the pronk first holds the legs without ground
    force for ``pronk.release_time`` (20 ms for the Go1), as its own push ends, so that the feet
    leave the ground before its flight's joint PD swings the legs to the landing posture, as in
    its data.
@@ -47,7 +49,7 @@ import numpy as np
 from symrom.names import BASE_POS, BASE_RPY
 from symrom.plan.problem import Plan
 from symrom.plan.replan import ReplanStats, Schedule
-from symrom.sim.controllers.froggy import FroggyController, FroggyParams, FroggyPushTiming
+from symrom.sim.controllers.froggy import FLIGHT_PITCH, FroggyController, FroggyParams, FroggyPushTiming
 from symrom.sim.controllers.froggy import scaled as froggy_scaled
 from symrom.sim.controllers.motion import PushCommand
 from symrom.sim.controllers.pronk import PronkController, PronkParams, PushTiming, heading, scales
@@ -216,7 +218,8 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
         yaw = 0.0
     push = PlannedPush(robot, yaw, plan_fn, attitude, motion, feedback)
     ctrl = (PronkController(robot, params, push=push) if motion == "pronk"
-            else FroggyController(robot, params, push=push, landing="low_plumb"))
+            else FroggyController(robot, params, push=push, landing="low_plumb",
+                                   flight_pitch=FLIGHT_PITCH))
     world = make_world(engine, robot, config)
     if not disturbances.none:
         world = DisturbedWorld(world, disturbances)

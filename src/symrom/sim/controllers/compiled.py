@@ -169,7 +169,7 @@ def smooth(s):
 
 @njit
 def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact, foot_pos, feet0,
-                  feet_w, b0, limit, plumb_land, n_el, xyz, rot, axis, col):
+                  feet_w, b0, limit, plumb_land, flight_pitch, n_el, xyz, rot, axis, col):
     """Joint torques (12,) N m of the froggy controller (``FroggyController.torque``) in
     ``stage`` at time t s; prm: the parameters in ``FROGGY_PARAMS`` order; t_push: start of
     the push, s; t_land: touch-down time, s; mass kg; the state q, dq (18,), R (3, 3),
@@ -177,7 +177,9 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     (4, 3), b0 (3,): feet and base in the world when the push began; limit (12,) N m;
     plumb_land: 1 to hold the pair of legs at the trunk's lower end (the front pair while it is
     pitched nose down, else the rear) at level-frame (plumb) targets in the landing, 0 to keep
-    every landing target body-fixed; the leg chains as
+    every landing target body-fixed; flight_pitch rad: past this pitch the flight's leg targets
+    turn with the trunk by the excess, each foot kept at its level target's height below the base
+    (inf: level at any pitch); the leg chains as
     ``symrom.robots.compiled.legs_one`` takes them."""
     pos, J = np.empty((4, 3)), np.empty((4, 3, 3))
     legs_one(q[:12], n_el, xyz, rot, axis, col, pos, J)
@@ -272,6 +274,18 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     elif stage == FLIGHT:
         for k in range(4):
             kp[k], kd[k], x_off[k] = prm[_KP_SW], prm[_KD_SW], prm[_RAIBERT] * dq[12]
+        excess = 0.0
+        if q[16] > flight_pitch:
+            excess = q[16] - flight_pitch
+        elif q[16] < -flight_pitch:
+            excess = q[16] + flight_pitch
+        if excess != 0.0:  # the targets' frame pitched by the excess, the feet at the same depth
+            ce, se = np.cos(excess), np.sin(excess)
+            P = np.zeros((3, 3))
+            P[0, 0], P[0, 2], P[1, 1], P[2, 0], P[2, 2] = ce, se, 1.0, -se, ce
+            to_base = to_base @ P
+            for k in range(4):
+                z_leg[k] = (feet0[k, 2] - prm[_STAND] + (feet0[k, 0] + x_off[k]) * se) / ce - feet0[k, 2]
     else:  # land
         for k in range(4):
             kp[k], kd[k] = prm[_KP_LAND], prm[_KD_LAND]
@@ -353,4 +367,5 @@ def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
         q, dq = np.zeros(18), np.zeros(18)
         q[14] = 0.3
         froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
-                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), 0, *kin.chain_arrays())
+                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), 0, np.inf,
+                      *kin.chain_arrays())

@@ -63,6 +63,9 @@ REAR = (2, 3)  # RR, RL
 # The landing's leg targets (``FroggyController(landing=...)``), as ``compiled.froggy_torque``
 # codes them: all body-fixed, or the pair at the trunk's lower end plumb under its hips.
 LANDINGS = {"body": 0, "low_plumb": 1}
+# rad: past this pitch a planned jump's flight targets turn with the trunk (``FroggyController``);
+# chosen on the tuning targets of bench_jump.py (seed 1) from 0.7, 0.75 and 0.8
+FLIGHT_PITCH = 0.75
 
 
 @dataclass(frozen=True)
@@ -381,12 +384,22 @@ class FroggyController:
     a jump that comes down turning a little faster goes over. Plumb front legs keep the CoM
     behind the front feet and the trunk settles back onto the rear feet; if it rocks on past
     level, the rear pair does the same. The planned jumps land this way (``plan.execute``).
+
+    ``flight_pitch`` (rad, or None: no limit): in flight the leg targets hang level below the
+    base up to this pitch; past it their frame turns with the trunk by the excess, each foot kept
+    at its level target's depth below the base. A trunk pitched far nose down puts the front
+    feet's level targets up by the hips' plane, where the Cartesian PD folds the knees onto their
+    stops: the feet come up and the jump touches down late, low and long. The planned jumps fly
+    with ``FLIGHT_PITCH``; the generator's jumps without a limit (their data stay as they were).
     """
 
     def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None,
-                 landing: str = "body"):
+                 landing: str = "body", flight_pitch: float | None = None):
         if landing not in LANDINGS:
             raise ValueError(f"unknown froggy landing {landing!r}; choose from {', '.join(LANDINGS)}")
+        if flight_pitch is not None and not (np.isfinite(flight_pitch) and flight_pitch > 0.0):
+            raise ValueError(f"flight_pitch must be a positive angle in rad, got {flight_pitch}")
+        self.flight_pitch = np.inf if flight_pitch is None else float(flight_pitch)
         self.robot = robot
         self.params = params
         self.push = push
@@ -501,7 +514,7 @@ class FroggyController:
         tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                     self._fit_at, self._plumb_land, *self._chains)
+                                     self._fit_at, self._plumb_land, self.flight_pitch, *self._chains)
         if self.compensation.active:
             return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
         return tau
@@ -623,6 +636,12 @@ class FroggyController:
             kp[:], kd[:] = p.kp_swing, p.kd_swing
             # Raibert-style placement: land the feet ahead by the forward speed.
             x_off[:] = p.raibert * s.dq[12]
+            pitch = s.q[16]
+            excess = pitch - np.clip(pitch, -self.flight_pitch, self.flight_pitch)
+            if excess != 0.0:  # the targets' frame pitched by the excess, the feet at the same depth
+                ce, se = np.cos(excess), np.sin(excess)
+                to_base = to_base @ np.array([[ce, 0.0, se], [0.0, 1.0, 0.0], [-se, 0.0, ce]])
+                z_leg = (self.feet0[:, 2] - height + (self.feet0[:, 0] + x_off) * se) / ce - self.feet0[:, 2]
         else:  # land
             kp[:], kd[:] = p.kp_land, p.kd_land
             a = smooth((s.t - self.t_land) / 0.3)  # ramp the weight support in over 0.3 s
