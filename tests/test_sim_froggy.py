@@ -210,3 +210,42 @@ def test_flight_pitch_must_be_a_positive_angle():
     for bad in (0.0, -0.5, float("nan")):
         with pytest.raises(ValueError, match="flight_pitch"):
             froggy.FroggyController("a1", froggy.FroggyParams(), flight_pitch=bad)
+
+
+def _crouched_feet():
+    """A1-like feet (4, 3) m and a base centre over the rear pair, as a froggy crouches."""
+    feet = np.array([[0.16, -0.13, 0.0], [0.16, 0.13, 0.0], [-0.2, -0.13, 0.0], [-0.2, 0.13, 0.0]])
+    return feet, np.array([0.0, 0.0, 0.19])
+
+
+def test_push_forces_keep_to_the_friction_pyramid():
+    # Least norm gives every foot the same horizontal share: the lightly loaded front feet are asked
+    # past their pyramid. Within it, the same sum and (here reachable) the same moment.
+    feet, centre = _crouched_feet()
+    force, moment = np.array([116.0, 0.0, 204.0]), np.array([0.1, -0.1, 0.0])
+    free = froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, moment)
+    assert np.max(np.abs(free[:2, 0]) / free[:2, 2]) > 1.0
+    f = froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, moment, mu=0.6)
+    np.testing.assert_allclose(f.sum(axis=0), force, atol=1e-6)
+    assert np.all(f[:, 2] >= -1e-9)
+    assert np.all(np.abs(f[:, :2]) <= 0.6 * f[:, 2:3] + 1e-6)
+    np.testing.assert_allclose(np.cross(feet - centre, f).sum(axis=0), moment, atol=1e-3)
+
+
+def test_push_forces_within_the_pyramid_are_the_least_norm_ones():
+    feet, centre = _crouched_feet()
+    force, moment = np.array([20.0, 3.0, 204.0]), np.array([0.5, -1.0, 0.2])
+    free = froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, moment)
+    assert np.array_equal(froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, moment, mu=0.6), free)
+
+
+def test_a_sum_past_the_pyramid_is_shared_at_its_own_ratio():
+    # a plan at its friction bound, to round-off: every foot at most at the sum's ratio
+    feet, centre = _crouched_feet()
+    force = np.array([0.61 * 300.0, 0.0, 300.0])
+    free = froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, np.zeros(3))
+    assert np.max(np.abs(free[:, 0]) / free[:, 2]) > 1.0  # least norm asks more of the front feet
+    f = froggy.wrench_forces(feet, centre, (0, 1, 2, 3), force, np.zeros(3), mu=0.6)
+    np.testing.assert_allclose(f.sum(axis=0), force, atol=1e-6)
+    assert np.all(f[:, 2] >= -1e-9)
+    assert np.all(np.abs(f[:, 0]) <= 0.61 * f[:, 2] * (1 + 1e-6) + 1e-6)

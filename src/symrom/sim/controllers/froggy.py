@@ -45,6 +45,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Protocol, runtime_checkable
 
+import daqp
 import numpy as np
 
 from symrom.names import GRAVITY, JOINTS, N_LEGS
@@ -66,6 +67,9 @@ LANDINGS = {"body": 0, "low_plumb": 1}
 # rad: past this pitch a planned jump's flight targets turn with the trunk (``FroggyController``);
 # chosen on the tuning targets of bench_jump.py (seed 1) from 0.7, 0.75 and 0.8
 FLIGHT_PITCH = 0.75
+# the friction pyramid each foot's force keeps to in a policy's push (``wrench_forces``): the
+# planners keep the summed force within 0.6 (``plan.config.PlanConfig.mu``), so forces within it exist
+PUSH_MU = 0.6
 
 
 @dataclass(frozen=True)
@@ -345,11 +349,19 @@ class FroggyPushPolicy(Protocol):
 
 
 def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...], force: np.ndarray,
-                  moment: np.ndarray) -> np.ndarray:
+                  moment: np.ndarray, mu: float | None = None) -> np.ndarray:
     """Ground forces (4, 3) N, world, on the feet ``legs`` (the others 0): the least-norm
     forces that sum to ``force`` (3,) N and, as closely as the feet allow, make ``moment``
     (3,) N m about ``centre`` (3,) m, the feet at foot_pos (4, 3) m. The sum is held exactly
-    (two feet cannot make every moment: on a line across the body, none about it)."""
+    (two feet cannot make every moment: on a line across the body, none about it).
+
+    With ``mu``, each foot's force also stays in its friction pyramid (|f_x|, |f_y| <= mu f_z,
+    f_z >= 0): where the least-norm forces leave it, a QP (DAQP) finds the forces within the
+    pyramids, with the sum, that come closest to the moment. Least norm gives every foot the
+    same horizontal share, so a lightly loaded foot (the front pair of a froggy crouched over
+    its rear feet) is asked 1-2.5 times its normal force and slides. A sum outside the pyramid
+    widens every foot's to the sum's ratio; a sum that does not push (f_z <= 0), or a QP DAQP
+    cannot solve, keeps the least-norm forces."""
     r = foot_pos[list(legs)] - centre
     n = len(legs)
     A = np.zeros((6, 3 * n))
@@ -363,8 +375,37 @@ def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...
     vt = np.linalg.svd(Af)[2]
     N = vt[3:].T  # (3 n, 3 n - 3)
     z = np.linalg.lstsq(Am @ N, b[3:] - Am @ f_p, rcond=None)[0]
+    f = (f_p + N @ z).reshape(n, 3)
     out = np.zeros((N_LEGS, 3))
-    out[list(legs)] = (f_p + N @ z).reshape(n, 3)
+    out[list(legs)] = f
+    if mu is None:
+        return out
+    slack = 1e-9 * (1.0 + np.abs(force).max())
+    if np.all(f[:, 2] >= -slack) and np.all(np.abs(f[:, :2]) <= mu * f[:, 2:3] + slack):
+        return out
+    if force[2] <= 0.0:
+        return out
+    # a summed force past the pyramid (a plan at its friction bound, to round-off) widens every
+    # foot's to the sum's: the feet then share it in proportion at worst
+    mu = max(mu, float(np.abs(force[:2]).max() / force[2]) * (1.0 + 1e-9))
+    # min 1/2 |Am f - moment|^2 + eps/2 |f|^2: Af f = force; per foot f_z >= 0 and the pyramid
+    eps = 1e-7 * np.trace(Am.T @ Am) / (3 * n)  # least norm only breaks the moment's ties
+    H = Am.T @ Am + eps * np.eye(3 * n)
+    g = -Am.T @ b[3:]
+    cone = np.zeros((4 * n, 3 * n))
+    for i in range(n):
+        for j, (a, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
+            cone[4 * i + j, 3 * i + a], cone[4 * i + j, 3 * i + 2] = sign, -mu
+    big = 1e30
+    lo_var = np.tile([-big, -big, 0.0], n)
+    upper = np.concatenate([np.full(3 * n, big), force, np.zeros(4 * n)])
+    lower = np.concatenate([lo_var, force, np.full(4 * n, -big)])
+    sense = np.zeros(upper.size, dtype=np.int32)
+    sense[3 * n:3 * n + 3] = 5  # the sum: equalities (the rows after the 3 n bounds)
+    x, _, flag, _ = daqp.solve(H, g, np.vstack([Af, cone]), upper, lower, sense)
+    if flag < 1 or not np.all(np.isfinite(x)):
+        return out
+    out[list(legs)] = x.reshape(n, 3)
     return out
 
 
@@ -551,15 +592,16 @@ class FroggyController:
     def push_torque(self, s: RobotState, force: np.ndarray, moment: np.ndarray) -> np.ndarray:
         """Joint torques (12,) N m of a policy's push at state ``s`` (stage ``push_all`` or
         ``push_rear``): the feet down (all four, or the rear ones) get the forces of
-        ``wrench_forces`` for ``force`` (3,) N and ``moment`` (3,) N m about the base (world), as
-        tau = -J^T R^T f; in the rear-only part the front legs tuck as in the controller's own
-        push (Cartesian PD, ``kp_swing``, ``kd_swing``). Each leg's torques are scaled together
-        into the limits."""
+        ``wrench_forces`` for ``force`` (3,) N and ``moment`` (3,) N m about the base (world),
+        each within the friction pyramid ``PUSH_MU``, as tau = -J^T R^T f; in the rear-only
+        part the front legs tuck as in the controller's own push (Cartesian PD, ``kp_swing``,
+        ``kd_swing``). Each leg's torques are scaled together into the limits."""
         p = self.params
         qj, dqj = s.q[JOINTS], s.dq[JOINTS]
         pos, J = self.kin.one(qj)
         legs = tuple(range(N_LEGS)) if self.phase == "push_all" else REAR
-        grf = wrench_forces(s.foot_pos, s.q[12:15], legs, np.asarray(force, float), np.asarray(moment, float))
+        grf = wrench_forces(s.foot_pos, s.q[12:15], legs, np.asarray(force, float), np.asarray(moment, float),
+                            mu=PUSH_MU)
         f = -(grf @ s.R)  # the force on the ground, base frame
         if self.phase == "push_rear":
             vel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))
