@@ -389,7 +389,7 @@ def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...
     # foot's to the sum's: the feet then share it in proportion at worst
     mu = max(mu, float(np.abs(force[:2]).max() / force[2]) * (1.0 + 1e-9))
     # min 1/2 |Am f - moment|^2 + eps/2 |f|^2: Af f = force; per foot f_z >= 0 and the pyramid
-    eps = 1e-7 * np.trace(Am.T @ Am) / (3 * n)  # least norm only breaks the moment's ties
+    eps = 1e-9 * np.trace(Am.T @ Am) / (3 * n)  # least norm only breaks the moment's ties
     H = Am.T @ Am + eps * np.eye(3 * n)
     g = -Am.T @ b[3:]
     cone = np.zeros((4 * n, 3 * n))
