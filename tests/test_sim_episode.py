@@ -274,3 +274,32 @@ def test_the_froggy_policy_wrench_is_the_torques_derived_force(legs):
         grf = -np.stack([np.linalg.solve(J.T, t) for J, t in zip(leg_kinematics("a1").one(s.q[JOINTS])[1],
                                                                      tau.reshape(4, 3))]) @ s.R.T
         np.testing.assert_allclose(np.cross(r, grf).sum(axis=0), M, atol=1e-6)
+
+
+def test_a_froggy_policy_push_ends_when_its_rear_feet_leave():
+    # a rear-only part planned far longer than the legs can push: the push ends once the rear
+    # feet have been off the ground for FEET_OFF, not at the planned end, and its timing says so
+    from symrom.sim.controllers.froggy import FEET_OFF
+
+    params = froggy_scaled(FroggyParams(), "a1")
+    world = BulletWorld("a1")
+    policy = FroggyScript(weight=world.mass * 9.81, rear=0.3, retime_at=1.0)
+    ctrl = FroggyController("a1", params, push=policy)
+    log = []
+    try:
+        run_episode(world, ctrl, ctrl.reset(world), max_time=params.t_settle + params.t_crouch + params.t_hold + 0.6,
+                    on_sample=lambda tick, s, applied: log.append((s.t, ctrl.phase, s.contact[2:].any())))
+    finally:
+        world.close()
+    t0, dt = policy.started[0], world.config.dt
+    t, phase, rear_down = (np.array(v) for v in zip(*log))  # logged samples, every log period
+    period = float(np.median(np.diff(t)))
+    i_flight = np.flatnonzero(phase == "flight")[0]
+    last_down = np.flatnonzero(rear_down[:i_flight])[-1]  # the rear feet's last logged contact
+    assert phase[last_down] == "push_rear" and not rear_down[last_down + 1:i_flight + 1].any()
+    # the flight began FEET_OFF after they left (between the two samples), to a tick
+    assert t[last_down] + FEET_OFF - dt <= ctrl.t_flight <= t[last_down + 1] + FEET_OFF + dt
+    assert t[i_flight] - t[last_down] <= FEET_OFF + 2 * period
+    assert ctrl.timing.rear < 0.3 - 0.05  # the push ended well before its planned 0.3 s
+    assert ctrl.timing.four + ctrl.timing.rear == pytest.approx(ctrl.t_flight - t0, abs=1e-9)
+    assert ctrl.airborne and ctrl.liftoff is not None

@@ -8,7 +8,8 @@ alone):
 1. *Crouch and hold*: the controller's own start and crouch.
 2. *Plan*: when the push is due, the policy's ``start`` hands the planner the measured
    state and gets a ``Plan`` (one solve; its wall time is the plan's solve time); the
-   push then lasts the planned stances' durations.
+   push then lasts the planned stances' durations (a froggy's ends sooner if its rear feet
+   leave the ground first: ``froggy.FEET_OFF``).
 3. *Push*: at every tick the policy commands the planned force F(t) (piecewise constant)
    and an attitude PD's moment (``AttitudeGains``: it keeps the trunk level and does not
    change the sum); the controller makes joint torques whose ground force through massless

@@ -70,6 +70,8 @@ FLIGHT_PITCH = 0.75
 # the friction pyramid each foot's force keeps to in a policy's push (``wrench_forces``): the
 # planners keep the summed force within 0.6 (``plan.config.PlanConfig.mu``), so forces within it exist
 PUSH_MU = 0.6
+# s: a policy's rear-only push ends once its rear feet have been off the ground this long
+FEET_OFF = 0.002
 
 
 @dataclass(frozen=True)
@@ -465,6 +467,7 @@ class FroggyController:
         self._t_push = p.t_settle + p.t_crouch + p.t_hold
         self._t_rear = self._t_push + p.t_push_all
         self._t_fly = self._t_rear + p.t_push_rear
+        self._rear_off: float | None = None  # s: when a policy's rear-only push saw its rear feet leave
         # the jump's events (the public read-only properties)
         self._push_start: tuple[float, np.ndarray] | None = None
         self._liftoff: tuple[np.ndarray, np.ndarray] | None = None
@@ -526,7 +529,15 @@ class FroggyController:
         if t < self._t_rear:
             return "push_all"
         if t < self._t_fly:
-            return "push_rear"
+            if self.push is None or s.contact[list(REAR)].any():
+                self._rear_off = None
+                return "push_rear"
+            # a policy's push ends when its rear feet have left the ground: pushing on, its legs
+            # swing in the air and turn the trunk (a loaded froggy's feet leave 12-16 ms early)
+            self._rear_off = t if self._rear_off is None else self._rear_off
+            if t - self._rear_off < FEET_OFF - 1e-9:
+                return "push_rear"
+            self._t_fly = t
         self.t_flight = t
         return "flight"
 
