@@ -37,7 +37,7 @@ from symrom.baselines.aslip import ASlipParams
 from symrom.model.hybrid import HybridModel
 from symrom.names import BASE_POS, BASE_RPY, FLIGHT_PHASE, JOINTS, PARTIAL_PHASE, STANCE_PHASE
 from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PlanModelError, PointMass
-from symrom.plan.execute import MOTIONS, Execution, execute
+from symrom.plan.execute import LYING, MOTIONS, TILTED, Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
 from symrom.plan.inputs import ALL_LEGS, force_input_map, holds_pitch, pitch_moment_map, torque_map
 from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError, Stance
@@ -483,8 +483,8 @@ class JumpResult:
                            "start of the push (m); error_x: landing_x - target_x; error_z: apex_z - target_z; "
                            "apex_z: largest base height between lift-off and touchdown (m); rest_x: base x at "
                            "the end of the run, from the same start (m); rest: base height (m), roll and "
-                           "pitch (rad) at the end; upright: roll and pitch within 0.3 rad of level and the "
-                           "base at least 0.6 of its standing height at the end",
+                           f"pitch (rad) at the end; upright: roll and pitch within {TILTED:g} rad of level and the "
+                           f"base at least {LYING:g} of its standing height at the end",
              "plan": plan.to_dict()}
         if ex.replans is not None:
             r = ex.replans

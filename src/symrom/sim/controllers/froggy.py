@@ -383,9 +383,8 @@ def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...
     if mu is None:
         return out
     slack = 1e-9 * (1.0 + np.abs(force).max())
-    if np.all(f[:, 2] >= -slack) and np.all(np.abs(f[:, :2]) <= mu * f[:, 2:3] + slack):
-        return out
-    if force[2] <= 0.0:
+    within = np.all(f[:, 2] >= -slack) and np.all(np.abs(f[:, :2]) <= mu * f[:, 2:3] + slack)
+    if within or force[2] <= 0.0:
         return out
     # a summed force past the pyramid (a plan at its friction bound, to round-off) widens every
     # foot's to the sum's: the feet then share it in proportion at worst
@@ -394,10 +393,8 @@ def wrench_forces(foot_pos: np.ndarray, centre: np.ndarray, legs: tuple[int, ...
     eps = 1e-9 * np.trace(Am.T @ Am) / (3 * n)  # least norm only breaks the moment's ties
     H = Am.T @ Am + eps * np.eye(3 * n)
     g = -Am.T @ b[3:]
-    cone = np.zeros((4 * n, 3 * n))
-    for i in range(n):
-        for j, (a, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
-            cone[4 * i + j, 3 * i + a], cone[4 * i + j, 3 * i + 2] = sign, -mu
+    faces = np.array([[1.0, 0.0, -mu], [-1.0, 0.0, -mu], [0.0, 1.0, -mu], [0.0, -1.0, -mu]])
+    cone = np.kron(np.eye(n), faces)  # each foot's four faces, <= 0 (the MPC's, ``mpc._daqp_parts``)
     big = 1e30
     lo_var = np.tile([-big, -big, 0.0], n)
     upper = np.concatenate([np.full(3 * n, big), force, np.zeros(4 * n)])
