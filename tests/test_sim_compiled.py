@@ -92,10 +92,11 @@ def test_force_distribution_matches_the_pseudo_inverse(legs):
 
 @pytest.mark.slow
 # a flight_pitch below the flight's pitch, so that the turned targets are compared too
-@pytest.mark.parametrize("landing, flight_pitch", [("body", None), ("low_plumb", 0.1)])
-def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing, flight_pitch):
+# (and the flight's targets tracked, so that their velocities are compared too)
+@pytest.mark.parametrize("landing, flight_pitch, track", [("body", None, False), ("low_plumb", 0.1, True)])
+def test_compiled_froggy_torque_matches_numpy_through_a_jump(landing, flight_pitch, track):
     params = sample_params(np.random.default_rng(3))
-    ctrl = FroggyController("a1", params, landing=landing, flight_pitch=flight_pitch)
+    ctrl = FroggyController("a1", params, landing=landing, flight_pitch=flight_pitch, flight_track=track)
     world = World("a1")
     stages, turned = set(), False
     try:

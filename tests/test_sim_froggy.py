@@ -199,11 +199,63 @@ def test_flight_targets_past_flight_pitch_keep_the_feet_depth(pitch):
         feet = ctrl.feet0
         return froggy_torque(FLIGHT, 2.0, ctrl._prm, 1.0, 0.0, 12.0, q, dq, R, np.zeros(3),
                              np.zeros(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), ctrl.limit, 0,
-                             limit_pitch, *ctrl._chains)
+                             limit_pitch, 0, *ctrl._chains)
 
     assert np.max(np.abs(tau(cap)[low])) < 1e-2
     if e != 0.0:
         assert np.max(np.abs(tau(np.inf)[low])) > 1.0
+
+
+def _flight_targets(ctrl, pitch: float) -> np.ndarray:
+    """The flight's leg targets (4, 3) in the base frame at ``pitch`` rad (roll, yaw and forward
+    speed zero), written out from their definition: level below flight_pitch; past it in the frame
+    pitched by the excess, each foot ``stand_height`` below the base."""
+    from symrom.robots.kinematics import rpy_to_matrix
+
+    cap, stand, x = ctrl.flight_pitch, ctrl.params.stand_height, ctrl.feet0[:, 0]
+    e = pitch - np.clip(pitch, -cap, cap)
+    d = (x * np.sin(e) - stand) / np.cos(e)
+    R, P = (rpy_to_matrix(np.array([[0.0, a, 0.0]]))[0] for a in (pitch, e))
+    return (R.T @ P @ np.stack([x, ctrl.feet0[:, 1], d], axis=1).T).T
+
+
+@pytest.mark.parametrize("pitch", [0.3, 0.95, -0.9])
+def test_flight_track_follows_targets_the_trunk_turns_under(pitch):
+    # The trunk turns nose down at 2.5 rad/s; each foot sits at its flight target and moves, in
+    # the base frame, as that target does (the derivative of its definition, by central
+    # differences). Tracking, the PD pulls nowhere; damping the feet to rest, it pulls them back.
+    from symrom.names import JOINTS
+    from symrom.robots import leg_kinematics
+    from symrom.robots.kinematics import rpy_to_matrix
+    from symrom.robots.stance import leg_ik
+    from symrom.sim.controllers.compiled import FLIGHT, froggy_torque
+
+    rate, h = 2.5, 1e-6
+    ctrl = froggy.FroggyController("a1", froggy.FroggyParams(), flight_pitch=0.75, flight_track=True)
+    target = _flight_targets(ctrl, pitch)
+    v_target = (_flight_targets(ctrl, pitch + h) - _flight_targets(ctrl, pitch - h)) / (2 * h) * rate
+    q, dq = np.zeros(18), np.zeros(18)
+    q[JOINTS] = leg_ik("a1", target)
+    pos, J = leg_kinematics("a1").one(q[JOINTS])
+    low = slice(0, 2) if pitch > 0 else slice(2, 4)  # the lower pair: the other's targets are out of reach
+    np.testing.assert_allclose(pos[low], target[low], atol=1e-6)
+    for k in range(4):
+        dq[3 * k:3 * k + 3] = np.linalg.solve(J[k], v_target[k])
+    q[14], q[16] = 0.4, pitch
+    R = rpy_to_matrix(np.array([[0.0, pitch, 0.0]]))[0]
+    omega = np.array([0.0, rate, 0.0])
+
+    def tau(track, contact=np.zeros(4, dtype=np.uint8)):
+        feet = ctrl.feet0
+        return froggy_torque(FLIGHT, 2.0, ctrl._prm, 1.0, 0.0, 12.0, q, dq, R, omega, contact, feet, feet, feet,
+                             np.zeros(3), ctrl.limit, 0, ctrl.flight_pitch, track, *ctrl._chains)
+
+    joints = slice(3 * low.start, 3 * low.stop)
+    assert np.max(np.abs(tau(1)[joints])) < 1e-2
+    assert np.max(np.abs(tau(0)[joints])) > 0.1
+    # with a foot still down the flight does not track: the same torques as without
+    down = np.array([0, 0, 1, 0], dtype=np.uint8)
+    np.testing.assert_array_equal(tau(1, down), tau(0, down))
 
 
 def test_flight_pitch_must_be_a_positive_angle():

@@ -23,7 +23,9 @@ alone):
    pivots over its front feet after touchdown, and a long planned jump went over onto its
    nose), and its flight's leg targets turn with the trunk past ``FLIGHT_PITCH`` (a trunk
    pitched further put the front feet's level targets out of the legs' reach: the knees folded,
-   and the jump touched down late and long); the pronk first holds the legs without ground
+   and the jump touched down late and long) and are tracked as the trunk turns under them
+   (``flight_track``: damped to rest in the trunk's frame, the feet lagged 1-2 cm behind and
+   deeper, and a loaded jump touched down early and short); the pronk first holds the legs without ground
    force for ``pronk.release_time`` (20 ms for the Go1), as its own push ends, so that the feet
    leave the ground before its flight's joint PD swings the legs to the landing posture, as in
    its data.
@@ -220,7 +222,7 @@ def execute(robot: str, plan_fn: Callable[[RobotState], Plan], engine: str = "py
     push = PlannedPush(robot, yaw, plan_fn, attitude, motion, feedback)
     ctrl = (PronkController(robot, params, push=push) if motion == "pronk"
             else FroggyController(robot, params, push=push, landing="low_plumb",
-                                   flight_pitch=FLIGHT_PITCH))
+                                   flight_pitch=FLIGHT_PITCH, flight_track=True))
     world = make_world(engine, robot, config)
     if not disturbances.none:
         world = DisturbedWorld(world, disturbances)

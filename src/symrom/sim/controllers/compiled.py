@@ -169,7 +169,7 @@ def smooth(s):
 
 @njit
 def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact, foot_pos, feet0,
-                  feet_w, b0, limit, plumb_land, flight_pitch, n_el, xyz, rot, axis, col):
+                  feet_w, b0, limit, plumb_land, flight_pitch, flight_track, n_el, xyz, rot, axis, col):
     """Joint torques (12,) N m of the froggy controller (``FroggyController.torque``) in
     ``stage`` at time t s; prm: the parameters in ``FROGGY_PARAMS`` order; t_push: start of
     the push, s; t_land: touch-down time, s; mass kg; the state q, dq (18,), R (3, 3),
@@ -179,7 +179,9 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     pitched nose down, else the rear) at level-frame (plumb) targets in the landing, 0 to keep
     every landing target body-fixed; flight_pitch rad: past this pitch the flight's leg targets
     turn with the trunk by the excess, each foot kept at its level target's height below the base
-    (inf: level at any pitch); the leg chains as
+    (inf: level at any pitch); flight_track: 1 to give the flight's PD its targets' own velocity in
+    the base frame (the trunk turns under them) while no foot is down, 0 to damp the feet to rest
+    in it; the leg chains as
     ``symrom.robots.compiled.legs_one`` takes them."""
     pos, J = np.empty((4, 3)), np.empty((4, 3, 3))
     legs_one(q[:12], n_el, xyz, rot, axis, col, pos, J)
@@ -230,6 +232,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     for k in range(4):
         all_legs[k] = k
     p_stroke = np.zeros((4, 3))
+    excess = 0.0  # rad: the flight's pitch past flight_pitch
     if stage <= HOLD:
         if stage != SETTLE:
             a = smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
@@ -274,7 +277,6 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     elif stage == FLIGHT:
         for k in range(4):
             kp[k], kd[k], x_off[k] = prm[_KP_SW], prm[_KD_SW], prm[_RAIBERT] * dq[12]
-        excess = 0.0
         if q[16] > flight_pitch:
             excess = q[16] - flight_pitch
         elif q[16] < -flight_pitch:
@@ -318,6 +320,30 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         for k in range(2 if stage == PUSH_REAR else 0, 4):
             for a in range(3):
                 p_d[k, a] = p_stroke[k, a]
+    if stage == FLIGHT and flight_track != 0 and contact[0] == 0 and contact[1] == 0 and contact[2] == 0 \
+            and contact[3] == 0:
+        # the targets' frame turns with the yaw (and with the pitch past flight_pitch); the trunk
+        # turns at omega: in the base frame a target moves at (w_targets - omega) x p_d
+        # omega in the yaw frame: (c w_x + s w_y, -s w_x + c w_y, w_z); its roll and pitch parts
+        # back in the world, then in the base frame (R^T)
+        wx = -(cyaw * omega[0] + syaw * omega[1])
+        wy = 0.0 if excess != 0.0 else -(-syaw * omega[0] + cyaw * omega[1])
+        rw = np.zeros(3)
+        rw[0], rw[1] = cyaw * wx - syaw * wy, syaw * wx + cyaw * wy
+        rel = np.empty(3)
+        for a in range(3):
+            rel[a] = R[0, a] * rw[0] + R[1, a] * rw[1]
+        for k in range(4):
+            v_d[k, 0] = rel[1] * p_d[k, 2] - rel[2] * p_d[k, 1]
+            v_d[k, 1] = rel[2] * p_d[k, 0] - rel[0] * p_d[k, 2]
+            v_d[k, 2] = rel[0] * p_d[k, 1] - rel[1] * p_d[k, 0]
+        if excess != 0.0:  # past flight_pitch each target also reaches down as the excess grows
+            ce, se = np.cos(excess), np.sin(excess)
+            rate = -syaw * omega[0] + cyaw * omega[1]
+            for k in range(4):
+                dz = rate * (feet0[k, 0] + x_off[k] + (feet0[k, 2] - prm[_STAND]) * se) / (ce * ce)
+                for a in range(3):
+                    v_d[k, a] += to_base[a, 2] * dz
     tau = np.empty(12)
     for k in range(4):
         f = np.empty(3)
@@ -367,5 +393,5 @@ def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
         q, dq = np.zeros(18), np.zeros(18)
         q[14] = 0.3
         froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),
-                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), 0, np.inf,
+                      np.ones(4, dtype=np.uint8), feet, feet, feet, np.zeros(3), np.ones(12), 0, np.inf, 0,
                       *kin.chain_arrays())

@@ -431,15 +431,24 @@ class FroggyController:
     feet's level targets up by the hips' plane, where the Cartesian PD folds the knees onto their
     stops: the feet come up and the jump touches down late, low and long. The planned jumps fly
     with ``FLIGHT_PITCH``; the generator's jumps without a limit (their data stay as they were).
+
+    ``flight_track``: the flight's PD drives each foot at its target's own velocity in the base
+    frame, which the trunk's turning gives it, instead of damping the feet to rest there, while no
+    foot is down (a foot on the ground is not free to follow). A froggy
+    flies turning nose down at 2-3 rad/s, and a PD that damps the feet to rest in the trunk's frame
+    leaves them kd/kp times that speed (1-2 cm) behind their level targets, deeper the faster the
+    trunk turns: the jump touches down higher and earlier than planned. The planned jumps track;
+    the generator's jumps do not (their data stay as they were).
     """
 
     def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None,
-                 landing: str = "body", flight_pitch: float | None = None):
+                 landing: str = "body", flight_pitch: float | None = None, flight_track: bool = False):
         if landing not in LANDINGS:
             raise ValueError(f"unknown froggy landing {landing!r}; choose from {', '.join(LANDINGS)}")
         if flight_pitch is not None and not (np.isfinite(flight_pitch) and flight_pitch > 0.0):
             raise ValueError(f"flight_pitch must be a positive angle in rad, got {flight_pitch}")
         self.flight_pitch = np.inf if flight_pitch is None else float(flight_pitch)
+        self.flight_track = bool(flight_track)
         self.robot = robot
         self.params = params
         self.push = push
@@ -563,7 +572,8 @@ class FroggyController:
         tau = compiled.froggy_torque(stage, float(s.t), self._prm, self._t_push,
                                      float(self.t_land if self.t_land is not None else 0.0), float(self.mass),
                                      s.q, s.dq, s.R, s.omega, s.contact, s.foot_pos, self.feet0, feet_w, b0,
-                                     self._fit_at, self._plumb_land, self.flight_pitch, *self._chains)
+                                     self._fit_at, self._plumb_land, self.flight_pitch, int(self.flight_track),
+                                     *self._chains)
         if self.compensation.active:
             return self.compensation.scaled_legs(tau, s.dq[JOINTS], self.limit, self._planned_acceleration(s))
         return tau
@@ -706,6 +716,16 @@ class FroggyController:
         if self.phase in ("push_all", "push_rear"):
             stroke_legs = list(all_legs) if self.phase == "push_all" else list(REAR)
             p_d[stroke_legs] = p_stroke[stroke_legs]
+        if self.phase == "flight" and self.flight_track and not s.contact.any():
+            # the targets' frame turns with the yaw (and the pitch past flight_pitch), the trunk at omega
+            yaw = yaw_matrix(s.q[17])
+            w_yaw = yaw.T @ s.omega
+            rel = np.array([-w_yaw[0], 0.0 if excess != 0.0 else -w_yaw[1], 0.0])
+            v_d = np.cross(s.R.T @ (yaw @ rel), p_d)
+            if excess != 0.0:  # past flight_pitch each target also reaches down as the excess grows
+                ce, se = np.cos(excess), np.sin(excess)
+                dz = w_yaw[1] * (self.feet0[:, 0] + x_off + (self.feet0[:, 2] - height) * se) / ce ** 2
+                v_d = v_d + dz[:, None] * to_base[:, 2]
         f_ff = -(grf @ s.R)  # force on the ground, in the base frame: -R^T grf
         # Softer horizontally in stance: lightly loaded feet would slip under stiff
         # horizontal springs, and horizontal forces below the CoM pitch the body.
