@@ -322,10 +322,9 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
                 p_d[k, a] = p_stroke[k, a]
     if stage == FLIGHT and flight_track != 0 and contact[0] == 0 and contact[1] == 0 and contact[2] == 0 \
             and contact[3] == 0:
-        # the targets' frame turns with the yaw (and with the pitch past flight_pitch); the trunk
-        # turns at omega: in the base frame a target moves at (w_targets - omega) x p_d
-        # omega in the yaw frame: (c w_x + s w_y, -s w_x + c w_y, w_z); its roll and pitch parts
-        # back in the world, then in the base frame (R^T)
+        # in the base frame a target moves at (w_T - omega) x p_d, w_T its frame's turning: the yaw
+        # (taken as omega's z), and the pitch past flight_pitch; so -omega's roll part, and its pitch
+        # part below the limit, from the yaw frame back to the world, then to the base frame (R^T)
         wx = -(cyaw * omega[0] + syaw * omega[1])
         wy = 0.0 if excess != 0.0 else -(-syaw * omega[0] + cyaw * omega[1])
         rw = np.zeros(3)

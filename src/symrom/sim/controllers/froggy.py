@@ -432,13 +432,13 @@ class FroggyController:
     stops: the feet come up and the jump touches down late, low and long. The planned jumps fly
     with ``FLIGHT_PITCH``; the generator's jumps without a limit (their data stay as they were).
 
-    ``flight_track``: the flight's PD drives each foot at its target's own velocity in the base
-    frame, which the trunk's turning gives it, instead of damping the feet to rest there, while no
-    foot is down (a foot on the ground is not free to follow). A froggy
-    flies turning nose down at 2-3 rad/s, and a PD that damps the feet to rest in the trunk's frame
-    leaves them kd/kp times that speed (1-2 cm) behind their level targets, deeper the faster the
-    trunk turns: the jump touches down higher and earlier than planned. The planned jumps track;
-    the generator's jumps do not (their data stay as they were).
+    ``flight_track``: while no foot is down (a foot on the ground is not free to follow), the
+    flight's PD drives each foot at its target's own velocity in the base frame, which the trunk's
+    turning gives it, instead of damping the feet to rest there. A froggy flies turning nose down at
+    2-3 rad/s, and a PD that damps the feet to rest in the trunk's frame leaves them kd/kp times
+    that speed (1-2 cm) behind their level targets, deeper the faster the trunk turns: the jump
+    touches down higher and earlier than planned. The planned jumps track; the generator's jumps
+    do not (their data stay as they were).
     """
 
     def __init__(self, robot: str, params: FroggyParams, push: FroggyPushPolicy | None = None,
