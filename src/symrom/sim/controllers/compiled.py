@@ -232,7 +232,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     for k in range(4):
         all_legs[k] = k
     p_stroke = np.zeros((4, 3))
-    excess = 0.0  # rad: the flight's pitch past flight_pitch
+    excess, ce, se = 0.0, 1.0, 0.0  # rad: the flight's pitch past flight_pitch, its cosine and sine
     if stage <= HOLD:
         if stage != SETTLE:
             a = smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
@@ -325,8 +325,9 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         # in the base frame a target moves at (w_T - omega) x p_d, w_T its frame's turning: the yaw
         # (taken as omega's z), and the pitch past flight_pitch; so -omega's roll part, and its pitch
         # part below the limit, from the yaw frame back to the world, then to the base frame (R^T)
+        w_pitch = -syaw * omega[0] + cyaw * omega[1]  # omega's roll and pitch parts in the yaw frame
         wx = -(cyaw * omega[0] + syaw * omega[1])
-        wy = 0.0 if excess != 0.0 else -(-syaw * omega[0] + cyaw * omega[1])
+        wy = 0.0 if excess != 0.0 else -w_pitch
         rw = np.zeros(3)
         rw[0], rw[1] = cyaw * wx - syaw * wy, syaw * wx + cyaw * wy
         rel = np.empty(3)
@@ -337,10 +338,8 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
             v_d[k, 1] = rel[2] * p_d[k, 0] - rel[0] * p_d[k, 2]
             v_d[k, 2] = rel[0] * p_d[k, 1] - rel[1] * p_d[k, 0]
         if excess != 0.0:  # past flight_pitch each target also reaches down as the excess grows
-            ce, se = np.cos(excess), np.sin(excess)
-            rate = -syaw * omega[0] + cyaw * omega[1]
             for k in range(4):
-                dz = rate * (feet0[k, 0] + x_off[k] + (feet0[k, 2] - prm[_STAND]) * se) / (ce * ce)
+                dz = w_pitch * (feet0[k, 0] + x_off[k] + (feet0[k, 2] - prm[_STAND]) * se) / (ce * ce)
                 for a in range(3):
                     v_d[k, a] += to_base[a, 2] * dz
     tau = np.empty(12)

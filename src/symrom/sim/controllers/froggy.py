@@ -723,7 +723,6 @@ class FroggyController:
             rel = np.array([-w_yaw[0], 0.0 if excess != 0.0 else -w_yaw[1], 0.0])
             v_d = np.cross(s.R.T @ (yaw @ rel), p_d)
             if excess != 0.0:  # past flight_pitch each target also reaches down as the excess grows
-                ce, se = np.cos(excess), np.sin(excess)
                 dz = w_yaw[1] * (self.feet0[:, 0] + x_off + (self.feet0[:, 2] - height) * se) / ce ** 2
                 v_d = v_d + dz[:, None] * to_base[:, 2]
         f_ff = -(grf @ s.R)  # force on the ground, in the base frame: -R^T grf
