@@ -65,3 +65,32 @@ def test_auto_compiles_when_the_work_pays(model_and_data, monkeypatch):
     monkeypatch.setattr(importlib.import_module("symrom.rollout.integrate"), "GENERATED_PAYS_STEPS", 10)
     np.testing.assert_array_equal(_q(model, ds, "auto"), _q(model, ds, "generated"))
     assert GENERATED_PAYS_STEPS > 1e6
+
+
+def test_without_a_term_table_auto_compiles_once_its_numpy_work_reaches_the_compile(planted_block, monkeypatch):
+    """A custom block has no term table, so ``auto``'s alternative is NumPy: its steps are
+    counted per model in the process, and the generated code is compiled once they would
+    reach ``GENERATED_PAYS_NUMPY_STEPS``, not before."""
+    import importlib
+
+    from symrom.compiled.kernel import term_table
+    from symrom.learn.estimator import SymbolicROM
+    from symrom.model.library import Custom, Inputs, Polynomial
+
+    integrate = importlib.import_module("symrom.rollout.integrate")
+    ds, _ = planted_block
+    monkeypatch.setenv(compiled.CACHE_ENV, "off")
+    rom = SymbolicROM(2, Polynomial(1) + Inputs() + Custom(("exp(-xi2**2)",), ("bump",)))
+    model = rom.fit(ds).model
+    assert term_table(model.library.terms) is None
+    codegen._CACHE.clear()
+    monkeypatch.setattr(integrate, "_NUMPY_STEPS", {})
+    steps = (max(b - a for a, b in ds.jump_bounds()[ds.jumps_in("test")]) - 1) * RolloutOptions().substeps
+    monkeypatch.setattr(integrate, "GENERATED_PAYS_NUMPY_STEPS", steps + steps // 2)
+    numpy = _q(model, ds, "numpy")
+    np.testing.assert_array_equal(_q(model, ds, "auto"), numpy)  # the first: below the price, NumPy
+    assert not compiled.has_build(model.dynamics()) and integrate._NUMPY_STEPS == {model.dynamics().key: steps}
+    second = _q(model, ds, "auto")  # with the first's steps it reaches the price: compiled by auto
+    assert compiled.has_build(model.dynamics())
+    np.testing.assert_array_equal(second, _q(model, ds, "generated"))
+    np.testing.assert_allclose(second, numpy, rtol=0, atol=1e-9 * np.abs(numpy).max())

@@ -283,7 +283,8 @@ class HybridModel:
 
         return RolloutSystem(x, v, {"nu": nu, "phase": ph}, scale, acceleration,
                              lambda i, X: ae.decode(X), compiled.table_integrator(lib.terms, Xi), generated,
-                             lambda: compiled.has_build(dyn), padded, lambda X, lens: decode_jumps(ae, X, lens))
+                             lambda: compiled.has_build(dyn), padded, lambda X, lens: decode_jumps(ae, X, lens),
+                             dyn.key)
 
     # ------------------------------------------------------------ free prediction
     def inputs_from_torques(self, q: np.ndarray, tau: np.ndarray, contact: np.ndarray,

@@ -39,8 +39,10 @@ from symrom.rollout.system import Rollable, RolloutSystem
 METHODS = ("lsoda", "rk4")
 # auto: rk4 by the model's generated code when a build of it is at hand (compiled in this
 # process or in the disk cache, ``symrom.compiled.has_build``) or when the rollout's
-# work pays for compiling it (``GENERATED_PAYS_STEPS``), else by the compiled term-table
-# kernel (no compilation per model); lsoda with the NumPy right-hand side; generated: the
+# work pays for compiling it (``GENERATED_PAYS_STEPS``; for a model whose terms have no
+# table, once its NumPy work in this process would reach ``GENERATED_PAYS_NUMPY_STEPS``),
+# else by the compiled term-table kernel (no compilation per model); lsoda with the NumPy
+# right-hand side; generated: the
 # model's own compiled code for both (compiled once per model, then the fastest); table: the
 # term-table kernel; numpy: the reference.
 BACKENDS = ("auto", "table", "generated", "numpy")
@@ -48,6 +50,13 @@ BACKENDS = ("auto", "table", "generated", "numpy")
 # over what it saves per step against the term table (both measured in docs/benchmarks.md,
 # "Rollouts").
 GENERATED_PAYS_STEPS = 4_000_000
+# Without a term table (a custom block) ``auto``'s alternative is NumPy, a thousand times slower
+# per step: the generated code is compiled once the model's NumPy RK4 steps in this process (of
+# a batch of jumps, counted once), this call's included, reach its compile time's worth (rent
+# until the rent reaches the price: never more than twice the better choice's time); both
+# measured in docs/benchmarks.md, "Rollouts".
+GENERATED_PAYS_NUMPY_STEPS = 1_500
+_NUMPY_STEPS: dict[str, int] = {}  # per model (``RolloutSystem.key``): NumPy RK4 steps run in this process
 # scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
 # solver compiled (needs the model's generated code).
 LSODA_SOLVERS = ("scipy", "numbalsoda")
@@ -279,15 +288,20 @@ def _integrate_fixed_step(sysm: RolloutSystem, options: RolloutOptions, dt: floa
     limit = options.bound * sysm.scale  # (J, 2d)
     if options.backend == "table" and sysm.compiled is None:
         raise ValueError("this model has no compiled integrator; use backend 'numpy'")
+    batch_steps = max(int(lens.max()) - 1, 0) * options.substeps  # NumPy's work: per step of the batch
     if options.backend == "auto" and sysm.generated is not None and generated is None:
         steps = int((lens - 1).clip(min=0).sum()) * options.substeps
-        if (sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS:
+        rented = _NUMPY_STEPS.get(sysm.key, 0) if sysm.key is not None else 0
+        if ((sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS
+                or (sysm.compiled is None and rented + batch_steps >= GENERATED_PAYS_NUMPY_STEPS)):
             generated = sysm.generated()
     fast = generated.integrator if generated is not None else sysm.compiled if options.backend != "numpy" else None
     if fast is None:
         Xs, Vs, div_at = integrate_rk4(lambda k, xs, vs: sysm.acceleration(
             {n: a[:, k] for n, a in drive.items()}, xs, vs), x_pad, v_pad, lens, resets, limit, dt,
             options.substeps)
+        if options.backend == "auto" and sysm.key is not None:
+            _NUMPY_STEPS[sysm.key] = _NUMPY_STEPS.get(sysm.key, 0) + batch_steps
         return Xs, Vs, div_at, None
     X, V, div_at = fast(x_pad, v_pad, drive, lens, resets, limit, dt, options.substeps)
     return [X[j, :n] for j, n in enumerate(lens)], [V[j, :n] for j, n in enumerate(lens)], div_at, X

@@ -77,7 +77,8 @@ class RolloutSystem:
     padded: optionally, the same stacked (``Padded``), which spares the fixed-step
     integrators the copy and the model the encoding of states they do not read; observe_padded:
     optionally, ``observe`` on all jumps at once, observe_padded(X (J, n_max, d), lens (J,))
-    -> per jump (lens[j], C).
+    -> per jump (lens[j], C); key: optionally, the identity of the system's dynamics, the same
+    for every system of one model (``auto`` counts the NumPy work done on it in a process).
     """
 
     x: Sequence[np.ndarray]
@@ -91,6 +92,7 @@ class RolloutSystem:
     has_build: Callable[[], bool] | None = None
     padded: Padded | None = None
     observe_padded: Callable[[np.ndarray, np.ndarray], list[np.ndarray]] | None = None
+    key: str | None = None
 
     @property
     def n_jumps(self) -> int:
