@@ -25,16 +25,56 @@ DIFF_METHODS = ("savgol", "central")
 DIFF_WINDOW = 0.018  # s: the Savitzky-Golay window, 9 samples at 500 Hz (importers.diff_samples)
 
 
+def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> np.ndarray:
+    """Savitzky-Golay first derivative of ``x`` (n, d) along its rows, sampled every ``dt`` s:
+    SciPy's ``savgol_filter(x, window, polyorder, deriv=1, delta=dt, axis=0, mode="interp")``
+    to the last bit (``tests/test_preprocess.py``), without importing ``scipy.signal`` (a second
+    of every process that builds a dataset). ``window`` odd, ``polyorder < window <= n``.
+
+    Inside, the derivative at each sample of the least-squares polynomial through the
+    ``window`` samples centred on it (one correlation, SciPy's coefficients, its LAPACK solve);
+    within ``window // 2`` samples of either end, the derivative of the polynomial fitted to
+    the first or last ``window`` samples (scaled columns, as SciPy's polyfit)."""
+    from scipy.linalg import lstsq
+    from scipy.ndimage import convolve1d
+
+    x = np.asarray(x, dtype=float)
+    n, half = x.shape[0], window // 2
+    eps = np.finfo(float).eps
+    # the coefficients: powers of the window's offsets (reversed, for a convolution), rows by power
+    offsets = np.arange(-half, window - half, dtype=float)[::-1]
+    powers = offsets ** np.arange(polyorder + 1, dtype=float).reshape(-1, 1)
+    unit = np.zeros(polyorder + 1)
+    unit[1] = 1.0 / dt
+    coeffs = lstsq(powers, unit, cond=eps * max(powers.shape))[0]
+    out = convolve1d(x, coeffs, axis=0, mode="constant")
+    # the ends: one polynomial per column through the first / last window, its derivative there
+    t = np.arange(window, dtype=float)
+    vander = t[:, None] ** np.arange(polyorder, -1, -1, dtype=float)[None, :]
+    scale = np.sqrt(np.sum(vander * vander, axis=0))
+    vander = vander / scale
+    slope = np.arange(polyorder, 0, -1, dtype=float).reshape(-1, 1)  # d/dt of each power, highest first
+    for start, rows in ((0, slice(0, half)), (n - window, slice(n - half, n))):
+        edge = x[start:start + window].reshape(window, -1)
+        c = (lstsq(vander, edge, cond=window * eps)[0].T / scale).T
+        c = c[:-1] * slope
+        at = np.arange(rows.start - start, rows.stop - start, dtype=float).reshape(-1, 1)
+        value = np.zeros_like(at)
+        for row in c:  # Horner, highest power first
+            value = value * at + row
+        out[rows] = (value / dt).reshape((rows.stop - rows.start, *x.shape[1:]))
+    return out
+
+
 def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "savgol",
                   window: int = 9, polyorder: int = 3) -> np.ndarray:
     """Time derivative of ``x`` (N, d) sampled every ``dt`` s, jump by jump.
 
-    ``savgol``: SciPy's Savitzky-Golay derivative (``window`` samples, ``polyorder``),
-    smooth and robust to sensor noise; ``central``: NumPy's second-order central
-    differences (one-sided at the ends), no smoothing.
+    ``savgol``: the Savitzky-Golay derivative (``window`` samples, ``polyorder``;
+    ``savgol_derivative``, SciPy's to the last bit), smooth and robust to sensor noise;
+    ``central``: NumPy's second-order central differences (one-sided at the ends), no
+    smoothing.
     """
-    from scipy.signal import savgol_filter  # here: scipy.signal takes a second to import
-
     if method not in DIFF_METHODS:
         raise ValueError(f"unknown differentiation method {method!r}; choose from {DIFF_METHODS}")
     x = np.asarray(x, dtype=float)
@@ -45,8 +85,7 @@ def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "sav
         if method == "savgol" and n > polyorder + 1:
             w = min(window, n if n % 2 else n - 1)
             w = max(w, polyorder + 2 if (polyorder + 2) % 2 else polyorder + 3)
-            out[a:b] = savgol_filter(seg, w, polyorder, deriv=1, delta=dt, axis=0, mode="interp") \
-                if w <= n else np.gradient(seg, dt, axis=0)
+            out[a:b] = savgol_derivative(seg, w, polyorder, dt) if w <= n else np.gradient(seg, dt, axis=0)
         elif n > 1:
             out[a:b] = np.gradient(seg, dt, axis=0)
         else:
