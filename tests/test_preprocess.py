@@ -181,7 +181,7 @@ def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_sig
 
     rng = np.random.default_rng(7)
     for n, window, order, tail, dt in ((9, 9, 3, (18,), 0.002), (40, 5, 1, (), 0.01), (200, 9, 3, (4, 3), 0.002),
-                                        (31, 13, 4, (2,), 1 / 300), (12, 11, 2, (5,), 0.001)):
+                                        (31, 13, 4, (2,), 1 / 300), (12, 11, 2, (5,), 0.001), (20, 8, 3, (3,), 0.002)):
         x = rng.normal(size=(n, *tail)) * 10.0 ** rng.uniform(-3, 3)
         np.testing.assert_array_equal(savgol_derivative(x, window, order, dt),
                                       savgol_filter(x, window, order, deriv=1, delta=dt, axis=0, mode="interp"))

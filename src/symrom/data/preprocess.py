@@ -29,7 +29,7 @@ def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> 
     """Savitzky-Golay first derivative of ``x`` (n, d) along its rows, sampled every ``dt`` s:
     SciPy's ``savgol_filter(x, window, polyorder, deriv=1, delta=dt, axis=0, mode="interp")``
     to the last bit (``tests/test_preprocess.py``), without importing ``scipy.signal`` (a second
-    of every process that builds a dataset). ``window`` odd, ``polyorder < window <= n``.
+    of every process that builds a dataset). ``polyorder < window <= n``.
 
     Inside, the derivative at each sample of the least-squares polynomial through the
     ``window`` samples centred on it (one correlation, SciPy's coefficients, its LAPACK solve);
@@ -42,7 +42,8 @@ def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> 
     n, half = x.shape[0], window // 2
     eps = np.finfo(float).eps
     # the coefficients: powers of the window's offsets (reversed, for a convolution), rows by power
-    offsets = np.arange(-half, window - half, dtype=float)[::-1]
+    centre = half if window % 2 else half - 0.5  # an even window's centre falls between two samples
+    offsets = np.arange(-centre, window - centre, dtype=float)[::-1]
     powers = offsets ** np.arange(polyorder + 1, dtype=float).reshape(-1, 1)
     unit = np.zeros(polyorder + 1)
     unit[1] = 1.0 / dt

@@ -38,23 +38,22 @@ from symrom.rollout.system import Rollable, RolloutSystem
 
 METHODS = ("lsoda", "rk4")
 # auto: rk4 by the model's generated code when a build of it is at hand (compiled in this
-# process or in the disk cache, ``symrom.compiled.has_build``) or when the rollout's
-# work pays for compiling it (``GENERATED_PAYS_STEPS``; for a model whose terms have no
-# table, once its NumPy work in this process would reach ``GENERATED_PAYS_NUMPY_STEPS``),
-# else by the compiled term-table kernel (no compilation per model); lsoda with the NumPy
-# right-hand side; generated: the
-# model's own compiled code for both (compiled once per model, then the fastest); table: the
-# term-table kernel; numpy: the reference.
+# process or in the disk cache, ``symrom.compiled.has_build``) or when the rollout's work pays
+# for compiling it (``GENERATED_PAYS_STEPS``, or ``GENERATED_PAYS_NUMPY_STEPS`` for a model
+# whose terms have no table), else by the compiled term-table kernel (no compilation per
+# model); lsoda with the NumPy right-hand side; generated: the model's own compiled code for
+# both (compiled once per model, then the fastest); table: the term-table kernel; numpy: the
+# reference.
 BACKENDS = ("auto", "table", "generated", "numpy")
 # RK4 steps from which compiling the generated code pays under ``auto``: its compile time
 # over what it saves per step against the term table (both measured in docs/benchmarks.md,
 # "Rollouts").
 GENERATED_PAYS_STEPS = 4_000_000
-# Without a term table (a custom block) ``auto``'s alternative is NumPy, a thousand times slower
-# per step: the generated code is compiled once the model's NumPy RK4 steps in this process (of
-# a batch of jumps, counted once), this call's included, reach its compile time's worth (rent
-# until the rent reaches the price: never more than twice the better choice's time); both
-# measured in docs/benchmarks.md, "Rollouts".
+# Without a term table (a custom block) ``auto``'s alternative is NumPy, hundreds of times slower
+# per step: the generated code is compiled once the model's NumPy RK4 steps in this process (a
+# batch of jumps counts each step once), this call's included, reach the compile's worth in
+# time, so that it never takes much more than twice the better choice's time; both measured in
+# docs/benchmarks.md, "Rollouts".
 GENERATED_PAYS_NUMPY_STEPS = 1_500
 _NUMPY_STEPS: dict[str, int] = {}  # per model (``RolloutSystem.key``): NumPy RK4 steps run in this process
 # scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
