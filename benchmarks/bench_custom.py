@@ -33,6 +33,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from provenance import provenance
+
 ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = r"""
@@ -93,8 +95,8 @@ def main() -> None:
         print(f"| {n} | {m['fit_s']:.2f} s | {1e3 * m['numpy_step_s']:.2f} ms | {m['compile_s']:.2f} s "
               f"| {m['rollout_auto_first_s']:.3f} s | {m['process_s']:.1f} s |")
     if a.out:
-        a.out.write_text(json.dumps({"command": " ".join(sys.argv), "machine": platform.platform(),
-                                     "medians": med, "runs": runs}, indent=1) + "\n")
+        a.out.write_text(json.dumps({**provenance(), "machine": platform.platform(), "medians": med,
+                                     "runs": runs}, indent=1) + "\n")
 
 
 if __name__ == "__main__":
