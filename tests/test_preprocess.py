@@ -172,10 +172,14 @@ def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_sig
     bit for bit (the datasets stay byte for byte) on rows of any trailing shape, windows and
     orders, and a fresh process that builds a dataset's derivatives never imports
     ``scipy.signal``; a cubic's derivative comes out exact, ends included."""
+    import os
     import subprocess
     import sys
+    from pathlib import Path
 
     from scipy.signal import savgol_filter
+
+    import symrom
 
     from symrom.data.preprocess import savgol_derivative
 
@@ -190,5 +194,7 @@ def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_sig
                                rtol=0, atol=1e-9)
     code = ("import sys, numpy as np; from symrom.data.preprocess import differentiate; "
             "differentiate(np.ones((30, 18)), 0.002, np.zeros(30, int)); print('scipy.signal' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(symrom.__file__).parents[1]),
+                                                         os.environ.get("PYTHONPATH", "")])}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
     assert out.returncode == 0 and out.stdout.split() == ["False"], out.stderr
