@@ -180,7 +180,6 @@ def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_sig
     from scipy.signal import savgol_filter
 
     import symrom
-
     from symrom.data.preprocess import savgol_derivative
 
     rng = np.random.default_rng(7)
