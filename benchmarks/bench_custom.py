@@ -38,16 +38,13 @@ from provenance import provenance
 ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = r"""
-import json, sys, time
-sys.path.insert(0, {tests!r})
-import numpy as np
-from conftest import make_planted_dataset
+import json, os, time
+from symrom import compiled
+from symrom.compiled import codegen
 from symrom.learn.estimator import SymbolicROM
 from symrom.model.library import Custom, Inputs, Polynomial
 from symrom.rollout.integrate import RolloutOptions, rollout
-from symrom import compiled
-from symrom.compiled import codegen
-import os
+from symrom.testing import make_planted_dataset
 ds, _ = make_planted_dataset(n_jumps=20, n_samples=400, embedding="block", noise=1e-4, seed=2)
 rom = SymbolicROM(2, Polynomial(1) + Inputs() + Custom(("xi1*nu1", "exp(-xi2**2)"), ("xi1 nu1", "bump")))
 t = time.perf_counter(); rom.fit(ds); fit = time.perf_counter() - t
@@ -61,7 +58,7 @@ t = time.perf_counter(); rollout(m, ds, jumps, RolloutOptions("rk4")); first = t
 os.environ[compiled.CACHE_ENV] = "off"
 codegen._CACHE.clear()
 comp = compiled.compile_seconds(m.dynamics())
-print(json.dumps({{"fit_s": fit, "numpy_step_s": numpy_step, "compile_s": comp, "rollout_auto_first_s": first}}))
+print(json.dumps({"fit_s": fit, "numpy_step_s": numpy_step, "compile_s": comp, "rollout_auto_first_s": first}))
 """
 
 
@@ -69,7 +66,7 @@ def run(src: Path) -> dict:
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "SYMROM_CACHE_DIR": cache, "PYTHONPATH": str(src), "OMP_NUM_THREADS": "1"}
         t = time.perf_counter()
-        out = subprocess.run([sys.executable, "-c", CHILD.format(tests=str(ROOT / "tests"))], capture_output=True,
+        out = subprocess.run([sys.executable, "-c", CHILD], capture_output=True,
                              text=True, env=env, cwd=str(ROOT), check=True)
         rec = json.loads(out.stdout.strip().splitlines()[-1])
         rec["process_s"] = time.perf_counter() - t

@@ -290,9 +290,8 @@ def _integrate_fixed_step(sysm: RolloutSystem, options: RolloutOptions, dt: floa
     batch_steps = max(int(lens.max()) - 1, 0) * options.substeps  # NumPy's work: per step of the batch
     if options.backend == "auto" and sysm.generated is not None and generated is None:
         steps = int((lens - 1).clip(min=0).sum()) * options.substeps
-        rented = _NUMPY_STEPS.get(sysm.key, 0) if sysm.key is not None else 0
-        if ((sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS
-                or (sysm.compiled is None and rented + batch_steps >= GENERATED_PAYS_NUMPY_STEPS)):
+        numpy_paid = sysm.compiled is None and _NUMPY_STEPS.get(sysm.key, 0) + batch_steps >= GENERATED_PAYS_NUMPY_STEPS
+        if (sysm.has_build is not None and sysm.has_build()) or steps >= GENERATED_PAYS_STEPS or numpy_paid:
             generated = sysm.generated()
     fast = generated.integrator if generated is not None else sysm.compiled if options.backend != "numpy" else None
     if fast is None:
