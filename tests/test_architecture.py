@@ -58,7 +58,7 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
                        "generate": 3},
     "sim.diagnostics": {"forces": 0, "render": 0},
     # experiments: the resumable grid, what runs on it, the reproduction made of them, the demo that is one
-    "experiments": {"grid": 0, "select": 1, "sweep": 1, "finetune": 1, "reproduce": 2, "demo": 3},
+    "experiments": {"grid": 0, "select": 1, "sweep": 1, "finetune": 1, "warm": 2, "reproduce": 2, "demo": 3},
     # the command line: what the commands share, one module per group of commands, the entry points
     "cli": {"common": 0, "data": 1, "learn": 1, "evaluate": 1, "run": 1, "plan": 1, "robot": 1, "__main__": 2},
 }

@@ -551,3 +551,32 @@ def test_selection_figure_names_the_yardstick_its_score_divides_by(tmp_path, mon
         run = Run(tmp_path, {}, [entry])
         fig = _figure_of(monkeypatch, selection_blocks, run, [entry], Context(run, tmp_path))
         assert fig.axes[0].get_ylabel() == f"validation score (mean RMSE / {want})"
+
+
+def test_figures_drawn_in_other_processes_are_the_same_files(built, run_dir, tmp_path):
+    # workers=2: a second process draws whichever figure comes while it is free; the page and
+    # every figure must equal the one-process report's, byte for byte (the build time aside).
+    _, md_one, out_one = built
+    html, md = build_report(run_dir, tmp_path / "report.html", workers=2)
+    one = sorted((out_one.parent / "report_files").glob("*.png"))
+    two = sorted((tmp_path / "report_files").glob("*.png"))
+    assert [p.name for p in one] == [p.name for p in two] and len(one) >= 5
+    for a, b in zip(one, two):
+        assert a.read_bytes() == b.read_bytes(), a.name
+    built_at = re.compile(r"Built \d{4}-\d\d-\d\d \d\d:\d\d UTC")
+    assert built_at.sub("", md.read_text()) == built_at.sub("", md_one)
+
+
+def test_an_error_in_a_figure_drawn_in_another_process_is_raised(tmp_path):
+    from symrom.report import figures
+    from symrom.report.context import Drawing
+
+    drawing = Drawing(2)
+    try:  # the first figure goes to the other process; its error comes back at finish
+        path = drawing.draw(figures.encoder_heatmap, np.zeros((2, 5)), tmp_path / "bad.png")
+        assert path == tmp_path / "bad.png"
+        with pytest.raises(ValueError, match="5 columns, expected 18"):
+            drawing.finish()
+    finally:
+        drawing.close()
+    assert not path.exists()

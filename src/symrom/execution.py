@@ -35,6 +35,7 @@ import time
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -394,6 +395,75 @@ def _check_reachable(address: str | None, timeout: float = 5.0) -> None:
     except OSError as e:
         raise BackendError(f"cannot reach the Ray cluster at {address}: {e.strerror or e} "
                            f"(is its head running? see ray start --head)") from None
+
+
+# ------------------------------------------------------------------ compiled routines
+HELPER_TIMEOUT = 600.0  # s: a helper still compiling then is left behind; its callers compile themselves
+
+
+def in_disk_cache(dispatcher) -> bool:
+    """Whether numba's disk cache holds a build of ``dispatcher`` (a ``numba.njit`` function with
+    ``cache=True``) for its present source; False where the cache cannot be read."""
+    try:
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba's cache internals; any failure means "compile"
+        return False
+
+
+@contextmanager
+def compile_lock(dispatcher):
+    """Held while ``dispatcher`` is compiled into numba's disk cache, by one process at a time
+    for one cache file (an exclusive lock on a file beside the system's temporary files): a
+    second helper waits for the first and then loads its build instead of compiling it again.
+    Where files cannot be locked, nothing is held."""
+    import hashlib
+    import tempfile
+
+    try:
+        import fcntl
+
+        where = str(dispatcher._cache._cache_path) + dispatcher.py_func.__qualname__
+        path = os.path.join(tempfile.gettempdir(),
+                            f"symrom-compile-{hashlib.sha256(where.encode()).hexdigest()[:16]}.lock")
+        handle = open(path, "a")  # noqa: SIM115 - held for the block
+    except (ImportError, OSError, AttributeError):
+        yield
+        return
+    try:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        yield
+    finally:
+        handle.close()  # releases the lock
+
+
+def start_helper(code: str):
+    """A Python process running ``code`` (its output discarded) with the symrom this process
+    runs first on its path, as a ``subprocess.Popen``; None if no process can be started. The
+    compiled routines' helpers fill numba's disk cache this way, beside the work that needs them."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = str(Path(__file__).resolve().parents[1])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
+    try:
+        return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+
+
+def wait_helper(proc, timeout: float) -> None:
+    """Wait for a helper (``start_helper``; None: nothing to wait for) at most ``timeout`` s; one
+    still running then is left behind (it only fills a cache)."""
+    import subprocess
+
+    if proc is None:
+        return
+    try:
+        proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        pass
 
 
 # ------------------------------------------------------------------ by name

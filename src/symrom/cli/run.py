@@ -64,7 +64,7 @@ def reproduce_cmd(
             from symrom.report.html import build_report
 
             status.update("reproduce: report")
-            build_report(out, out / "report.html")
+            build_report(out, out / "report.html", workers=runner.workers if backend == "local" else 2)
     for line in summary_lines(summary):
         typer.echo(line)
     if summary.get("sim2real", {}).get("targets"):
@@ -91,7 +91,7 @@ def demo_cmd(
                         say=status_say(status, "demo"))
         # The report is built where the run now is, so that it names that directory.
         status.update("demo: report")
-        build_report(out, out / "report.html")
+        build_report(out, out / "report.html", workers=workers)
     typer.echo(demo.text())
     say(f"dataset: {demo.data}  ({demo.jumps} simulated jumps)\nmodel: {demo.model}\nreport: {out / 'report.html'}")
 
@@ -106,10 +106,12 @@ def report_cmd(
         "--out", help="Output HTML file (default DIR/report.html); the "
                       "Markdown twin and its figures go next to it.")] = None,
     force: Force = False,
+    workers: Annotated[int, typer.Option("--workers", help="Processes drawing the figures.")] = 2,
 ) -> None:
     """Build the self-contained HTML report (and its Markdown twin) of a run directory or a model folder."""
     from symrom.report.html import build_report
 
     with console.status("report") as status:
-        html, md = build_report(run_dir, out, force=force, progress=lambda msg: status.update(f"report: {msg}"))
+        html, md = build_report(run_dir, out, force=force, progress=lambda msg: status.update(f"report: {msg}"),
+                                workers=workers)
     say(f"report: {html}\nmarkdown: {md}")

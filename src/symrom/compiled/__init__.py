@@ -11,7 +11,8 @@ model (``symrom.model``) describes itself with the typed records of
 - ``table_integrator(terms, Xi)``: the term-table RK4 integrator (no compilation per model;
   the rollouts' ``table`` backend); ``rollout_windows``: many windows at once with the exact
   parameter sensitivities (the refinement's shooting); ``warm_windows``, ``start_windows_helper``:
-  its kernel made ready (in numba's disk cache) in this process or in a helper process.
+  its kernel made ready (in numba's disk cache) in this process or in a helper process;
+  ``routines``: the package's kernels every such model runs (made ready by ``symrom.experiments.warm``).
 - ``generated(dynamics)``: the model's own equations as compiled code (``GeneratedFunctions``:
   RK4 integrator, LSODA's right-hand side in Python and C), cached in this process and on disk
   (``cache_dir``, ``CACHE_ENV``); ``has_build``, ``compile_seconds``.
@@ -22,8 +23,16 @@ model (``symrom.model``) describes itself with the typed records of
 from symrom.compiled.codec import JumpViews, LinearMaps, decode_jumps, encode_inputs, encode_states
 from symrom.compiled.codegen import CACHE_ENV, GeneratedFunctions, cache_dir, compile_seconds, generated, has_build
 from symrom.compiled.dynamics import LatentDynamics, TermLibrary
-from symrom.compiled.kernel import WindowRollout, rollout_windows, start_windows_helper, table_integrator, warm_windows
+from symrom.compiled.kernel import (
+    WindowRollout,
+    rollout_windows,
+    routines,
+    start_windows_helper,
+    table_integrator,
+    warm_windows,
+)
 
 __all__ = ["CACHE_ENV", "GeneratedFunctions", "JumpViews", "LatentDynamics", "LinearMaps", "TermLibrary",
            "WindowRollout", "cache_dir", "compile_seconds", "decode_jumps", "encode_inputs", "encode_states",
-           "generated", "has_build", "rollout_windows", "start_windows_helper", "table_integrator", "warm_windows"]
+           "generated", "has_build", "rollout_windows", "routines", "start_windows_helper", "table_integrator",
+           "warm_windows"]

@@ -100,8 +100,17 @@ def kernels():
     if not _KERNELS:
         from symrom.compiled import table_kernels as tk
 
-        _KERNELS.update(features=tk.features, rk4_windows=tk.rk4_windows, rk4_rollout=tk.rk4_rollout)
+        _KERNELS.update(rk4_windows=tk.rk4_windows, rk4_rollout=tk.rk4_rollout)
     return _KERNELS
+
+
+def routines() -> list:
+    """The numba dispatchers of this package that every model with a term table runs: the
+    table kernels (refinement windows, rollouts) and the autoencoder's maps (for
+    ``symrom.experiments.warm``, which makes them ready ahead)."""
+    from symrom.compiled.codec import _kernels
+
+    return [*kernels().values(), *_kernels().values()]
 
 
 def term_programs(table: TermTable, Xi: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -252,30 +261,24 @@ def active_terms(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def warm_windows() -> None:
     """Compile (or load from numba's disk cache) the refinement's window kernel for the argument
-    types ``rollout_windows`` passes it, on one window of two samples."""
+    types ``rollout_windows`` passes it, on one window of two samples; one process at a time
+    (``execution.compile_lock``): a helper started while another compiles it waits and loads."""
+    from symrom.execution import compile_lock
+
     f, i = np.zeros, np.int64
     one = np.zeros(1, dtype=i)
-    kernels()["rk4_windows"](f((1, 2, 1)), f((1, 2, 1)), f((1, 2, 1)), np.zeros((1, 2), dtype=i), f((1, 1, 1)),
-                             np.zeros((1, 1), dtype=i), np.zeros((1, 1), dtype=i), np.ones((1, 1), dtype=i), one,
-                             one, one, one, np.zeros((1, 1), dtype=i), np.ones(1, dtype=i), 0.002, 1, np.ones(2), 1,
-                             True, f((1, 2, 1)), f((1, 2, 1)), f((1, 2, 2, 1)), np.zeros((1, 2), dtype=np.bool_))
+    k = kernels()["rk4_windows"]
+    with compile_lock(k):
+        k(f((1, 2, 1)), f((1, 2, 1)), f((1, 2, 1)), np.zeros((1, 2), dtype=i), f((1, 1, 1)),
+          np.zeros((1, 1), dtype=i), np.zeros((1, 1), dtype=i), np.ones((1, 1), dtype=i), one, one, one, one,
+          np.zeros((1, 1), dtype=i), np.ones(1, dtype=i), 0.002, 1, np.ones(2), 1, True, f((1, 2, 1)), f((1, 2, 1)),
+          f((1, 2, 2, 1)), np.zeros((1, 2), dtype=np.bool_))
 
 
 def start_windows_helper():
     """A process making the window kernel ready in numba's disk cache (compiling it on a cold
     cache, so that the refinements' workers load it instead of each compiling it; on a filled
-    one it only loads it), as a ``subprocess.Popen``; None if no process can be started. It
-    imports the symrom this process runs."""
-    import os
-    import subprocess
-    import sys
-    from pathlib import Path
+    one it only loads it), as a ``subprocess.Popen``; None if no process can be started."""
+    from symrom.execution import start_helper
 
-    root = str(Path(__file__).resolve().parents[2])
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
-    try:
-        return subprocess.Popen([sys.executable, "-c", "from symrom.compiled.kernel import warm_windows; "
-                                 "warm_windows()"], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
+    return start_helper("from symrom.compiled.kernel import warm_windows; warm_windows()")

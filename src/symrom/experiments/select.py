@@ -105,7 +105,6 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-import subprocess
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
@@ -121,7 +120,7 @@ from symrom.data.io import read_dataset
 from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.switching import predicted_rollout, switching_errors
 from symrom.evaluate.usability import integrator_check, physics_check
-from symrom.execution import Backend, LocalBackend
+from symrom.execution import HELPER_TIMEOUT, Backend, LocalBackend, wait_helper
 from symrom.experiments.grid import Store, run_grid
 from symrom.learn.encoders import check_invariant, unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
@@ -130,8 +129,6 @@ from symrom.model.persistence import model_from_dict, model_to_dict, write_model
 from symrom.model.provenance import SelectionRecord
 from symrom.names import BASE_NAMES, FLIGHT_PHASE, PARTIAL_PHASE, Q_NAMES, STANCE_PHASE
 from symrom.rollout.integrate import RolloutOptions
-
-HELPER_TIMEOUT = 600.0  # s: a helper still compiling the window kernel then is left behind
 
 SELECTION_VERSION = 3
 CELL_VERSION = 4  # since 3 a cell's rows hold the physics check's moves (usability.MOVES); 4: invariant
@@ -743,11 +740,8 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
                           budget is not None and (cfg.max_terms is not None or rows[i]["active_terms"] > budget))
                          for i in idx]
     total = len(cells) + len(picks)  # fewer than refine_top when fewer candidates qualify
-    if helper is not None and picks:
-        try:
-            helper.wait(timeout=HELPER_TIMEOUT)
-        except subprocess.TimeoutExpired:  # left behind: the workers compile the kernel themselves
-            pass
+    if picks:
+        wait_helper(helper, HELPER_TIMEOUT)  # left behind after that: the workers compile the kernel themselves
     say(len(cells), total, f"refining {len(picks)} candidate model(s)" if picks else "no candidate to refine")
     rstore = None if cells_dir is None else Store(
         path=lambda p: refined_path(cells_dir, p), key=lambda p: refined_key(cfg, sha, p, steps),

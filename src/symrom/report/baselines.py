@@ -110,7 +110,7 @@ def _figure(learned_entry: ManifestEntry, baselines: list[tuple[ManifestEntry, d
         pred = figures.baseline_jump_com(ds, j, params, method or "lsoda") if params else None
         if pred is not None:
             preds[e.title or e.name] = pred
-    path = figures.com_figure(ds.t[a:b], ds.q[a:b, BASE_POS], ros["full"].q_pred[0][:, BASE_POS], preds,
+    path = ctx.draw(figures.com_figure, ds.t[a:b], ds.q[a:b, BASE_POS], ros["full"].q_pred[0][:, BASE_POS], preds,
                               ds.phase[a:b], ds.phase_names, ctx.fig_dir / f"baselines_{ctx.slug(learned_entry)}.png",
                               title=f"{learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): CoM position, "
                                     "learned vs baselines")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,12 +42,64 @@ class JumpCache:
         return ds, j, ros
 
 
+def _pool_start() -> None:
+    from symrom.report import figures
+
+    figures._pyplot()  # matplotlib loaded before the first figure arrives
+
+
+class Drawing:
+    """Where a report's figures are drawn: this process and ``workers - 1`` others, started at
+    once so that they are ready when the first figure comes."""
+
+    def __init__(self, workers: int = 1) -> None:
+        self.workers, self._pool, self._pending = workers, None, []
+        if workers > 1:
+            import multiprocessing as mp
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(workers - 1, mp.get_context("spawn"), initializer=_pool_start)
+
+    def draw(self, fn, *args, **kwargs) -> Path:
+        """``fn(*args, **kwargs)``, a figure of ``symrom.report.figures`` (it writes its ``path``
+        argument): in another process while this one goes on when one of them is free
+        (``finish`` waits for it), else here; the figure's path. A figure is the same wherever it
+        is drawn."""
+        path = Path(inspect.signature(fn).bind(*args, **kwargs).arguments["path"])
+        running = []
+        for f in self._pending:
+            if f.done():
+                f.result()  # an error in a figure drawn elsewhere is raised here
+            else:
+                running.append(f)
+        self._pending = running
+        if self._pool is not None and len(self._pending) < self.workers - 1:
+            self._pending.append(self._pool.submit(fn, *args, **kwargs))
+            return path
+        return Path(fn(*args, **kwargs))
+
+    def finish(self) -> None:
+        """Wait for the figures drawn elsewhere (an error in one is raised here)."""
+        pending, self._pending = self._pending, []
+        for f in pending:
+            f.result()
+
+    def close(self) -> None:
+        """End the other processes (figures not yet drawn are dropped)."""
+        self._pending = []
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+
 @dataclass
 class Context:
-    """fig_dir: where the PNG figures go; jumps: the rollouts shared by the figures."""
+    """fig_dir: where the PNG figures go; jumps: the rollouts shared by the figures; drawing:
+    where the figures are drawn (``draw``)."""
 
     run: Run
     fig_dir: Path
+    drawing: Drawing = field(default_factory=Drawing)
     jumps: JumpCache = field(init=False)
 
     def __post_init__(self) -> None:
@@ -56,3 +109,7 @@ class Context:
     def slug(entry: ManifestEntry) -> str:
         """A file-name-safe form of the entry's name."""
         return re.sub(r"[^A-Za-z0-9_.-]+", "_", entry.name)
+
+    def draw(self, fn, *args, **kwargs) -> Path:
+        """A figure drawn by ``drawing`` (``Drawing.draw``); its path."""
+        return self.drawing.draw(fn, *args, **kwargs)

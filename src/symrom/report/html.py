@@ -14,8 +14,9 @@ from pathlib import Path
 
 from symrom import __version__
 from symrom.atomic import OutputExistsError, atomic_dir, check_writable, write_text_atomic
+from symrom.execution import check_workers
 from symrom.report.common import data_blocks, experiments_blocks, run_blocks
-from symrom.report.context import Context
+from symrom.report.context import Context, Drawing
 from symrom.report.document import Para, Section, render_html, render_markdown
 from symrom.report.headline import headline_blocks
 from symrom.report.roles import build_sections
@@ -30,7 +31,7 @@ def report_paths(out_html: str | os.PathLike) -> tuple[Path, Path, Path]:
 
 
 def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None = None, force: bool = True,
-                 progress: Callable[[str], None] | None = None) -> tuple[Path, Path]:
+                 progress: Callable[[str], None] | None = None, workers: int = 1) -> tuple[Path, Path]:
     """Build the report of ``run_dir`` into ``out_html`` (an ``.html`` file; default
     ``run_dir/report.html``) and its Markdown twin; their paths.
 
@@ -39,8 +40,10 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None 
     ``force=False`` ``OutputExistsError`` is raised instead if any exists. Refused before
     any work: ``run_dir`` not a directory (``FileNotFoundError``), ``out_html`` not an
     ``.html`` file or in a place that cannot be written. Missing or unreadable files of
-    the run are noted in the report.
+    the run are noted in the report. ``workers``: processes drawing the figures (this one and
+    ``workers - 1`` more; the report is the same).
     """
+    check_workers(workers)
     if not Path(run_dir).is_dir():
         raise FileNotFoundError(f"{run_dir}: no such run directory")
     out_html = Path(run_dir) / "report.html" if out_html is None else Path(out_html)
@@ -53,6 +56,14 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None 
             if p.exists():
                 raise OutputExistsError(f"{p} exists; pass force=True to overwrite it")
     say = progress or (lambda msg: None)
+    drawing = Drawing(workers)  # its processes start while the run is read
+    try:
+        return _build(run_dir, html_path, md_path, files_dir, say, drawing)
+    finally:
+        drawing.close()
+
+
+def _build(run_dir, html_path: Path, md_path: Path, files_dir: Path, say, drawing: Drawing) -> tuple[Path, Path]:
     run = load_run(run_dir)
     title = "symrom report: symbolic reduced-order models of quadruped jumping"
     with atomic_dir(files_dir, force=True) as fig_dir:
@@ -60,7 +71,10 @@ def build_report(run_dir: str | os.PathLike, out_html: str | os.PathLike | None 
         head = headline_blocks(run)
         secs = [Section("headline", "Headline").add(*head)] if head else []
         say("experiments")
-        secs += build_sections(run, Context(run, fig_dir))
+        try:
+            secs += build_sections(run, Context(run, fig_dir, drawing))
+        finally:  # every figure is in the folder before it is kept (or dropped with it)
+            drawing.finish()
         targets = run.summary.get("sim2real", {}).get("targets")
         if targets:
             secs.append(Section("sim2real", "Sim-to-real: logged, repaired and fine-tuned").add(

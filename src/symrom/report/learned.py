@@ -121,7 +121,7 @@ def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
                     for k, h in metrics.horizons.items() if h.components}
             paper = {horizon_label(k): ref for k in metrics.horizons
                      if e.paper and (ref := paper_rmse(e.paper, k)) is not None} or None
-            path = figures.horizon_figure(rmse, floor, ctx.fig_dir / f"horizons_{ctx.slug(e)}.png",
+            path = ctx.draw(figures.horizon_figure, rmse, floor, ctx.fig_dir / f"horizons_{ctx.slug(e)}.png",
                                           title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)",
                                           paper=paper)
             beside = (" and the paper's implied RMSE (a bar in the horizon's colour)" if paper else "")
@@ -166,7 +166,7 @@ def predictions_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> 
         ds, j, ros = got
         split = str(ds.split[j])
         which = f"{split} jump 0 (dataset jump {j})"
-        path = figures.jump_figure(ds, ros, j, ctx.fig_dir / f"jump_{ctx.slug(e)}.png",
+        path = ctx.draw(figures.jump_figure, ds, ros, j, ctx.fig_dir / f"jump_{ctx.slug(e)}.png",
                                    title=f"{e.name}: {ds.motion}, {which}")
         blocks.append(Figure(path, f"{e.name}: {which}, truth vs prediction"))
         start = ds.jump_bounds()[j][0]

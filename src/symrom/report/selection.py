@@ -62,7 +62,7 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
             blocks.append(Para("No candidate survived: every one diverged on a validation jump or broke the data's "
                                "momentum balance.", note=True))
         by_paper = (table.get("config") or {}).get("reference") is not None  # scored against the paper's RMSE
-        path = figures.selection_figure(rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
+        path = ctx.draw(figures.selection_figure, rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
                                         title=f"{e.of or e.name}: validation score vs active terms",
                                         yardstick="paper's RMSE" if by_paper else "spread")
         blocks.append(Figure(path, f"{e.of or e.name}: every candidate of the selection (lower is better)"))

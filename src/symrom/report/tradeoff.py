@@ -69,7 +69,7 @@ def sweep_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
                 blocks.append(Para(f"W_e for l = {l}: no encoder or data of {e.of!r}; heatmap skipped.", note=True))
                 continue
             W, source = got
-            path = figures.encoder_heatmap(W, ctx.fig_dir / f"encoder_{ctx.slug(e)}_l{l}.png",
+            path = ctx.draw(figures.encoder_heatmap, W, ctx.fig_dir / f"encoder_{ctx.slug(e)}_l{l}.png",
                                            title=rf"$W_e^T$, {e.of or e.name}, l = {l}")
             blocks.append(Figure(path, f"Heatmap of W_e^T (rows: the 18 configuration components, columns: "
                                        f"latent 1..{l}); source: {source}"))
@@ -80,7 +80,7 @@ def sweep_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
             blocks.append(Para(f"{e.name}: no sweep result; trade-off skipped.", note=True))
             continue
         lam, best = sweep.get("lambda", PAPER_LAMBDA), figures.best_dim(sweep)
-        path = figures.tradeoff_figure(sweep, ctx.fig_dir / f"tradeoff_{ctx.slug(e)}.png")
+        path = ctx.draw(figures.tradeoff_figure, sweep, ctx.fig_dir / f"tradeoff_{ctx.slug(e)}.png")
         blocks.append(Figure(path, "E_dec and |Xi| (mean ± std over seeds) and L_mod per latent dimension"))
         blocks.append(Para(f"L_mod = 2 E_dec + 2 λ log|Xi| with λ = {lam:g}; best latent dimension: {best} "
                            f"(the paper finds {PAPER_BEST_DIMS[0]}–{PAPER_BEST_DIMS[1]}). "
@@ -98,7 +98,7 @@ def _experiment_encoder(run: Run, e: ManifestEntry, ctx: Context) -> list:
         return []
     encoder = (swept.facts.get("config") or {}).get("encoder", "as trained")
     W = model.autoencoder.W_e
-    path = figures.encoder_heatmap(W, ctx.fig_dir / f"encoder_{ctx.slug(swept)}.png",
+    path = ctx.draw(figures.encoder_heatmap, W, ctx.fig_dir / f"encoder_{ctx.slug(swept)}.png",
                                    title=rf"$W_e^T$, {swept.name} model, l = {W.shape[0]}")
     return [Figure(path, f"Heatmap of W_e^T of the {swept.name} model (encoder: {encoder}; the heatmaps above "
                          "are the paper's default encoder)")]

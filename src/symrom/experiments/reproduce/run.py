@@ -18,13 +18,14 @@ from symrom.baselines import BASELINES
 from symrom.data.io import read_dataset
 from symrom.evaluate.paper import PAPER_TABLE2
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
-from symrom.execution import limit_threads
+from symrom.execution import HELPER_TIMEOUT, limit_threads, wait_helper
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
-from symrom.experiments.reproduce.sim import run_learned, selected
+from symrom.experiments.reproduce.sim import references_done, run_learned, run_references, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
 from symrom.experiments.reproduce.solvers import run_solvers
 from symrom.experiments.reproduce.steps import config_facts, done, ensure_dataset, selected_config
 from symrom.experiments.reproduce.sweep import run_sweep_step
+from symrom.experiments.warm import start_warm_helper
 from symrom.model.persistence import load_model
 
 
@@ -210,6 +211,9 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
 
     # with more than one worker, other processes of the run share the cores
     threads = limit_threads(1) if cfg.workers > 1 and cfg.backend == "local" else None
+    # On a cold cache the learning's kernels compile beside the first simulation, once, rather
+    # than in every selection worker at once.
+    warming = start_warm_helper() if exps and cfg.workers > 1 and cfg.backend == "local" else None
     try:
         if exps:
             sim_dataset(exps[0].data)
@@ -220,9 +224,15 @@ def reproduce(run: Path, cfg: ReproduceConfig, command: str = "", say: Say | Non
         if only is None:
             sweep = Beside("sweep", run_sweep_step, (run, data["go1_sim"]), cfg, say, nice=BESIDE_NICE)
             beside.append(sweep)
+        wait_helper(warming, HELPER_TIMEOUT)
         for exp in exps:
             if only is None:
-                summary["experiments"][exp.name] = run_learned(run, exp, sim_dataset(exp.data), cfg, say)
+                # the paper-default model and the baselines beside the selection, on its idle moments
+                refs = Beside(f"{exp.name}: paper defaults and baselines", run_references,
+                              (run, exp, sim_dataset(exp.data)), cfg, say, nice=BESIDE_NICE,
+                              needed=not references_done(run, exp))
+                beside.append(refs)
+                summary["experiments"][exp.name] = run_learned(run, exp, sim_dataset(exp.data), cfg, say, refs)
             else:
                 say(f"{exp.name}: selecting the settings on the validation split (the sim-to-real settings)")
                 selected(run, exp, read_dataset(sim_dataset(exp.data)), cfg, say)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from symrom.baselines import BASELINES
 from symrom.data.dataset import Dataset
 from symrom.data.io import read_dataset
 from symrom.experiments.reproduce.baselines import run_baselines
@@ -34,9 +35,33 @@ def selected(run: Path, exp: ExperimentSpec, ds: Dataset, cfg: ReproduceConfig, 
     return sel.model, sel.to_dict()
 
 
-def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig, say: Say) -> dict:
-    """Select, train and evaluate one experiment, and its paper-default variant and
-    baselines; its summary entry."""
+def references_done(run: Path, exp: ExperimentSpec) -> bool:
+    """Whether ``run_references`` of ``exp`` has finished (a resumed run)."""
+    d = run / exp.name
+    return done(d / "paper_defaults" / "eval" / "metrics.json") and all(
+        done(d / name / "metrics.json") for name in BASELINES)
+
+
+def run_references(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig, say: Say) -> dict:
+    """The experiment's references, which the selection does not decide: the model with the
+    paper's defaults, trained and evaluated, and the baselines; their summary entries."""
+    ds = read_dataset(data)
+    d = run / exp.name
+    if not done(d / "paper_defaults" / "model.json"):
+        say(f"{exp.name}: training with the paper's defaults")
+    base, bm = train_evaluate(ds, d / "paper_defaults", exp.paper_config(cfg.seed), cfg,
+                              f"SIM {exp.name} (paper defaults)", say)
+    return {"paper_defaults": {"active_terms": base.active_terms(), "metrics": bm.to_dict(),
+                               "model": str((d / "paper_defaults" / "model.json").relative_to(run))},
+            "baselines": run_baselines(run, exp, ds, cfg, say)}
+
+
+def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig, say: Say,
+                references=None) -> dict:
+    """Select, train and evaluate one experiment, with its references (``run_references``:
+    the paper-default variant and the baselines); its summary entry. ``references``: where
+    they are made (a ``Beside`` of the run, whose ``result`` gives them), else made here after
+    the selection."""
     ds = read_dataset(data)
     d = run / exp.name
     d.mkdir(parents=True, exist_ok=True)
@@ -51,11 +76,5 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
                        "max_terms": chosen.get("max_terms"), "keep": chosen.get("keep", []),
                        **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight")},
                        "selection_score": chosen["score"], "candidates": len(table["rows"])}
-    say(f"{exp.name}: training with the paper's defaults")
-    base, bm = train_evaluate(ds, d / "paper_defaults", exp.paper_config(cfg.seed), cfg,
-                               f"SIM {exp.name} (paper defaults)", say)
-    entry["paper_defaults"] = {"active_terms": base.active_terms(), "metrics": bm.to_dict(),
-                               "model": str((d / "paper_defaults" / "model.json").relative_to(run))}
-    entry["baselines"] = run_baselines(run, exp, ds, cfg, say)
+    entry.update(references.result() if references is not None else run_references(run, exp, data, cfg, say))
     return entry
-

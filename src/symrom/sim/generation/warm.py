@@ -16,28 +16,15 @@ worker starts with them instead of loading them on its first tick.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
-from pathlib import Path
 
+from symrom.execution import HELPER_TIMEOUT, in_disk_cache, start_helper, wait_helper
 from symrom.sim.controllers import compiled as controllers
 from symrom.sim.engines import compiled as engines
-
-HELPER_TIMEOUT = 600.0  # s: a helper still compiling then is left behind; this process compiles
 
 
 def routines(kind: str, name: str) -> list:
     """The numba dispatchers of a group: ``("engine", name)`` or ``("motion", name)``."""
     return engines.routines(name) if kind == "engine" else controllers.routines(name)
-
-
-def in_disk_cache(dispatcher) -> bool:
-    """Whether numba's disk cache holds a build of ``dispatcher`` for its present source
-    (False where the cache cannot be read)."""
-    try:
-        return bool(dispatcher._cache._cache_file._load_index())
-    except Exception:  # noqa: BLE001 - numba's cache internals; any failure means "compile"
-        return False
 
 
 def warm(kind: str, name: str) -> None:
@@ -59,30 +46,14 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True) ->
     cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
     proc = None
     if helper and len(cold) == 2 and (os.cpu_count() or 1) > 1:
-        proc = _start_helper(*cold[1])
+        proc = start_helper(f"from symrom.sim.generation.warm import warm; warm{cold[1]!r}")
     for g in groups:
         if (proc is None or g != cold[1]) and (load or g in cold):
             warm(*g)
     if proc is not None:
-        try:
-            proc.wait(timeout=HELPER_TIMEOUT)
-        except subprocess.TimeoutExpired:
-            pass
+        wait_helper(proc, HELPER_TIMEOUT)
         if load or not all(in_disk_cache(d) for d in routines(*cold[1])):
             warm(*cold[1])  # from the disk cache the helper filled (or compiled here if it failed)
-
-
-def _start_helper(kind: str, name: str) -> subprocess.Popen | None:
-    """A process compiling the group into numba's disk cache; None if it cannot be started. It
-    imports the symrom this process runs (its folder first on the path)."""
-    root = str(Path(__file__).resolve().parents[3])
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
-    code = f"from symrom.sim.generation.warm import warm; warm({kind!r}, {name!r})"
-    try:
-        return subprocess.Popen([sys.executable, "-c", code], env=env, stdin=subprocess.DEVNULL,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    except OSError:
-        return None
 
 
 def load_cached() -> None:
