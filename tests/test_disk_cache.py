@@ -70,18 +70,40 @@ def test_a_new_process_compiles_nothing_an_earlier_one_compiled(tmp_path):
 
 
 HELPER = """
-from symrom.compiled import start_windows_helper
-print(start_windows_helper().wait(timeout=900))
+import json
+from numba.core import event
+
+compiled = []
+
+
+class Compiles(event.Listener):
+    def on_start(self, e):
+        pass
+
+    def on_end(self, e):
+        compiled.append(e.data["dispatcher"].py_func.__qualname__)
+
+
+event.register("numba:compile", Compiles())
+from symrom.compiled import warm_windows
+
+warm_windows()
+print(json.dumps(compiled))
 """
 
 
-def test_the_window_kernel_is_compiled_into_the_disk_cache_by_a_helper(tmp_path):
-    # The selection starts this helper beside its grid: on an empty cache it compiles the
-    # refinements' kernel into numba's disk cache, where the refinements' workers find it.
+def test_two_window_helpers_at_once_compile_the_kernel_once_into_the_disk_cache(tmp_path):
+    # The selection starts a helper beside its grid, and a cold run starts one beside its first
+    # simulation: on an empty cache one compiles the refinements' kernel into numba's disk cache
+    # while the other waits for it (execution.compile_lock) and loads its build.
     cache = tmp_path / "numba"
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
                PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    r = subprocess.run([sys.executable, "-c", HELPER], capture_output=True, text=True, timeout=900, env=env)
-    assert r.returncode == 0 and r.stdout.split() == ["0"], r.stderr
+    procs = [subprocess.Popen([sys.executable, "-c", HELPER], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, env=env) for _ in range(2)]
+    outs = [p.communicate(timeout=900) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [err[-2000:] for _, err in outs]
+    compiled = sorted((json.loads(out.strip().splitlines()[-1]) for out, _ in outs), key=len)
+    assert compiled[0] == [] and "rk4_windows" in compiled[1], compiled
     assert [p.name for p in cache.rglob("*rk4_windows*.nbi")]
     assert [p.name for p in cache.rglob("*rk4_windows*.nbc")]
