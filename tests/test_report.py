@@ -580,3 +580,27 @@ def test_an_error_in_a_figure_drawn_in_another_process_is_raised(tmp_path):
     finally:
         drawing.close()
     assert not path.exists()
+
+
+def _dies_elsewhere(path):
+    """A figure whose drawing process dies unless it is the report's own."""
+    import multiprocessing
+    import os
+
+    if multiprocessing.parent_process() is not None:
+        os._exit(1)
+    Path(path).write_bytes(b"drawn here")
+
+
+def test_figures_of_a_dead_drawing_process_are_drawn_here(tmp_path):
+    from symrom.report.context import Drawing
+
+    drawing = Drawing(2)
+    try:
+        path = drawing.draw(_dies_elsewhere, tmp_path / "f.png")
+        drawing.finish()  # the other process died: its figure is drawn in this one
+        assert path.read_bytes() == b"drawn here"
+        second = drawing.draw(_dies_elsewhere, tmp_path / "g.png")  # the pool is gone: here at once
+        assert second.read_bytes() == b"drawn here"
+    finally:
+        drawing.close()

@@ -64,29 +64,39 @@ class Drawing:
         """``fn(*args, **kwargs)``, a figure of ``symrom.report.figures`` (it writes its ``path``
         argument): in another process while this one goes on when one of them is free
         (``finish`` waits for it), else here; the figure's path. A figure is the same wherever it
-        is drawn."""
+        is drawn; if the other processes die (or cannot start), their figures are drawn here."""
         path = Path(inspect.signature(fn).bind(*args, **kwargs).arguments["path"])
         running = []
-        for f in self._pending:
-            if f.done():
-                f.result()  # an error in a figure drawn elsewhere is raised here
+        for job in self._pending:
+            if job[0].done():
+                self._collect(job)
             else:
-                running.append(f)
+                running.append(job)
         self._pending = running
         if self._pool is not None and len(self._pending) < self.workers - 1:
-            self._pending.append(self._pool.submit(fn, *args, **kwargs))
+            self._pending.append((self._pool.submit(fn, *args, **kwargs), fn, args, kwargs))
             return path
-        return Path(fn(*args, **kwargs))
+        fn(*args, **kwargs)
+        return path
+
+    def _collect(self, job) -> None:
+        from concurrent.futures.process import BrokenProcessPool
+
+        future, fn, args, kwargs = job
+        try:
+            future.result()  # an error in a figure drawn elsewhere is raised here
+        except BrokenProcessPool:
+            self.close()
+            fn(*args, **kwargs)
 
     def finish(self) -> None:
         """Wait for the figures drawn elsewhere (an error in one is raised here)."""
         pending, self._pending = self._pending, []
-        for f in pending:
-            f.result()
+        for job in pending:
+            self._collect(job)
 
     def close(self) -> None:
-        """End the other processes (figures not yet drawn are dropped)."""
-        self._pending = []
+        """End the other processes (``finish`` first, or the figures not yet drawn are dropped)."""
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
             self._pool = None

@@ -99,7 +99,12 @@ def _options(entry: ManifestEntry) -> list:
     parts = [f"{names.get(k, k.replace('_', ' '))} {v:g}" if isinstance(v, float)
              else f"{names.get(k, k.replace('_', ' '))} {v}"
              for k, v in cfg.items() if v is not None and not isinstance(v, (dict, list))]
-    return [Para("Settings: " + "; ".join(parts) + ".")]
+    out = [Para("Settings: " + "; ".join(parts) + ".")]
+    if cfg.get("checks") == []:
+        out.append(Para("Selected on the validation score alone: its data are too few to judge a model's "
+                        "physics by, so no check refused a candidate (the selection table still holds every "
+                        "check's numbers).", note=True))
+    return out
 
 
 def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:

@@ -300,8 +300,10 @@ def summary_lines(summary: dict) -> list[str]:
     lines = []
     for name, exp in summary["experiments"].items():
         metrics = Metrics.from_dict(exp["metrics"])
+        unchecked = exp.get("config", {}).get("checks") == []  # data too small to judge a model's physics by
         lines.append(f"{name}: l={exp['latent_dim']}, {exp['n_candidates']} library terms, active terms "
-                     f"{exp['active_terms']}, diverged {metrics.full.diverged_jumps}/{metrics.n_jumps}")
+                     f"{exp['active_terms']}, diverged {metrics.full.diverged_jumps}/{metrics.n_jumps}"
+                     + ("; selected on val without the selection's checks" if unchecked else ""))
     for name, t in summary.get("sim2real", {}).get("targets", {}).items():
         lines.append(sim2real_line(name, t))
     if "sweep" in summary:

@@ -74,7 +74,8 @@ def run_learned(run: Path, exp: ExperimentSpec, data: Path, cfg: ReproduceConfig
     chosen = table["rows"][table["chosen"]]
     entry["config"] = {**{k: chosen[k] for k in ("encoder", "latent_dim", "library", "threshold", "refine")},
                        "max_terms": chosen.get("max_terms"), "keep": chosen.get("keep", []),
-                       **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight")},
+                       **{k: table["config"][k] for k in ("measure", "collinearity", "alpha", "decoded_weight",
+                                                          "checks")},
                        "selection_score": chosen["score"], "candidates": len(table["rows"])}
     entry.update(references.result() if references is not None else run_references(run, exp, data, cfg, say))
     return entry
