@@ -13,11 +13,10 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
 
-# Runs every compiled path once, and prints what numba compiled (the compile event fires only
-# for builds that were not found in the disk cache, nested ones included).
-CODE = """
+# Records what numba compiles in a process: the compile event fires only for builds that were
+# not found in the disk cache, nested ones included.
+LISTENER = """
 import json
-import numpy as np
 from numba.core import event
 
 compiled = []
@@ -32,6 +31,11 @@ class Compiles(event.Listener):
 
 
 event.register("numba:compile", Compiles())
+"""
+
+# Runs every compiled path once, and prints what numba compiled.
+CODE = LISTENER + """
+import numpy as np
 
 from symrom import compiled as C
 from symrom.learn.training import TrainConfig, train
@@ -69,22 +73,7 @@ def test_a_new_process_compiles_nothing_an_earlier_one_compiled(tmp_path):
     assert runs[1] == [], runs[1]
 
 
-HELPER = """
-import json
-from numba.core import event
-
-compiled = []
-
-
-class Compiles(event.Listener):
-    def on_start(self, e):
-        pass
-
-    def on_end(self, e):
-        compiled.append(e.data["dispatcher"].py_func.__qualname__)
-
-
-event.register("numba:compile", Compiles())
+HELPER = LISTENER + """
 from symrom.compiled import warm_windows
 
 warm_windows()
