@@ -111,8 +111,8 @@ def _figure(learned_entry: ManifestEntry, baselines: list[tuple[ManifestEntry, d
         if pred is not None:
             preds[e.title or e.name] = pred
     path = ctx.draw(figures.com_figure, ds.t[a:b], ds.q[a:b, BASE_POS], ros["full"].q_pred[0][:, BASE_POS], preds,
-                              ds.phase[a:b], ds.phase_names, ctx.fig_dir / f"baselines_{ctx.slug(learned_entry)}.png",
-                              title=f"{learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): CoM position, "
-                                    "learned vs baselines")
+                    ds.phase[a:b], ds.phase_names, ctx.fig_dir / f"baselines_{ctx.slug(learned_entry)}.png",
+                    title=f"{learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): CoM position, "
+                          "learned vs baselines")
     return [Figure(path, f"CoM x and z of {learned_entry.name}, {ds.split[j]} jump 0 (dataset jump {j}): truth, "
                          "learned model" + (", " + ", ".join(preds) if preds else " (no baseline rollout to draw)"))]

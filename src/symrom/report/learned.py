@@ -127,8 +127,8 @@ def table2_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
             paper = {horizon_label(k): ref for k in metrics.horizons
                      if e.paper and (ref := paper_rmse(e.paper, k)) is not None} or None
             path = ctx.draw(figures.horizon_figure, rmse, floor, ctx.fig_dir / f"horizons_{ctx.slug(e)}.png",
-                                          title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)",
-                                          paper=paper)
+                            title=f"{e.name}: RMSE per component and horizon ({metrics.split} split)",
+                            paper=paper)
             beside = (" and the paper's implied RMSE (a bar in the horizon's colour)" if paper else "")
             blocks.append(Figure(path, f"{e.name}: RMSE of each Table 2 component at each horizon beside the "
                                        f"reconstruction floor{beside}; the floor is decode∘encode of the true "
@@ -172,7 +172,7 @@ def predictions_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> 
         split = str(ds.split[j])
         which = f"{split} jump 0 (dataset jump {j})"
         path = ctx.draw(figures.jump_figure, ds, ros, j, ctx.fig_dir / f"jump_{ctx.slug(e)}.png",
-                                   title=f"{e.name}: {ds.motion}, {which}")
+                        title=f"{e.name}: {ds.motion}, {which}")
         blocks.append(Figure(path, f"{e.name}: {which}, truth vs prediction"))
         start = ds.jump_bounds()[j][0]
         div = [f"{horizon_label(k)} diverged at t = {ds.t[start + r.diverged_at[0]]:.3f} s"

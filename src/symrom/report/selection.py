@@ -63,8 +63,8 @@ def selection_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> li
                                "momentum balance.", note=True))
         by_paper = (table.get("config") or {}).get("reference") is not None  # scored against the paper's RMSE
         path = ctx.draw(figures.selection_figure, rows, chosen, ctx.fig_dir / f"selection_{ctx.slug(e)}.png",
-                                        title=f"{e.of or e.name}: validation score vs active terms",
-                                        yardstick="paper's RMSE" if by_paper else "spread")
+                        title=f"{e.of or e.name}: validation score vs active terms",
+                        yardstick="paper's RMSE" if by_paper else "spread")
         blocks.append(Figure(path, f"{e.of or e.name}: every candidate of the selection (lower is better)"))
         blocks.append(Table(HEADER, [_row(rows[i], i == chosen) for i in best_rows(rows, chosen)],
                             caption="The best candidate per encoder and latent dimension, and the chosen one "

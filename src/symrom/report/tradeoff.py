@@ -70,7 +70,7 @@ def sweep_blocks(run: Run, entries: list[ManifestEntry], ctx: Context) -> list:
                 continue
             W, source = got
             path = ctx.draw(figures.encoder_heatmap, W, ctx.fig_dir / f"encoder_{ctx.slug(e)}_l{l}.png",
-                                           title=rf"$W_e^T$, {e.of or e.name}, l = {l}")
+                            title=rf"$W_e^T$, {e.of or e.name}, l = {l}")
             blocks.append(Figure(path, f"Heatmap of W_e^T (rows: the 18 configuration components, columns: "
                                        f"latent 1..{l}); source: {source}"))
         blocks += _experiment_encoder(run, e, ctx)
@@ -99,6 +99,6 @@ def _experiment_encoder(run: Run, e: ManifestEntry, ctx: Context) -> list:
     encoder = (swept.facts.get("config") or {}).get("encoder", "as trained")
     W = model.autoencoder.W_e
     path = ctx.draw(figures.encoder_heatmap, W, ctx.fig_dir / f"encoder_{ctx.slug(swept)}.png",
-                                   title=rf"$W_e^T$, {swept.name} model, l = {W.shape[0]}")
+                    title=rf"$W_e^T$, {swept.name} model, l = {W.shape[0]}")
     return [Figure(path, f"Heatmap of W_e^T of the {swept.name} model (encoder: {encoder}; the heatmaps above "
                          "are the paper's default encoder)")]
