@@ -17,6 +17,9 @@ Items (``--only`` picks some; ``--reproduce`` and ``--tests`` add the long ones)
   records every jump's own time (``OUT.run.json``);
 - ``generate_{pybullet,mujoco}_w{1,2}``: 12 Go1 pronks, ``--workers 1`` and ``2``; the files of
   both sides are compared byte for byte;
+- ``randomized_{pybullet,mujoco}``: 6 randomised A1 froggy jumps (``--randomize``: the proxy's
+  motors and sensors in every tick), ``--workers 1``, on caches a first run filled; the files of
+  both sides are compared byte for byte;
 - ``select_{go1_pybullet,go1_mujoco,a1_froggy}``: ``symrom train DATA --select --workers 2`` on 40
   jumps, generated once beforehand by this checkout (not timed); ``..._max10``: the same with
   ``--max-terms 10``;
@@ -53,7 +56,7 @@ from provenance import provenance
 from symrom.atomic import write_text_atomic
 
 HERE = Path(__file__).resolve().parents[1]
-CLI = "import sys; sys.argv[0] = 'symrom'; from symrom.cli import app; app()"
+CLI = "import sys; sys.argv[0] = 'symrom'; from symrom.cli import main; main()"
 ROLLOUT = r"""
 import json, sys, time
 import numpy as np
@@ -293,6 +296,23 @@ def main() -> None:
             files = {s: sorted(work.glob(f"{name}-{s}-*/go1.h5")) for s in ("before", "after")}
             blobs = {p.read_bytes() for s in files for p in files[s]}
             items[name]["files_identical"] = len(blobs) == 1 if blobs else None
+
+    for engine in ("pybullet", "mujoco"):
+        name = f"randomized_{engine}"
+        if not want(name):
+            continue
+        randomized = ("generate", "--robot", "a1", "--motion", "froggy", "--jumps", "6", "--randomize", "--seed", "1",
+                      "--engine", engine, "--workers", "1")
+        filled = {s.name: work / f"{name}-filled-{s.name}" for s in sides}
+        for s in sides:  # one run fills the caches (not timed)
+            run(symrom(*randomized[:6], "1", *randomized[7:], "--out", str(filled[s.name] / "fill.h5")), s.src,
+                fresh(filled[s.name]).parent, fresh(filled[s.name]), T)
+        items[name] = item_runs(name, sides, args.runs, work, lambda side, folder, r=randomized, f=filled: (
+            symrom(*r, "--out", str(folder / "a1.h5")), folder, f[side.name] / "caches"), T,
+            after_run=lambda side, folder, r: jump_seconds(folder / "a1.h5"))
+        files = {s: sorted(work.glob(f"{name}-{s}-*/a1.h5")) for s in ("before", "after")}
+        blobs = {p.read_bytes() for s in files for p in files[s]}
+        items[name]["files_identical"] = len(blobs) == 1 if blobs else None
 
     selects = {"select_go1_pybullet": ("go1", "pronk", "pybullet"), "select_go1_mujoco": ("go1", "pronk", "mujoco"),
                "select_a1_froggy": ("a1", "froggy", "pybullet")}

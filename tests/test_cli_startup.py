@@ -11,13 +11,14 @@ import pytest
 
 HEAVY = ("numpy", "scipy", "sympy", "numba", "pybullet", "mujoco", "h5py", "matplotlib", "casadi", "torch")
 
-# Runs the command as the console script does (symrom.cli:app), then lists the heavy modules loaded.
+# Runs the command as the console script does (symrom.cli:main), or through the typer application
+# itself (``app``), then lists the heavy modules loaded.
 CODE = """
 import json, sys
 sys.argv = ["symrom", *json.loads(sys.argv[1])]
-from symrom.cli import app
+from symrom.cli import {entry}
 try:
-    app()
+    {entry}()
 except SystemExit:
     pass
 sys.stdout.flush()
@@ -25,8 +26,8 @@ print("\\nLOADED " + json.dumps(sorted(m for m in {heavy} if m in sys.modules)))
 """
 
 
-def _loaded(*args: str) -> tuple[str, list[str]]:
-    r = subprocess.run([sys.executable, "-c", CODE.format(heavy=HEAVY), json.dumps(args)],
+def _loaded(*args: str, entry: str = "main", heavy: tuple[str, ...] = HEAVY) -> tuple[str, list[str]]:
+    r = subprocess.run([sys.executable, "-c", CODE.format(heavy=heavy, entry=entry), json.dumps(args)],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     out, _, tail = r.stdout.rpartition("\nLOADED ")
@@ -38,6 +39,16 @@ def test_version_and_help_import_no_numerical_library(args):
     out, loaded = _loaded(*args)
     assert out.strip(), "the command printed nothing"
     assert loaded == [], f"symrom {' '.join(args)} imported {loaded}"
+
+
+def test_version_answers_without_the_command_tree():
+    """``symrom --version`` (the console script's ``main``) prints what the application's own
+    ``--version`` prints, without loading typer, click or rich; the probe sees them loaded where
+    the application answers."""
+    light, loaded = _loaded("--version", heavy=("typer", "rich"))
+    full, loaded_app = _loaded("--version", entry="app", heavy=("typer", "rich"))
+    assert light == full and light.startswith("symrom ") and loaded == [], (light, full, loaded)
+    assert loaded_app == ["rich", "typer"]
 
 
 def test_a_command_that_works_does_load_them():

@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 from _simdata import tmp_path
 
-from symrom.names import BASE_POS, JOINTS
+from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS
 from symrom.robots import ActuatorEffects
+from symrom.robots.kinematics import rpy_to_matrix
 from symrom.sim.engines.registry import make_world
+from symrom.sim.engines.world import RobotState
 from symrom.sim.proxy import (
     JUMP_FIELDS,
     PROXY_RANGES,
@@ -19,6 +21,8 @@ from symrom.sim.proxy import (
     ROBOT_FIELDS,
     ProxyConfig,
     ProxyWorld,
+    SensorModel,
+    TorqueChannel,
     for_engine,
     robot_constants,
     sample_proxy,
@@ -118,6 +122,52 @@ def test_measured_and_commanded_torque_logs(engine):
     w.close()
     with pytest.raises(ValueError, match="torque_log"):
         ProxyConfig(torque_log="exact")
+
+
+def _readings_one_by_one(cfg: ProxyConfig, rng: np.random.Generator, state: RobotState) -> RobotState:
+    """The sensor model written reading by reading: one normal draw per reading."""
+    c, n = cfg, rng.normal
+    q, dq = state.q.copy(), state.dq.copy()
+    drift = np.array([c.drift_vel[0] * state.t, c.drift_vel[1] * state.t, 0.0])
+    q[JOINTS] += n(0.0, c.noise_q, N_JOINTS)
+    dq[JOINTS] += n(0.0, c.noise_dq, N_JOINTS)
+    q[BASE_POS] += drift + n(0.0, c.noise_pos, 3)
+    q[BASE_RPY] += n(0.0, c.noise_rpy, 3) + np.array([0.0, 0.0, c.drift_yaw_rate * state.t])
+    dq[BASE_POS] += n(0.0, c.noise_vel, 3) + np.array([*c.drift_vel, 0.0])
+    dq[BASE_RPY] += n(0.0, c.noise_omega, 3)
+    R = rpy_to_matrix(q[BASE_RPY])[0]
+    omega = state.omega + n(0.0, c.noise_omega, 3)
+    return RobotState(t=state.t, q=q, dq=dq, omega=omega, R=R, contact=state.contact,
+                      foot_pos=state.foot_pos + drift + n(0.0, c.noise_pos, (4, 3)),
+                      foot_vel=state.foot_vel + n(0.0, c.noise_vel, (4, 3)))
+
+
+@pytest.mark.parametrize("ranges, distinct", [(PROXY_RANGES, False), (RANDOMIZED_RANGES, True), (None, False)])
+def test_readings_are_the_one_by_one_draws_bit_for_bit(ranges, distinct):
+    """The sensor model draws every reading's noise in one call per tick; the readings are those
+    of one draw per reading, to the last bit (a dataset does not change with the speed-up), over
+    many ticks of one stream, and the torque channel's limit is the clipped line it states."""
+    rng = np.random.default_rng(7)
+    cfg = ProxyConfig(seed=11) if ranges is None else sample_proxy(rng, ranges)
+    if distinct:  # every reading's own deviation, so that a reading given another's noise shows
+        cfg = replace(cfg, noise_q=0.001, noise_dq=0.03, noise_pos=0.002, noise_rpy=0.005, noise_vel=0.02,
+                      noise_omega=0.04)
+    model, reference = SensorModel(cfg), np.random.default_rng(cfg.seed)
+    motors = TorqueChannel(cfg, np.full(12, 30.0), 0.001)
+    w0 = np.tile(cfg.no_load_speed, 4)
+    for tick in range(300):
+        state = RobotState(t=0.001 * tick, q=rng.normal(0.0, 0.5, 18), dq=rng.normal(0.0, 3.0, 18),
+                           omega=rng.normal(0.0, 2.0, 3), R=np.eye(3), contact=np.array([1, 0, 1, 1], np.uint8),
+                           foot_pos=rng.normal(0.0, 0.3, (4, 3)), foot_vel=rng.normal(0.0, 1.0, (4, 3)))
+        got, want = model.corrupt(state), _readings_one_by_one(cfg, reference, state)
+        for field in ("q", "dq", "omega", "R", "foot_pos", "foot_vel"):
+            a, b = getattr(got, field), getattr(want, field)
+            assert a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64)), (tick, field)
+        assert got.t == state.t and got.contact is state.contact
+        tau, v = rng.normal(0.0, 20.0, 12), rng.uniform(-1.2, 1.2, 12) * w0
+        frac = np.clip((w0 - np.abs(v)) / (w0 - cfg.knee_speed_frac * w0), 0.0, 1.0)
+        limit = np.where(np.sign(tau) == np.sign(v), 30.0 * frac, 30.0)
+        assert np.array_equal(motors.available(tau, v), limit)
 
 
 def test_ranges_and_engines():

@@ -6,19 +6,35 @@ Every command exits non-zero with one clear line on bad input (a traceback only 
 atomically and never overwrites an existing output without ``--force``. One module per group
 of commands: ``data`` (generate, import, show, forces), ``learn`` (train, finetune, sweep,
 equations, export), ``evaluate`` (evaluate, aslip, newton), ``run`` (reproduce, demo, report),
-``plan`` (jump), ``robot`` (robot init, robot show); ``common`` holds what they share. No module
-imports a numerical library at import time: ``symrom --help`` and ``--version`` stay fast.
+``plan`` (jump), ``robot`` (robot init, robot show); ``common`` holds what they share.
+
+The entry point is ``main`` (pyproject: ``symrom.cli:main``). Importing this package loads
+nothing but the standard library: ``symrom --version`` answers without building the command
+tree, ``app`` (the typer application, every command registered) and ``console`` are made on
+first use, and no module imports a numerical library at import time, so that ``symrom --help``
+stays fast too.
 """
 
-from __future__ import annotations
-
 import sys
-
-from symrom.cli import data, evaluate, learn, plan, robot, run  # noqa: F401,E402 - registers the commands
-from symrom.cli.common import app, console  # noqa: F401 - the entry point (pyproject: symrom.cli:app)
 
 __all__ = ["app", "console", "main"]
 
 
 def main() -> None:  # pragma: no cover - entry point
-    app(sys.argv[1:])
+    args = sys.argv[1:]
+    if args == ["--version"]:  # the same line as the application's eager option, without typer
+        from symrom import __version__
+
+        print(f"symrom {__version__}")
+        return
+    __getattr__("app")(args)
+
+
+def __getattr__(name: str):
+    if name in ("app", "console"):
+        from symrom.cli import data, evaluate, learn, plan, robot, run  # noqa: F401 - registers the commands
+        from symrom.cli.common import app, console
+
+        globals().update(app=app, console=console)
+        return globals()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

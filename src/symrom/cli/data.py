@@ -1,8 +1,6 @@
 """Data commands: ``generate`` (simulate jumps), ``import`` (robot logs), ``show`` (render a
 jump), ``forces`` (torque-derived against the engine's ground force)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

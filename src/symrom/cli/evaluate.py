@@ -1,8 +1,6 @@
 """Evaluation commands: ``evaluate`` (a model on a split), and the baselines ``aslip`` and
 ``newton`` (fitted on the train split, evaluated the same way)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

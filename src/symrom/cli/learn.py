@@ -1,8 +1,6 @@
 """Learning commands: ``train`` (one model, or ``--select`` on the val split), ``finetune``,
 ``sweep``, ``equations`` and ``export``."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

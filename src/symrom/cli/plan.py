@@ -1,8 +1,6 @@
 """Planning command: ``jump`` (a pronk or froggy jump to a target planned with a model, executed in simulation,
 open or closed loop, in a nominal or disturbed world)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

@@ -1,8 +1,6 @@
 """Robot description commands: ``robot init`` (a checked description from a robot model alone)
 and ``robot show`` (a description as symrom reads it)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

@@ -1,8 +1,6 @@
 """Run commands: ``reproduce`` (the paper's experiments), ``demo`` (a small Go1 run) and
 ``report`` (the HTML report of a run or a model folder)."""
 
-from __future__ import annotations
-
 from pathlib import Path
 from typing import Annotated
 

@@ -10,6 +10,7 @@ the trunk (base) frame.
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -221,15 +222,23 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     """Base orientation from ZYX Euler angles: rpy (N, 3) rad -> R (N, 3, 3), base to world."""
     rpy = np.atleast_2d(rpy)
     r, p, y = rpy[:, 0], rpy[:, 1], rpy[:, 2]
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    rows = _zyx(np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y))
     R = np.empty((rpy.shape[0], 3, 3))
-    R[:, 0, 0] = cy * cp
-    R[:, 0, 1] = cy * sp * sr - sy * cr
-    R[:, 0, 2] = cy * sp * cr + sy * sr
-    R[:, 1, 0] = sy * cp
-    R[:, 1, 1] = sy * sp * sr + cy * cr
-    R[:, 1, 2] = sy * sp * cr - cy * sr
-    R[:, 2, 0] = -sp
-    R[:, 2, 1] = cp * sr
-    R[:, 2, 2] = cp * cr
+    for i, row in enumerate(rows):
+        for j, v in enumerate(row):
+            R[:, i, j] = v
     return R
+
+
+def rpy_to_matrix_one(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``rpy_to_matrix`` of one orientation, (3, 3), with the same numbers: a state read every
+    tick pays for no array of one row."""
+    return np.array(_zyx(math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw),
+                         math.sin(yaw)))
+
+
+def _zyx(cr, sr, cp, sp, cy, sy) -> tuple:
+    """The rows of R from the cosines and sines of roll, pitch and yaw (floats or arrays)."""
+    return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
+            (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
+            (-sp, cp * sr, cp * cr))

@@ -68,7 +68,8 @@ import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
 from symrom.robots import ActuatorEffects
-from symrom.robots.kinematics import rpy_to_matrix
+from symrom.robots.kinematics import rpy_to_matrix_one
+from symrom.sim.engines.world import RobotState
 
 
 @dataclass
@@ -273,6 +274,7 @@ class TorqueChannel:
         self.limit = np.asarray(torque_limit, dtype=float)
         self.delay = int(round(cfg.latency / dt))
         self.w0 = np.tile(np.asarray(cfg.no_load_speed, dtype=float), N_JOINTS // 3)
+        self._span = self.w0 - cfg.knee_speed_frac * self.w0  # rad/s over which the limit falls
         self.reset()
 
     def reset(self) -> None:
@@ -280,17 +282,26 @@ class TorqueChannel:
 
     def available(self, tau: np.ndarray, joint_vel: np.ndarray) -> np.ndarray:
         """(12,) N m torque limit at joint speeds (12,) rad/s for the requested direction."""
-        w_knee = self.cfg.knee_speed_frac * self.w0
-        frac = np.clip((self.w0 - np.abs(joint_vel)) / (self.w0 - w_knee), 0.0, 1.0)
+        # np.clip's numbers: the ratio is never -0.0 (w0 - |v| is +0.0 where they are equal)
+        frac = np.minimum(np.maximum((self.w0 - np.abs(joint_vel)) / self._span, 0.0), 1.0)
         driving = np.sign(tau) == np.sign(joint_vel)  # braking keeps the full torque
         return np.where(driving, self.limit * frac, self.limit)
 
     def apply(self, tau_cmd: np.ndarray, joint_vel: np.ndarray) -> np.ndarray:
         """Torque (12,) N m reaching the joints this tick for the command ``tau_cmd`` (12,)."""
-        self.buffer.append(np.asarray(tau_cmd, dtype=float).copy())
+        self.buffer.append(np.array(tau_cmd, dtype=float))
         tau = self.buffer.popleft()
         lim = self.available(tau, joint_vel)
         return np.clip(tau, -lim, lim)
+
+
+# The readings ``SensorModel`` adds noise to, in the order their noise is drawn: (reading, the
+# name of its standard deviation in ``ProxyConfig``, how many numbers). The base's angular rate
+# is drawn twice: as the Euler angles' rates in dq and as omega.
+NOISE_DRAWS = (("q", "noise_q", N_JOINTS), ("dq", "noise_dq", N_JOINTS), ("pos", "noise_pos", 3),
+               ("rpy", "noise_rpy", 3), ("vel", "noise_vel", 3), ("rpy_rate", "noise_omega", 3),
+               ("omega", "noise_omega", 3), ("foot_pos", "noise_pos", 3 * N_LEGS),
+               ("foot_vel", "noise_vel", 3 * N_LEGS))
 
 
 class SensorModel:
@@ -299,23 +310,31 @@ class SensorModel:
     def __init__(self, cfg: ProxyConfig):
         self.cfg = cfg
         self.rng = np.random.default_rng(cfg.seed)
+        self._scale = np.concatenate([np.full(n, float(getattr(cfg, sd))) for _, sd, n in NOISE_DRAWS])
+        ends = np.cumsum([n for _, _, n in NOISE_DRAWS]).tolist()
+        self._parts = [slice(end - n, end) for (_, _, n), end in zip(NOISE_DRAWS, ends)]
+        self._drift_dq = np.array([*cfg.drift_vel, 0.0])
 
-    def corrupt(self, state):
-        """A copy of ``state`` with noise and drift; contact flags are left exact."""
-        c, n = self.cfg, self.rng.normal
+    def corrupt(self, state: RobotState) -> RobotState:
+        """A copy of ``state`` with noise and drift; contact flags are left exact.
+
+        Every reading's noise is one draw per tick, ``NOISE_DRAWS`` in order: the same numbers
+        as one normal draw per reading, as the generator's normals come one after another."""
+        c, t = self.cfg, state.t
+        e = 0.0 + self._scale * self.rng.standard_normal(self._scale.size)
+        n_q, n_dq, n_pos, n_rpy, n_vel, n_rate, n_omega, n_feet, n_feet_vel = [e[part] for part in self._parts]
         q, dq = state.q.copy(), state.dq.copy()
-        drift = np.array([c.drift_vel[0] * state.t, c.drift_vel[1] * state.t, 0.0])
-        q[JOINTS] += n(0.0, c.noise_q, N_JOINTS)
-        dq[JOINTS] += n(0.0, c.noise_dq, N_JOINTS)
-        q[BASE_POS] += drift + n(0.0, c.noise_pos, 3)
-        q[BASE_RPY] += n(0.0, c.noise_rpy, 3) + np.array([0.0, 0.0, c.drift_yaw_rate * state.t])
-        dq[BASE_POS] += n(0.0, c.noise_vel, 3) + np.array([*c.drift_vel, 0.0])
-        dq[BASE_RPY] += n(0.0, c.noise_omega, 3)
-        R = rpy_to_matrix(q[BASE_RPY])[0]
-        omega = state.omega + n(0.0, c.noise_omega, 3)
-        return replace(state, q=q, dq=dq, omega=omega, R=R,
-                       foot_pos=state.foot_pos + drift + n(0.0, c.noise_pos, (4, 3)),
-                       foot_vel=state.foot_vel + n(0.0, c.noise_vel, (4, 3)))
+        drift = np.array([c.drift_vel[0] * t, c.drift_vel[1] * t, 0.0])
+        q[JOINTS] += n_q
+        dq[JOINTS] += n_dq
+        q[BASE_POS] += drift + n_pos
+        q[BASE_RPY] += n_rpy + np.array([0.0, 0.0, c.drift_yaw_rate * t])
+        dq[BASE_POS] += n_vel + self._drift_dq
+        dq[BASE_RPY] += n_rate
+        roll, pitch, yaw = q[BASE_RPY].tolist()
+        return RobotState(t=t, q=q, dq=dq, omega=state.omega + n_omega, R=rpy_to_matrix_one(roll, pitch, yaw),
+                          contact=state.contact, foot_pos=state.foot_pos + drift + n_feet.reshape(N_LEGS, 3),
+                          foot_vel=state.foot_vel + n_feet_vel.reshape(N_LEGS, 3))
 
 
 class ProxyWorld:
