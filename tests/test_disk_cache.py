@@ -43,7 +43,8 @@ from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.sim.generation.warm import warm
 from symrom.testing import make_planted_dataset
 
-for kind, name in (("engine", "pybullet"), ("engine", "mujoco"), ("motion", "pronk"), ("motion", "froggy")):
+for kind, name in (("engine", "pybullet"), ("engine", "mujoco"), ("engine", "proxy"), ("motion", "pronk"),
+                   ("motion", "froggy")):
     warm(kind, name)
 ds, _ = make_planted_dataset(n_jumps=3, n_samples=60, seed=1)
 model = train(ds, TrainConfig(latent_dim=2, poly_order=1))

@@ -146,9 +146,11 @@ def _readings_one_by_one(cfg: ProxyConfig, rng: np.random.Generator, state: Robo
 def test_readings_are_the_one_by_one_draws_bit_for_bit(ranges, distinct):
     """The sensor model draws every reading's noise in one call per tick; the readings are those
     of one draw per reading, to the last bit (a dataset does not change with the speed-up), over
-    many ticks of one stream, and the torque channel's limit is the clipped line it states."""
+    many ticks of one stream; the torque channel's limit is the clipped line it states, and the
+    torque it delivers NumPy's clip to it, bit for bit (signed zeros and NaN included)."""
     rng = np.random.default_rng(7)
     cfg = ProxyConfig(seed=11) if ranges is None else sample_proxy(rng, ranges)
+    now = TorqueChannel(replace(cfg, latency=0.0), np.full(12, 30.0), 0.001)  # no delay: apply's clip
     if distinct:  # every reading's own deviation, so that a reading given another's noise shows
         cfg = replace(cfg, noise_q=0.001, noise_dq=0.03, noise_pos=0.002, noise_rpy=0.005, noise_vel=0.02,
                       noise_omega=0.04)
@@ -164,10 +166,15 @@ def test_readings_are_the_one_by_one_draws_bit_for_bit(ranges, distinct):
             a, b = getattr(got, field), getattr(want, field)
             assert a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64)), (tick, field)
         assert got.t == state.t and got.contact is state.contact
-        tau, v = rng.normal(0.0, 20.0, 12), rng.uniform(-1.2, 1.2, 12) * w0
+        tau, v = rng.normal(0.0, 40.0, 12), rng.uniform(-1.2, 1.2, 12) * w0
+        if tick % 3 == 0:  # signed zeros, speeds at the no-load speed and past it, NaN
+            tau[:4], v[4:8], v[8] = (0.0, -0.0, 31.0, -31.0), (w0[4], -w0[5], 0.0, -0.0), np.nan
+            tau[9] = np.nan
         frac = np.clip((w0 - np.abs(v)) / (w0 - cfg.knee_speed_frac * w0), 0.0, 1.0)
         limit = np.where(np.sign(tau) == np.sign(v), 30.0 * frac, 30.0)
-        assert np.array_equal(motors.available(tau, v), limit)
+        assert np.array_equal(motors.available(tau, v), limit, equal_nan=True)
+        clipped = np.clip(tau, -limit, limit)
+        assert np.array_equal(now.apply(tau, v).view(np.uint64), clipped.view(np.uint64)), tick
 
 
 def test_ranges_and_engines():

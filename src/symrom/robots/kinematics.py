@@ -222,7 +222,7 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     """Base orientation from ZYX Euler angles: rpy (N, 3) rad -> R (N, 3, 3), base to world."""
     rpy = np.atleast_2d(rpy)
     r, p, y = rpy[:, 0], rpy[:, 1], rpy[:, 2]
-    rows = _zyx(np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y))
+    rows = zyx_rows(np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y))
     R = np.empty((rpy.shape[0], 3, 3))
     for i, row in enumerate(rows):
         for j, v in enumerate(row):
@@ -233,12 +233,13 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
 def rpy_to_matrix_one(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """``rpy_to_matrix`` of one orientation, (3, 3), with the same numbers: a state read every
     tick pays for no array of one row."""
-    return np.array(_zyx(math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw),
+    return np.array(zyx_rows(math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw),
                          math.sin(yaw)))
 
 
-def _zyx(cr, sr, cp, sp, cy, sy) -> tuple:
-    """The rows of R from the cosines and sines of roll, pitch and yaw (floats or arrays)."""
+def zyx_rows(cr, sr, cp, sp, cy, sy) -> tuple:
+    """The rows of R from the cosines and sines of roll, pitch and yaw (floats or arrays; also
+    compiled, by ``symrom.sim.engines.compiled``)."""
     return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
             (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
             (-sp, cp * sr, cp * cr))

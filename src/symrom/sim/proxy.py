@@ -66,9 +66,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS
+from symrom.names import BASE_POS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects
-from symrom.robots.kinematics import rpy_to_matrix_one
 from symrom.sim.engines.world import RobotState
 
 
@@ -288,11 +287,15 @@ class TorqueChannel:
         return np.where(driving, self.limit * frac, self.limit)
 
     def apply(self, tau_cmd: np.ndarray, joint_vel: np.ndarray) -> np.ndarray:
-        """Torque (12,) N m reaching the joints this tick for the command ``tau_cmd`` (12,)."""
+        """Torque (12,) N m reaching the joints this tick for the command ``tau_cmd`` (12,): the
+        delayed command clipped to ``available``, in one compiled call
+        (``symrom.sim.engines.compiled.proxy_motors``)."""
+        from symrom.sim.engines.compiled import proxy_motors
+
         self.buffer.append(np.array(tau_cmd, dtype=float))
-        tau = self.buffer.popleft()
-        lim = self.available(tau, joint_vel)
-        return np.clip(tau, -lim, lim)
+        tau, out = self.buffer.popleft(), np.empty(N_JOINTS)
+        proxy_motors(tau, np.asarray(joint_vel, dtype=float), self.w0, self._span, self.limit, out)
+        return out
 
 
 # The readings ``SensorModel`` adds noise to, in the order their noise is drawn: (reading, the
@@ -311,30 +314,24 @@ class SensorModel:
         self.cfg = cfg
         self.rng = np.random.default_rng(cfg.seed)
         self._scale = np.concatenate([np.full(n, float(getattr(cfg, sd))) for _, sd, n in NOISE_DRAWS])
-        ends = np.cumsum([n for _, _, n in NOISE_DRAWS]).tolist()
-        self._parts = [slice(end - n, end) for (_, _, n), end in zip(NOISE_DRAWS, ends)]
         self._drift_dq = np.array([*cfg.drift_vel, 0.0])
 
     def corrupt(self, state: RobotState) -> RobotState:
         """A copy of ``state`` with noise and drift; contact flags are left exact.
 
         Every reading's noise is one draw per tick, ``NOISE_DRAWS`` in order: the same numbers
-        as one normal draw per reading, as the generator's normals come one after another."""
+        as one normal draw per reading, as the generator's normals come one after another; the
+        sums in one compiled call (``symrom.sim.engines.compiled.proxy_readings``)."""
+        from symrom.sim.engines.compiled import proxy_readings
+
         c, t = self.cfg, state.t
         e = 0.0 + self._scale * self.rng.standard_normal(self._scale.size)
-        n_q, n_dq, n_pos, n_rpy, n_vel, n_rate, n_omega, n_feet, n_feet_vel = [e[part] for part in self._parts]
-        q, dq = state.q.copy(), state.dq.copy()
-        drift = np.array([c.drift_vel[0] * t, c.drift_vel[1] * t, 0.0])
-        q[JOINTS] += n_q
-        dq[JOINTS] += n_dq
-        q[BASE_POS] += drift + n_pos
-        q[BASE_RPY] += n_rpy + np.array([0.0, 0.0, c.drift_yaw_rate * t])
-        dq[BASE_POS] += n_vel + self._drift_dq
-        dq[BASE_RPY] += n_rate
-        roll, pitch, yaw = q[BASE_RPY].tolist()
-        return RobotState(t=t, q=q, dq=dq, omega=state.omega + n_omega, R=rpy_to_matrix_one(roll, pitch, yaw),
-                          contact=state.contact, foot_pos=state.foot_pos + drift + n_feet.reshape(N_LEGS, 3),
-                          foot_vel=state.foot_vel + n_feet_vel.reshape(N_LEGS, 3))
+        q, dq, omega, R = np.empty(N_Q), np.empty(N_Q), np.empty(3), np.empty((3, 3))
+        foot_pos, foot_vel = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3))
+        proxy_readings(state.q, state.dq, state.omega, state.foot_pos, state.foot_vel, e, c.drift_vel[0] * t,
+                       c.drift_vel[1] * t, c.drift_yaw_rate * t, self._drift_dq, q, dq, omega, R, foot_pos, foot_vel)
+        return RobotState(t=t, q=q, dq=dq, omega=omega, R=R, contact=state.contact, foot_pos=foot_pos,
+                          foot_vel=foot_vel)
 
 
 class ProxyWorld:

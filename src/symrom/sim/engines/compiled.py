@@ -1,6 +1,7 @@
 """Compiled (numba) reads of the engines' state: the base pose and rates from an inertial
 frame's (PyBullet's and MuJoCo's), MuJoCo's whole state and its feet's ground forces in one
-call each.
+call each; and what a hardware-like world (``symrom.sim.proxy``) adds on any engine every tick:
+its sensors' readings and its motors' torque.
 
 A physics tick at 1 kHz leaves a few hundred microseconds for everything Python does
 around it; NumPy's per-call overhead on 3-vectors would take most of that. These routines
@@ -11,10 +12,15 @@ imports numba).
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
+from symrom.robots.kinematics import zyx_rows
+
 njit = numba.njit(cache=True)
+_zyx = njit(zyx_rows)  # the one formula of the rotation from ZYX Euler angles, compiled
 
 @njit
 def quat_matrix(x, y, z, w, R):
@@ -146,6 +152,64 @@ def mujoco_foot_forces(con_geom, con_frame, con_friction, con_dim, con_efc, efc_
                                + con_frame[i, 6 + r] * local[2])
 
 
+@njit
+def proxy_readings(q, dq, omega, foot_pos, foot_vel, e, drift_x, drift_y, drift_yaw, drift_dq, q_out, dq_out,
+                   omega_out, R, foot_pos_out, foot_vel_out):
+    """A proxy's readings of a state, in one call (``symrom.sim.proxy.SensorModel.corrupt``).
+
+    q, dq (18,), omega (3,), foot_pos, foot_vel (4, 3): the state's; e (63,): the tick's noise
+    in ``proxy.NOISE_DRAWS``' order (joints' angles 12 and rates 12, base position 3, Euler
+    angles 3, base velocity 3, Euler rates 3, omega 3, feet's positions 12 and velocities 12);
+    drift_x, drift_y m and drift_yaw rad: the estimator's drift by now; drift_dq (3,) m/s its
+    rate. Writes q_out, dq_out, omega_out, R (3, 3) of the noisy Euler angles, foot_pos_out and
+    foot_vel_out, each sum in the order NumPy's expressions of the reference take it."""
+    for j in range(12):
+        q_out[j] = q[j] + e[j]
+        dq_out[j] = dq[j] + e[12 + j]
+    drift = (drift_x, drift_y, 0.0)
+    angle = (0.0, 0.0, drift_yaw)
+    for a in range(3):
+        q_out[12 + a] = q[12 + a] + (drift[a] + e[24 + a])
+        q_out[15 + a] = q[15 + a] + (e[27 + a] + angle[a])
+        dq_out[12 + a] = dq[12 + a] + (e[30 + a] + drift_dq[a])
+        dq_out[15 + a] = dq[15 + a] + e[33 + a]
+        omega_out[a] = omega[a] + e[36 + a]
+        for k in range(4):
+            foot_pos_out[k, a] = foot_pos[k, a] + drift[a] + e[39 + 3 * k + a]
+            foot_vel_out[k, a] = foot_vel[k, a] + e[51 + 3 * k + a]
+    roll, pitch, yaw = q_out[15], q_out[16], q_out[17]
+    rows = _zyx(math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw))
+    for i in range(3):
+        for j in range(3):
+            R[i, j] = rows[i][j]
+
+
+@njit
+def proxy_motors(tau, joint_vel, w0, span, limit, out):
+    """The torque (12,) N m a proxy's motors deliver for ``tau`` (12,) at joint speeds
+    ``joint_vel`` (12,) rad/s, into out (``symrom.sim.proxy.TorqueChannel``): while a motor
+    drives (torque and speed of one sign), its limit falls from ``limit`` at w0 - span to zero
+    at the no-load speed w0 (12,); braking keeps the whole limit. NumPy's numbers, written out:
+    ``minimum(maximum(x, 0), 1)``, ``sign(a) == sign(b)`` and ``clip`` as its loops take them
+    (NaN passed on)."""
+    for j in range(tau.shape[0]):
+        x = (w0[j] - abs(joint_vel[j])) / span[j]
+        x = x if (x >= 0.0 or x != x) else 0.0
+        frac = x if (x <= 1.0 or x != x) else 1.0
+        lim = limit[j] * frac if _sign(tau[j]) == _sign(joint_vel[j]) else limit[j]
+        t = tau[j]
+        if t == t:
+            t = t if t > -lim else -lim
+        if t == t:
+            t = t if t < lim else lim
+        out[j] = t
+
+
+@njit
+def _sign(x):
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else (0.0 if x == 0.0 else x))
+
+
 # The arguments of the MuJoCo reads that are MuJoCo's contact fields: strided views of its
 # contact structs, contiguous when there is one contact or none.
 STATE_CONTACTS = (12,)
@@ -168,8 +232,10 @@ def settle(dispatcher, args: tuple, loose: tuple[int, ...]) -> None:
     dispatcher.disable_compile(True)
 
 
-# The reads each engine calls every tick (``warm_up``).
-ENGINE_ROUTINES = {"pybullet": ("base_state",), "mujoco": ("mujoco_state", "mujoco_foot_forces")}
+# The reads each engine calls every tick, and what a hardware-like world adds on any engine
+# (``warm_up``).
+ENGINE_ROUTINES = {"pybullet": ("base_state",), "mujoco": ("mujoco_state", "mujoco_foot_forces"),
+                   "proxy": ("proxy_readings", "proxy_motors")}
 
 
 def routines(engine: str) -> list:
@@ -187,6 +253,11 @@ def warm_up(engines: tuple[str, ...] = ("pybullet", "mujoco")) -> None:
         base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
     if "mujoco" in engines:
         settle_mujoco(*mujoco_arguments())
+    if "proxy" in engines:
+        v3, v4, v12 = np.zeros(3), np.zeros((4, 3)), np.zeros(12)
+        proxy_readings(q, dq, v3, v4, v4, np.zeros(63), 0.0, 0.0, 0.0, v3, np.empty(18), np.empty(18), np.empty(3),
+                       np.empty((3, 3)), np.empty((4, 3)), np.empty((4, 3)))
+        proxy_motors(v12, v12, np.ones(12), np.ones(12), np.ones(12), np.empty(12))
 
 
 def mujoco_arguments(nbody: int = 6, ngeom: int = 8, ncon: int = 2) -> tuple[tuple, tuple]:

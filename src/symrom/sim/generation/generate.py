@@ -152,7 +152,7 @@ def _prepare(cfg: GenerateConfig, backend: Backend) -> None:
 
         from symrom.sim.generation.warm import prepare
 
-        prepare(cfg.motion, cfg.engine, load=backend.workers == 1)
+        prepare(cfg.motion, cfg.engine, load=backend.workers == 1, proxy=cfg.proxy or cfg.randomize)
         if backend.workers == 1:  # the tasks run here: what a worker imports before its first (``_preload``)
             for module in _preload(cfg)[:-1]:
                 importlib.import_module(module)

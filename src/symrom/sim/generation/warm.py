@@ -1,12 +1,13 @@
 """The compiled routines a simulation's ticks call, made ready before its first tick.
 
-The engines' reads (``symrom.sim.engines.compiled``) and the controllers' arithmetic
+The engines' reads and a hardware-like world's sensors and motors
+(``symrom.sim.engines.compiled``) and the controllers' arithmetic
 (``symrom.sim.controllers.compiled``) are compiled by numba once per installation and kept in
 its disk cache; a later process loads them. ``prepare(motion, engine)`` makes them ready in
 this process before a generation's first jump: loaded from the disk cache, or, on a cold
-cache, compiled, the engine's in a helper process beside this one while this one compiles the
-motion's (the longer: the froggy controller's routines are most of a cold start), so that the
-helper's own start-up is off the critical path.
+cache, compiled, the engine's (and the proxy's) in a helper process beside this one while this
+one compiles the motion's (the longer: the froggy controller's routines are most of a cold
+start), so that the helper's own start-up is off the critical path.
 
 ``load_cached()`` loads every routine the disk cache holds and compiles none: the worker
 processes' fork server does so (it imports ``preload``, ``generate._preload``), so that every
@@ -36,24 +37,29 @@ def warm(kind: str, name: str) -> None:
         controllers.warm_up((name,))
 
 
-def prepare(motion: str, engine: str, helper: bool = True, load: bool = True) -> None:
+def prepare(motion: str, engine: str, helper: bool = True, load: bool = True, proxy: bool = False) -> None:
     """Make the routines a jump of ``motion`` in ``engine`` calls ready in this process (see the
-    module docstring). ``helper``: on a cold cache, compile the engine's in a second process
-    while this one compiles the motion's (with more than one core). ``load=False``: only make
-    sure the disk cache holds them (for worker processes that load them themselves): groups
-    already there are not loaded here."""
-    groups = [g for g in (("motion", motion), ("engine", engine)) if routines(*g)]  # a plug-in's: none
+    module docstring); ``proxy``: through a hardware-like world's sensors and motors too (its
+    routines, ``("engine", "proxy")``). ``helper``: on a cold cache, compile the engine's (and
+    the proxy's) in a second process while this one compiles the motion's (with more than one
+    core). ``load=False``: only make sure the disk cache holds them (for worker processes that
+    load them themselves): groups already there are not loaded here."""
+    wanted = (("motion", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
+    groups = [g for g in wanted if routines(*g)]  # a plug-in's: none
     cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
+    beside = cold[1:] if helper and len(cold) > 1 and (os.cpu_count() or 1) > 1 else []
     proc = None
-    if helper and len(cold) == 2 and (os.cpu_count() or 1) > 1:
-        proc = start_helper(f"from symrom.sim.generation.warm import warm; warm{cold[1]!r}")
+    if beside:
+        proc = start_helper("from symrom.sim.generation.warm import warm; "
+                            + "; ".join(f"warm{g!r}" for g in beside))
     for g in groups:
-        if (proc is None or g != cold[1]) and (load or g in cold):
+        if g not in beside and (load or g in cold):
             warm(*g)
     if proc is not None:
         wait_helper(proc, HELPER_TIMEOUT)
-        if load or not all(in_disk_cache(d) for d in routines(*cold[1])):
-            warm(*cold[1])  # from the disk cache the helper filled (or compiled here if it failed)
+        for g in beside:
+            if load or not all(in_disk_cache(d) for d in routines(*g)):
+                warm(*g)  # from the disk cache the helper filled (or compiled here if it failed)
 
 
 def load_cached() -> None:
