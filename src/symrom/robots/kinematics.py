@@ -10,7 +10,6 @@ the trunk (base) frame.
 
 from __future__ import annotations
 
-import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -230,16 +229,9 @@ def rpy_to_matrix(rpy: np.ndarray) -> np.ndarray:
     return R
 
 
-def rpy_to_matrix_one(roll: float, pitch: float, yaw: float) -> np.ndarray:
-    """``rpy_to_matrix`` of one orientation, (3, 3), with the same numbers: a state read every
-    tick pays for no array of one row."""
-    return np.array(zyx_rows(math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw),
-                         math.sin(yaw)))
-
-
 def zyx_rows(cr, sr, cp, sp, cy, sy) -> tuple:
     """The rows of R from the cosines and sines of roll, pitch and yaw (floats or arrays; also
-    compiled, by ``symrom.sim.engines.compiled``)."""
+    compiled, by ``symrom.sim.engines.compiled`` for the proxy's readings of one state)."""
     return ((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
             (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
             (-sp, cp * sr, cp * cr))

@@ -274,6 +274,9 @@ class TorqueChannel:
         self.delay = int(round(cfg.latency / dt))
         self.w0 = np.tile(np.asarray(cfg.no_load_speed, dtype=float), N_JOINTS // 3)
         self._span = self.w0 - cfg.knee_speed_frac * self.w0  # rad/s over which the limit falls
+        from symrom.sim.engines.compiled import proxy_motors  # numba: imported where it runs
+
+        self._motors = proxy_motors
         self.reset()
 
     def reset(self) -> None:
@@ -290,11 +293,9 @@ class TorqueChannel:
         """Torque (12,) N m reaching the joints this tick for the command ``tau_cmd`` (12,): the
         delayed command clipped to ``available``, in one compiled call
         (``symrom.sim.engines.compiled.proxy_motors``)."""
-        from symrom.sim.engines.compiled import proxy_motors
-
         self.buffer.append(np.array(tau_cmd, dtype=float))
         tau, out = self.buffer.popleft(), np.empty(N_JOINTS)
-        proxy_motors(tau, np.asarray(joint_vel, dtype=float), self.w0, self._span, self.limit, out)
+        self._motors(tau, np.asarray(joint_vel, dtype=float), self.w0, self._span, self.limit, out)
         return out
 
 
@@ -315,6 +316,9 @@ class SensorModel:
         self.rng = np.random.default_rng(cfg.seed)
         self._scale = np.concatenate([np.full(n, float(getattr(cfg, sd))) for _, sd, n in NOISE_DRAWS])
         self._drift_dq = np.array([*cfg.drift_vel, 0.0])
+        from symrom.sim.engines.compiled import proxy_readings  # numba: imported where it runs
+
+        self._readings = proxy_readings
 
     def corrupt(self, state: RobotState) -> RobotState:
         """A copy of ``state`` with noise and drift; contact flags are left exact.
@@ -322,13 +326,11 @@ class SensorModel:
         Every reading's noise is one draw per tick, ``NOISE_DRAWS`` in order: the same numbers
         as one normal draw per reading, as the generator's normals come one after another; the
         sums in one compiled call (``symrom.sim.engines.compiled.proxy_readings``)."""
-        from symrom.sim.engines.compiled import proxy_readings
-
         c, t = self.cfg, state.t
         e = 0.0 + self._scale * self.rng.standard_normal(self._scale.size)
         q, dq, omega, R = np.empty(N_Q), np.empty(N_Q), np.empty(3), np.empty((3, 3))
         foot_pos, foot_vel = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3))
-        proxy_readings(state.q, state.dq, state.omega, state.foot_pos, state.foot_vel, e, c.drift_vel[0] * t,
+        self._readings(state.q, state.dq, state.omega, state.foot_pos, state.foot_vel, e, c.drift_vel[0] * t,
                        c.drift_vel[1] * t, c.drift_yaw_rate * t, self._drift_dq, q, dq, omega, R, foot_pos, foot_vel)
         return RobotState(t=t, q=q, dq=dq, omega=omega, R=R, contact=state.contact, foot_pos=foot_pos,
                           foot_vel=foot_vel)
