@@ -283,9 +283,9 @@ class TorqueChannel:
         self.buffer: deque[np.ndarray] = deque([np.zeros(N_JOINTS)] * self.delay)
 
     def available(self, tau: np.ndarray, joint_vel: np.ndarray) -> np.ndarray:
-        """(12,) N m torque limit at joint speeds (12,) rad/s for the requested direction."""
-        # np.clip's numbers: the ratio is never -0.0 (w0 - |v| is +0.0 where they are equal)
-        frac = np.minimum(np.maximum((self.w0 - np.abs(joint_vel)) / self._span, 0.0), 1.0)
+        """(12,) N m torque limit at joint speeds (12,) rad/s for the requested direction (what
+        ``apply`` clips to)."""
+        frac = np.clip((self.w0 - np.abs(joint_vel)) / self._span, 0.0, 1.0)
         driving = np.sign(tau) == np.sign(joint_vel)  # braking keeps the full torque
         return np.where(driving, self.limit * frac, self.limit)
 
@@ -327,7 +327,7 @@ class SensorModel:
         as one normal draw per reading, as the generator's normals come one after another; the
         sums in one compiled call (``symrom.sim.engines.compiled.proxy_readings``)."""
         c, t = self.cfg, state.t
-        e = 0.0 + self._scale * self.rng.standard_normal(self._scale.size)
+        e = 0.0 + self._scale * self.rng.standard_normal(self._scale.size)  # as normal(0.0, sd) has it
         q, dq, omega, R = np.empty(N_Q), np.empty(N_Q), np.empty(3), np.empty((3, 3))
         foot_pos, foot_vel = np.empty((N_LEGS, 3)), np.empty((N_LEGS, 3))
         self._readings(state.q, state.dq, state.omega, state.foot_pos, state.foot_vel, e, c.drift_vel[0] * t,
