@@ -382,15 +382,13 @@ def test_full_horizon_line_is_drawn_on_top_of_the_reset_line(run_dir, tmp_path, 
     seen = {}
     real = plots.write_with
 
-    def keep(path, writer):
-        import matplotlib.pyplot as plt
-
-        seen["fig"] = plt.gcf()
+    def keep(path, writer):  # the lines as they are drawn; the kept figure is cleared after
+        seen["lines"] = plots._Panels.of(plots.JOINT_PANELS + plots.BASE_PANELS).axes[0, 0].get_lines()
         return real(path, writer)
 
     monkeypatch.setattr(plots, "write_with", keep)
     plots.plot_jump(ds, ros, j, tmp_path / "j.png")
-    lines = {ln.get_label(): ln for ln in seen["fig"].axes[0].get_lines()}
+    lines = {ln.get_label(): ln for ln in seen["lines"]}
     full, reset = lines["predicted, full horizon"], lines["predicted, 0.1 s resets"]
     assert full.get_zorder() > reset.get_zorder() and full.get_linestyle() == "--"
     assert reset.get_linewidth() > full.get_linewidth()  # the reset line shows around the dashes
