@@ -41,7 +41,7 @@ class _Panels:
     _kept: dict[tuple[str, ...], _Panels] = {}
     lock = threading.Lock()  # one jump at a time on a kept figure, whatever the thread
 
-    def __init__(self, components: tuple[str, ...], rc: dict):
+    def __init__(self, components: tuple[str, ...], rc):
         from matplotlib.figure import Figure
 
         self.rc = rc
@@ -61,7 +61,7 @@ class _Panels:
         """The kept figure for ``components``, built anew under changed ``rcParams``."""
         import matplotlib
 
-        rc = dict(matplotlib.rcParams)
+        rc = matplotlib.rcParams.copy()
         kept = cls._kept.get(components)
         if kept is None or kept.rc != rc:
             kept = cls._kept[components] = cls(components, rc)
@@ -76,9 +76,8 @@ class _Panels:
             ax.relim()
         for legend in list(self.fig.legends):
             legend.remove()
-        if self.fig._suptitle is not None:
-            self.fig._suptitle.remove()
-            self.fig._suptitle = None
+        if self.fig.get_suptitle():
+            self.fig.suptitle("")  # an empty title draws nothing
 
 
 def plot_jump(ds: Dataset, rollouts: dict[str, Rollout], jump: int, path: str | os.PathLike,
