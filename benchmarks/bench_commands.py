@@ -301,11 +301,14 @@ def main() -> None:
         name = f"randomized_{engine}"
         if not want(name):
             continue
-        randomized = ("generate", "--robot", "a1", "--motion", "froggy", "--jumps", "6", "--randomize", "--seed", "1",
-                      "--engine", engine, "--workers", "1")
+        def randomized_jumps(n: int, engine: str = engine) -> tuple[str, ...]:
+            return ("generate", "--robot", "a1", "--motion", "froggy", "--jumps", str(n), "--randomize", "--seed", "1",
+                    "--engine", engine, "--workers", "1")
+
+        randomized = randomized_jumps(6)
         filled = {s.name: work / f"{name}-filled-{s.name}" for s in sides}
-        for s in sides:  # one run fills the caches (not timed)
-            run(symrom(*randomized[:6], "1", *randomized[7:], "--out", str(filled[s.name] / "fill.h5")), s.src,
+        for s in sides:  # one run of one jump fills the caches (not timed)
+            run(symrom(*randomized_jumps(1), "--out", str(filled[s.name] / "fill.h5")), s.src,
                 fresh(filled[s.name]).parent, fresh(filled[s.name]), T)
         items[name] = item_runs(name, sides, args.runs, work, lambda side, folder, r=randomized, f=filled: (
             symrom(*r, "--out", str(folder / "a1.h5")), folder, f[side.name] / "caches"), T,
