@@ -21,6 +21,16 @@ Z = BASE_POS.start + 2
 
 
 @pytest.fixture(scope="module")
+def block():
+    """A planted dataset whose every component a latent drives, small (8 jumps of 0.4 s): the
+    whole selections below run on it, and what they check does not need more data."""
+    from symrom.testing import make_planted_dataset
+
+    ds, _ = make_planted_dataset(n_jumps=8, n_samples=200, embedding="block", noise=1e-4, seed=2)
+    return ds
+
+
+@pytest.fixture(scope="module")
 def fitted(planted_block):
     ds, _ = planted_block
     return ds, train(ds, TrainConfig(latent_dim=2, trig=False, threshold=0.0))
@@ -155,11 +165,12 @@ def test_a_law_that_reads_what_cannot_move_the_base_is_refused(fitted, kind):
 
 @pytest.fixture(scope="module")
 def randomized(tmp_path_factory):
-    """Six randomised Go1 pronks in MuJoCo (masses, friction, motors drawn per jump)."""
+    """Four randomised Go1 pronks in MuJoCo (masses, friction, motors drawn per jump): three to
+    train on, one to select on."""
     from symrom.sim.generation.generate import GenerateConfig, generate
 
     out = tmp_path_factory.mktemp("rand") / "r.h5"
-    return generate(GenerateConfig("go1", "pronk", 6, seed=5, randomize=True, engine="mujoco", splits=(4, 2, 0)),
+    return generate(GenerateConfig("go1", "pronk", 4, seed=5, randomize=True, engine="mujoco", splits=(3, 1, 0)),
                     out)
 
 
@@ -183,8 +194,8 @@ def test_on_randomised_data_the_chosen_model_falls_at_the_datas_flight(randomize
             assert r is not sel.rows[sel.chosen]
 
 
-def test_every_candidate_is_rolled_out_free_and_checked(planted_block):
-    ds, _ = planted_block
+def test_every_candidate_is_rolled_out_free_and_checked(block):
+    ds = block
     sel = select(ds, GRID)
     d = json.loads(json.dumps(sel.to_dict()))
     assert d["version"] == 3 and set(d["refusals"]) == {"physics", "integrator", "free"}
@@ -200,8 +211,8 @@ def test_every_candidate_is_rolled_out_free_and_checked(planted_block):
     assert not [x for x in chosen["refused"] if x["check"] == "physics"]
 
 
-def test_refinements_are_kept_and_a_resumed_selection_redoes_nothing(planted_block, tmp_path):
-    ds, _ = planted_block
+def test_refinements_are_kept_and_a_resumed_selection_redoes_nothing(block, tmp_path):
+    ds = block
     parts = tmp_path / "parts"
     first = select(ds, GRID, cells_dir=parts)
     stored = list((parts / "refined").glob("*.json"))
@@ -259,7 +270,7 @@ def test_the_selection_needs_no_optional_extra(tmp_path):
         "    sys.modules[name] = None  # import of any of them fails\n"
         "from symrom.experiments.select import SelectionConfig, select\n"
         "from symrom.testing import make_planted_dataset\n"
-        "ds, _ = make_planted_dataset(n_jumps=8, n_samples=300, embedding='block', noise=1e-4, seed=2)\n"
+        "ds, _ = make_planted_dataset(n_jumps=8, n_samples=200, embedding='block', noise=1e-4, seed=2)\n"
         "grid = SelectionConfig(encoders=('base_position',), latent_dims=(2,), libraries=('poly1+inputs',),\n"
         "                       thresholds=(1e-2,), refine_top=1)\n"
         "sel = select(ds, grid)\n"

@@ -276,9 +276,12 @@ def warm_windows() -> None:
 
 
 def start_windows_helper():
-    """A process making the window kernel ready in numba's disk cache (compiling it on a cold
-    cache, so that the refinements' workers load it instead of each compiling it; on a filled
-    one it only loads it), as a ``subprocess.Popen``; None if no process can be started."""
-    from symrom.execution import start_helper
+    """A process compiling the window kernel into numba's disk cache, so that the refinements'
+    workers load it instead of each compiling it, as a ``subprocess.Popen``; None where the cache
+    already holds it (the workers load it; a process would only start and wait) or no process can
+    be started."""
+    from symrom.execution import in_disk_cache, start_helper
 
+    if in_disk_cache(kernels()["rk4_windows"]):
+        return None
     return start_helper("from symrom.compiled.kernel import warm_windows; warm_windows()")
