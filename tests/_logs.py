@@ -75,11 +75,6 @@ def on_clock(m: dict[str, np.ndarray], rate, dt: float = 0.002) -> dict[str, np.
     return out
 
 
-def _cell(v: float, comma: bool) -> str:
-    text = repr(float(v))
-    return text.replace(".", ",") if comma else text
-
-
 def write_hardware(path: Path, jumps: list[dict], accelerations: bool = True) -> Path:
     """The hardware layout: ';'-separated, decimal commas, Time restarting at every jump."""
     names = ["Time", *hw_columns("Position"), *hw_columns("Velocity")]
@@ -91,7 +86,7 @@ def write_hardware(path: Path, jumps: list[dict], accelerations: bool = True) ->
         parts = [m["t"][:, None], m["q"], m["dq"]] + ([m["ddq"]] if accelerations else []) + [m["tau"]]
         table = np.concatenate(parts, axis=1)
         for row, flags in zip(table, m["contact"]):
-            lines.append(";".join([_cell(v, True) for v in row] + [str(int(f)) for f in flags]))
+            lines.append(";".join([repr(v).replace(".", ",") for v in row.tolist()] + [str(int(f)) for f in flags]))
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -107,7 +102,7 @@ def write_plain(path: Path, jumps: list[dict], accelerations: bool = True) -> Pa
         parts = [m["t"][:, None], m["q"], m["dq"]] + ([m["ddq"]] if accelerations else []) + [m["tau"]]
         table = np.concatenate(parts, axis=1)
         for row, flags in zip(table, m["contact"]):
-            lines.append(",".join([str(j)] + [_cell(v, False) for v in row] + [str(int(f)) for f in flags]))
+            lines.append(",".join([str(j), *map(repr, row.tolist()), *(str(int(f)) for f in flags)]))
     path.write_text("\n".join(lines) + "\n")
     return path
 

@@ -139,20 +139,27 @@ def test_froggy_interrupted_then_resumed_gives_the_same_file():
 
 @pytest.mark.slow
 def test_killed_subprocess_leaves_parts_that_resume(tmp_path):
+    # one jump: the process dies with its part written and the file not; the resume builds the
+    # file from that part (one with jumps left to run: test_froggy_interrupted_then_resumed_...)
     out = tmp_path / "killed.h5"
     code = ("import sys; from symrom.sim.generation.generate import GenerateConfig, generate; "
-            f"generate(GenerateConfig('a1', 'froggy', 2, seed=7), {str(out)!r}, "
+            f"generate(GenerateConfig('a1', 'froggy', 1, seed=7), {str(out)!r}, "
             "progress_callback=lambda d, t, i: sys.exit(3) if d == 1 else None)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, timeout=300)
     assert r.returncode == 3 and not out.exists()
     assert [p.name for p in parts_dir(out).glob("jump_*.npz")] == ["jump_00000.npz"]
-    ds = generate(GenerateConfig("a1", "froggy", 2, seed=7), out, resume=True)
-    assert ds.n_jumps == 2 and read_dataset(out).n_jumps == 2
+    part = read_part(parts_dir(out) / "jump_00000.npz")[0]
+    seen = []
+    ds = generate(GenerateConfig("a1", "froggy", 1, seed=7), out, resume=True,
+                  progress_callback=lambda d, t, i: seen.append(i))
+    assert seen == [{"resumed": 1}] and ds.n_jumps == 1 and read_dataset(out).n_jumps == 1
+    np.testing.assert_array_equal(ds.q, part["q"])
 
 
 @pytest.mark.slow
 def test_noise_variant_is_recorded_and_valid():
-    ds = read_dataset(reference_file("froggy", noise=True))
+    # one jump: its record and its start against the clean file's first jump
+    ds = generate(config("froggy", n_jumps=1, noise=True), tmp_path("froggy_noise.h5"))
     g = ds.generator
     assert g["config"]["noise"]["force_std"] == [15.0, 15.0, 10.0]
     assert all("push" in r for r in g["jumps"])

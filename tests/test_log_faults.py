@@ -63,7 +63,8 @@ def test_a_slow_loop_takes_its_rows_late_and_writes_them_on_its_own_clock():
 
 @cache
 def _proxy_go1(faults: str | None) -> object:
-    cfg = GenerateConfig("go1", "pronk", 3, seed=21, proxy=True, log_faults=faults, splits=(1, 1, 1))
+    # two jumps: one logger's faults are the same in both
+    cfg = GenerateConfig("go1", "pronk", 2, seed=21, proxy=True, log_faults=faults)
     return generate(cfg, tmp_path(f"faulty_go1_{faults}.h5"), force=True)
 
 
@@ -86,11 +87,11 @@ def test_a_faulty_file_is_one_logger_whose_faults_the_repair_finds(tmp_path):
     for ds in (clean, faulty):
         write_plain_csv(ds, tmp_path / "log.csv", accelerations=False)
         rep, report = import_logs([tmp_path / "log.csv"], robot="go1", segment="off", repair=RepairLimits())
-        assert rep.generator["files"][0]["consistency"] == [] and len(report.repairs) == 3
+        assert rep.generator["files"][0]["consistency"] == [] and len(report.repairs) == 2
         found.append(rep.generator["repairs"]["jumps"])
     for c, f in zip(*found):
         assert f["clock"]["finding"] == "velocities" and not f["clock"]["applied"], f["line"]
-        assert abs(f["velocities"][0]["gain"] / planted.velocity_gain - 1) < 0.02  # the sensor noise: 1.7 % here
+        assert abs(f["velocities"][0]["gain"] / planted.velocity_gain - 1) < 0.02  # the sensor noise: 0.9 % here
         clean_gain = c["gain"]["gain"] if c["gain"]["applied"] else 1.0  # the proxy's own sensor, damping ...
         assert abs(f["gain"]["gain"] / clean_gain / planted.torque_gain - 1) < 0.03
         offset = (f["height"]["offset"] if f["height"]["applied"] else 0.0) - (

@@ -12,6 +12,7 @@ from conftest import one_line_error
 from typer.testing import CliRunner
 
 from symrom.cli import app
+from symrom.data import importers
 from symrom.data.importers import import_logs, read_log
 from symrom.data.io import read_dataset
 from symrom.data.repair import REPAIR_VERSION, RepairError, RepairLimits, repair_log
@@ -38,9 +39,22 @@ def _copy(m: dict) -> dict:
 def _repaired(tmp_path, robot: str, logged: dict, name: str = "log.csv", **kw):
     """Import one planted jump with the repair; the dataset and its jump's record."""
     ds, _ = import_logs([write_plain(tmp_path / name, [logged], accelerations=False)], robot=robot,
-                     motion=_sim(robot)[1], repair=REPAIR, **kw)
+                     motion=SIMS[robot][1], repair=REPAIR, **kw)
     (record,) = ds.generator["repairs"]["jumps"]
     return ds, record
+
+
+def _logs_read(monkeypatch) -> list:
+    """The logs the import reads, as it leaves them (repaired in place): every row's repaired
+    time, which the dataset, on one grid, no longer holds."""
+    read, source = [], importers.read_source
+
+    def keep(*args, **kw):
+        read.append(source(*args, **kw))
+        return read[-1]
+
+    monkeypatch.setattr(importers, "read_source", keep)
+    return read
 
 
 def _lagged(contact: np.ndarray, rows: int = 1) -> np.ndarray:
@@ -209,6 +223,7 @@ def test_a_torque_gain_is_found_from_the_weight(tmp_path, robot):
     g = rec["gain"]
     assert g["applied"] and abs(g["gain"] / 0.56 - 1) < 0.03 and g["static_windows"] >= REPAIR.min_static
     assert abs(g["dynamic"] / 0.56 - 1) < 0.03  # the dynamic windows agree
+    assert g["kinds"] is None  # one gain for all joints is never taken for two
     np.testing.assert_allclose(got.tau, m["tau"], rtol=0.03, atol=1e-9)
     assert got.generator["files"][0]["consistency"] == []
 
@@ -232,13 +247,7 @@ def test_torque_gains_per_joint_kind_where_the_jumps_tell_them_apart(tmp_path):
     logged["tau"] = kinds * m["tau"]
     _, rec = _repaired(tmp_path, "go1", logged, name="go1.csv")
     assert rec["gain"]["kinds"] is None and abs(rec["gain"]["gain"] / 0.5 - 1) < 0.03
-    # one gain for all joints is never taken for two
-    for robot in ("go1", "a1"):
-        m = jump(_sim(robot)[0], 0)
-        logged = _copy(m)
-        logged["tau"] = 0.56 * m["tau"]
-        _, rec = _repaired(tmp_path, robot, logged, name=f"one_{robot}.csv")
-        assert rec["gain"]["kinds"] is None
+    # one gain for all joints is never taken for two: test_a_torque_gain_is_found_from_the_weight
 
 
 @pytest.mark.parametrize("robot", ["go1", "a1"])
@@ -346,7 +355,7 @@ def test_a_go1_log_with_the_faults_of_the_real_one(tmp_path):
     assert got.generator["files"][0]["consistency"] == []
 
 
-def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_path):
+def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_path, monkeypatch):
     """Logs without timestamps, their period estimated 2 % short and the loop's rate drifting
     +-6 % within each jump, the feet 28 mm above the ground: each jump's clock is warped
     back (velocities right: the flight falls at g on it) and its height found."""
@@ -362,16 +371,18 @@ def test_a1_froggy_logs_without_timestamps_with_the_faults_of_the_real_ones(tmp_
     path = write_plain(tmp_path / "a1_real.csv", logs, accelerations=False)
     with pytest.raises(Exception, match="feet in contact sit 28"):
         import_logs([path], robot="a1", motion="froggy")
-    lg = read_log(path)
-    recs = repair_log(lg, "a1", REPAIR)
+    read = _logs_read(monkeypatch)
+    got, _ = import_logs([path], robot="a1", motion="froggy", repair=REPAIR)
+    (lg,) = read
+    recs = got.generator["repairs"]["jumps"]
+    assert len(recs) == len(logs)
     for j, (rec, logged) in enumerate(zip(recs, logs)):
         a, b = lg.bounds()[j]
-        assert rec.clock.finding == "clock" and rec.clock.warp, rec.line()
-        assert abs(rec.clock.flight_g - 1) < 0.01
+        assert rec["clock"]["finding"] == "clock" and rec["clock"]["warp"], rec["line"]
+        assert abs(rec["clock"]["flight_g"] - 1) < 0.01
         _times_within(lg.t[a:b], logged["t_true"], logged["t"])
-        assert abs(rec.height.offset + 0.028) < 0.002
-        assert not rec.gain.applied and not any(v.applied for v in rec.velocities)
-    got, _ = import_logs([path], robot="a1", motion="froggy", repair=REPAIR)
+        assert abs(rec["height"]["offset"] + 0.028) < 0.002
+        assert not rec["gain"]["applied"] and not any(v["applied"] for v in rec["velocities"])
     assert all(f["consistency"] == [] for f in got.generator["files"])
     # the dataset's period: the coarsest jump's, now on its true clock (2 % longer and drifting)
     assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
@@ -385,7 +396,8 @@ def _without_time(path):
     return path
 
 
-def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_and_retimed(tmp_path):
+def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_and_retimed(tmp_path,
+                                                                                         monkeypatch):
     """A1 froggy logs with no time column, by a loop 3 % slower than its 2 ms and drifting +-5 %
     within each jump: refused without a period (one line naming the time column and period);
     read 2 ms apart, each jump's rows are warped back to their true times by the flight."""
@@ -403,16 +415,19 @@ def test_a1_froggy_logs_without_a_time_column_are_read_at_their_nominal_period_a
     assert lg.period == 0.002 and lg.n_jumps == ds.n_jumps
     for a, b in lg.bounds():
         np.testing.assert_array_equal(lg.t[a:b], np.arange(b - a) * 0.002)
-    recs = repair_log(lg, "a1", REPAIR)
-    for j, rec in enumerate(recs):
-        a, b = lg.bounds()[j]
-        assert rec.clock.finding == "clock" and rec.clock.warp, rec.line()
-        _times_within(lg.t[a:b], logs[j]["t_true"], logs[j]["t"])
+    read = _logs_read(monkeypatch)
     out = tmp_path / "a1.h5"
     r = runner.invoke(app, ["import", str(path), "--robot", "a1", "--motion", "froggy", "--out", str(out),
                             "--repair", "--period", "0.002"])
     assert r.exit_code == 0 and "warning" not in r.output, r.output
+    (lg,) = read
     got = read_dataset(out)
+    recs = got.generator["repairs"]["jumps"]
+    assert len(recs) == len(logs)
+    for j, rec in enumerate(recs):
+        a, b = lg.bounds()[j]
+        assert rec["clock"]["finding"] == "clock" and rec["clock"]["warp"], rec["line"]
+        _times_within(lg.t[a:b], logs[j]["t_true"], logs[j]["t"])
     assert got.generator["files"][0]["time"] == {"column": False, "period": 0.002}
     assert got.generator["files"][0]["consistency"] == []
     assert abs(got.dt / max(np.median(np.diff(x["t_true"])) for x in logs) - 1) < 0.005
@@ -424,7 +439,9 @@ def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
     ds = proxy_go1()
     for j in range(ds.n_jumps):
         m = jump(ds, j)
-        _, clean = _repaired(tmp_path, "go1", m, name=f"clean{j}.csv")
+        # the clean jump's own estimates: the repair alone, no dataset needed
+        (clean,) = repair_log(read_log(write_plain(tmp_path / f"clean{j}.csv", [m], accelerations=False)), "go1",
+                              REPAIR)
         logged = _copy(m)
         logged["dq"] = m["dq"] / 1.06
         logged["tau"] = 0.56 * m["tau"]
@@ -433,8 +450,8 @@ def test_proxy_go1_jumps_noise_drift_and_soft_feet_repaired_alike(tmp_path):
         assert rec["clock"]["finding"] == "velocities", rec["line"]
         joints = rec["velocities"][0]
         assert abs(joints["gain"] * 1.06 - 1) < 0.02  # the noise: 1.5 % at most over these jumps
-        assert abs(rec["gain"]["gain"] / clean["gain"]["gain"] / 0.56 - 1) < 0.03
-        assert abs(rec["height"]["offset"] - clean["height"]["offset"] - 0.0217) < 0.002
+        assert abs(rec["gain"]["gain"] / clean.gain.gain / 0.56 - 1) < 0.03
+        assert abs(rec["height"]["offset"] - clean.height.offset - 0.0217) < 0.002
         assert got.generator["files"][0]["consistency"] == []
 
 

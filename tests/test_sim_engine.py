@@ -145,8 +145,9 @@ def test_description_actuators_and_mjcf_keys(tmp_path):
 @pytest.mark.parametrize("robot, motion", [("go1", "pronk"), ("a1", "froggy")])
 def test_mujoco_generates_jumps_that_pass_the_checks(robot, motion):
     out = tmp_path(f"{robot}_{motion}_mj.h5")
-    ds = generate(GenerateConfig(robot, motion, 2, seed=1, engine="mujoco", max_attempts=2), out)
-    assert ds.n_jumps == 2
+    # one jump: the checks are the same for every jump, and its forces correlate as two jumps' do
+    ds = generate(GenerateConfig(robot, motion, 1, seed=1, engine="mujoco", max_attempts=2), out)
+    assert ds.n_jumps == 1
     assert ds.generator["engine"] == "mujoco" and ds.generator["config"]["engine"] == "mujoco"
     assert json.loads(run_record_path(out).read_text())["engine"] == "mujoco"
     z = ds.q[:, 14]
