@@ -30,20 +30,24 @@ report of it; ``repairs_record`` the dataset's, ``generator["repairs"]``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from symrom.data.consistency import ConsistencyLimits, time_scale, vertical_impulse
 from symrom.data.rawlog import RawLog
 from symrom.data.repair_body import (
+    BodyPose,
+    BodyState,
     ContactEstimate,
     GainEstimate,
     HeightEstimate,
+    body_pose,
     body_state,
     contact_lag,
     estimate_gain,
     estimate_height,
+    feet_velocity,
     grounded,
     shift_flags,
 )
@@ -176,10 +180,19 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
     """
     physics_or_default = physics or ConsistencyLimits()
     derived = bool(lg.topics and str(lg.topics.get("contacts", "")).startswith("derived"))
+    # each jump's bodies as logged, computed once for both passes of the clock and the repair
+    bodies: dict[int, tuple[BodyPose, BodyState]] = {}
+
+    def body_of(j: int) -> tuple[BodyPose, BodyState]:
+        if j not in bodies:
+            a, b = lg.bounds()[j]
+            pose = body_pose(robot, lg.q[a:b])
+            bodies[j] = pose, body_state(robot, lg.q[a:b], lg.dq[a:b], pose)
+        return bodies[j]
 
     def clock_of(j: int, kind: tuple[str, str] | None = None) -> ClockFit | RepairError:
         a, b = lg.bounds()[j]
-        state = body_state(robot, lg.q[a:b], lg.dq[a:b])
+        state = body_of(j)[1]
         try:
             return estimate_clock(f"{lg.path}, jump {j}", lg.t[a:b], lg.q[a:b], lg.dq[a:b], lg.contact[a:b],
                                   state.com_z, limits, physics_or_default.min_motion,
@@ -202,7 +215,8 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
         t, q, dq = lg.t[a:b].copy(), lg.q[a:b].copy(), lg.dq[a:b].copy()
         tau, contact = lg.tau[a:b].copy(), lg.contact[a:b].copy()
         kept: list[str] = []
-        state = body_state(robot, q, dq)
+        pose, state = body_of(j)
+        del bodies[j]  # held no longer than its jump's repair
         fit = fits[j]
         if isinstance(fit, RepairError):  # lenient: kept as logged
             kept.append(str(fit).split(": ", 1)[-1])
@@ -222,8 +236,10 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
         for v, (_, cols) in zip(velocities, VELOCITY_GROUPS):
             if v.applied:
                 dq[:, cols] = dq[:, cols] / v.gain
-        if retimed:
-            state = body_state(robot, q, dq)
+        if retimed:  # the same positions: only what the velocities give is computed again
+            state = body_state(robot, q, dq, pose)
+        else:  # the feet's speeds from the jump's C-ordered copy: einsum sums a CSV log's columns otherwise
+            state = replace(state, feet_vz=feet_velocity(pose, q, dq))
 
         # contacts: a logger's lag of the flags (logged flags only)
         lag, td, lo = (0, {}, {}) if derived else contact_lag(state, contact, limits)

@@ -1,12 +1,13 @@
 """The repair's body estimates: the torque gain, the base-height offset and the contact flags
 of a logged jump, from physics and the robot description.
 
-What they share (``body_state``): the whole body's centre of mass (``robots.masses``: every
-link of the URDF, not the base) and its vertical velocity; the feet's height above the ground
-and vertical speed (leg kinematics, the foot's radius); per joint, the vertical ground force a
-unit torque gives its foot (``preprocess.ground_reaction_forces``, through the leg Jacobian),
-and the torques that hold the legs' own weight. A foot in contact then pushes up with
-F_z = C tau_true - C h, and the feet together carry m (g + a_z) of the centre of mass.
+What they share (``body_state``; ``body_pose``: what the positions alone give): the whole
+body's centre of mass (``robots.masses``: every link of the URDF, not the base) and its
+vertical velocity; the feet's height above the ground and vertical speed (leg kinematics, the
+foot's radius); per joint, the vertical ground force a unit torque gives its foot
+(``preprocess.ground_reaction_forces``, through the leg Jacobian), and the torques that hold
+the legs' own weight. A foot in contact then pushes up with F_z = C tau_true - C h, and the
+feet together carry m (g + a_z) of the centre of mass.
 
 - **Torque gain** (``estimate_gain``): logged torques are ``gain`` times the true ones (a
   current sensor's calibration, a gear ratio). Over windows of ``gain_window`` s (their edges
@@ -81,23 +82,34 @@ def angular_velocity(rpy: np.ndarray, rates: np.ndarray) -> np.ndarray:
                      -np.sin(p) * dr + dy], axis=1)
 
 
-def body_state(robot: str, q: np.ndarray, dq: np.ndarray) -> BodyState:
-    """The quantities of the module docstring for q, dq (n, 18) of one jump."""
+@dataclass(frozen=True)
+class BodyPose:
+    """What of a jump's bodies its positions alone give, per row (n rows), for ``body_state``
+    at any velocities: R (n, 3, 3) base to world; com_w (n, 3) m the centre of mass from the
+    base and feet_w (n, 4, 3) m the feet's centres, world axes; J (n, 4, 3, 3) the legs'
+    Jacobians (base frame, m/rad); com_z, feet_z, force, hold, mass as ``BodyState``'s."""
+
+    R: np.ndarray
+    com_w: np.ndarray
+    feet_w: np.ndarray
+    J: np.ndarray
+    com_z: np.ndarray
+    feet_z: np.ndarray
+    force: np.ndarray
+    hold: np.ndarray
+    mass: float
+
+
+def body_pose(robot: str, q: np.ndarray) -> BodyPose:
+    """The position-only quantities of ``body_state`` for q (n, 18) of one jump."""
     desc, mm = get_robot(robot), mass_model(robot)
-    qj, dqj = q[:, JOINTS], dq[:, JOINTS]
+    qj = q[:, JOINTS]
     R = rpy_to_matrix(q[:, BASE_RPY])
-    omega = angular_velocity(q[:, BASE_RPY], dq[:, BASE_RPY])
-    com_b = mm.com_base(qj)
+    com_b, hold = mm.com_and_hold(qj, q[:, BASE_RPY], G)  # one placement of the links for both
     com_w = np.einsum("nij,nj->ni", R, com_b)
-    com_v = np.einsum("nij,nj->ni", R, mm.com_base_rate(qj, dqj))
-    com_z = q[:, _Z] + com_w[:, 2]
-    com_vz = dq[:, _Z] + np.cross(omega, com_w)[:, 2] + com_v[:, 2]
     feet, J = leg_kinematics(robot).foot_positions_and_jacobians(qj)  # (n, 4, 3), (n, 4, 3, 3)
     feet_w = np.einsum("nij,nkj->nki", R, feet)
     feet_z = q[:, None, _Z] + feet_w[:, :, 2] - desc.foot_radius
-    leg_v = np.einsum("nkij,nkj->nki", J, dqj.reshape(-1, N_LEGS, 3))
-    feet_vz = (dq[:, None, _Z] + np.cross(omega[:, None, :], feet_w)[:, :, 2]
-               + np.einsum("nij,nkj->nki", R, leg_v)[:, :, 2])
     up = R[:, 2, :]  # the world's z in the base frame
     force = np.empty((q.shape[0], 12))
     for k in range(N_LEGS):
@@ -106,8 +118,28 @@ def body_state(robot: str, q: np.ndarray, dq: np.ndarray) -> BodyState:
         except np.linalg.LinAlgError:  # a stretched leg: least squares, as the wrench does
             c = -np.einsum("nij,nj->ni", np.linalg.pinv(J[:, k]), up)
         force[:, leg_slice(k)] = c
-    hold = mm.hold_torques(qj, q[:, BASE_RPY], G)
-    return BodyState(com_z, com_vz, feet_z, feet_vz, force, hold, mm.mass)
+    return BodyPose(R, com_w, feet_w, J, q[:, _Z] + com_w[:, 2], feet_z, force, hold, mm.mass)
+
+
+def body_state(robot: str, q: np.ndarray, dq: np.ndarray, pose: BodyPose | None = None) -> BodyState:
+    """The quantities of the module docstring for q, dq (n, 18) of one jump; pose:
+    ``body_pose(robot, q)`` where it is at hand (None: computed here), as for the same
+    positions with repaired velocities."""
+    mm = mass_model(robot)
+    pose = body_pose(robot, q) if pose is None else pose
+    omega = angular_velocity(q[:, BASE_RPY], dq[:, BASE_RPY])
+    com_v = np.einsum("nij,nj->ni", pose.R, mm.com_base_rate(q[:, JOINTS], dq[:, JOINTS]))
+    com_vz = dq[:, _Z] + np.cross(omega, pose.com_w)[:, 2] + com_v[:, 2]
+    return BodyState(pose.com_z, com_vz, pose.feet_z, feet_velocity(pose, q, dq), pose.force, pose.hold, pose.mass)
+
+
+def feet_velocity(pose: BodyPose, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+    """The feet's vertical velocity (n, 4) m/s at q, dq (n, 18); pose: ``body_pose(robot, q)``.
+    Its last bit follows dq's memory layout (einsum's order of summing)."""
+    omega = angular_velocity(q[:, BASE_RPY], dq[:, BASE_RPY])
+    leg_v = np.einsum("nkij,nkj->nki", pose.J, dq[:, JOINTS].reshape(-1, N_LEGS, 3))
+    return (dq[:, None, _Z] + np.cross(omega[:, None, :], pose.feet_w)[:, :, 2]
+            + np.einsum("nij,nkj->nki", pose.R, leg_v)[:, :, 2])
 
 
 def vertical_forces(state: BodyState, tau: np.ndarray, contact: np.ndarray | None = None) -> np.ndarray:

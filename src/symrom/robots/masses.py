@@ -111,11 +111,27 @@ class MassModel:
             com[:, i] = p + R @ self.local_com[i]
         return com, axes, origins
 
+    def _com(self, com: np.ndarray) -> np.ndarray:
+        """The whole body's centre of mass (N, 3) m from the links' (N, L, 3) m."""
+        return np.einsum("l,nlj->nj", self.masses, com) / self.mass
+
+    def _hold(self, frames: tuple[np.ndarray, np.ndarray, np.ndarray], rpy: np.ndarray,
+              gravity: float) -> np.ndarray:
+        """``hold_torques`` (N, 12) N m from ``_frames``' links and joints at the angles."""
+        com, axes, origins = frames
+        g_base = -gravity * rpy_to_matrix(np.atleast_2d(rpy))[:, 2, :]  # R^T (0, 0, -g)
+        out = np.empty((com.shape[0], N_JOINTS))
+        for c in range(N_JOINTS):
+            links = self._below[c]
+            lever = com[:, links] - origins[:, c, None]  # (N, l, 3)
+            moment = np.cross(lever, self.masses[links, None] * g_base[:, None]).sum(axis=1)
+            out[:, c] = -np.einsum("ni,ni->n", axes[:, c], moment)
+        return out
+
     def com_base(self, q_joints: np.ndarray) -> np.ndarray:
         """The whole body's centre of mass in the base frame: (N, 12) rad -> (N, 3) m."""
         qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
-        com = self._frames(qj)[0]
-        return np.einsum("l,nlj->nj", self.masses, com) / self.mass
+        return self._com(self._frames(qj)[0])
 
     def com_base_rate(self, q_joints: np.ndarray, dq_joints: np.ndarray, eps: float = 1e-6) -> np.ndarray:
         """Its rate in the base frame: joint angles and rates (N, 12) -> (N, 3) m/s (central
@@ -130,12 +146,12 @@ class MassModel:
         joint's motor gives about its axis to carry the links below it; a foot's ground force
         F adds -J^T F (``preprocess.ground_reaction_forces``)."""
         qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
-        com, axes, origins = self._frames(qj)
-        g_base = -gravity * rpy_to_matrix(np.atleast_2d(rpy))[:, 2, :]  # R^T (0, 0, -g)
-        out = np.empty((qj.shape[0], N_JOINTS))
-        for c in range(N_JOINTS):
-            links = self._below[c]
-            lever = com[:, links] - origins[:, c, None]  # (N, l, 3)
-            moment = np.cross(lever, self.masses[links, None] * g_base[:, None]).sum(axis=1)
-            out[:, c] = -np.einsum("ni,ni->n", axes[:, c], moment)
-        return out
+        return self._hold(self._frames(qj), rpy, gravity)
+
+    def com_and_hold(self, q_joints: np.ndarray, rpy: np.ndarray, gravity: float) -> tuple[np.ndarray, np.ndarray]:
+        """``com_base`` (N, 3) m and ``hold_torques`` (N, 12) N m at the same joint angles
+        (N, 12) rad (rpy, gravity as ``hold_torques``'), from one placement of the links: the
+        same numbers as the two apart."""
+        qj = np.atleast_2d(np.asarray(q_joints, dtype=float))
+        frames = self._frames(qj)
+        return self._com(frames[0]), self._hold(frames, rpy, gravity)
