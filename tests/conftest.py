@@ -53,6 +53,13 @@ def planted_block():
     return make_planted_dataset(n_jumps=20, n_samples=400, embedding="block", noise=1e-4, seed=2)
 
 
+@pytest.fixture(scope="session")
+def small_block():
+    """``planted_block``'s system on 8 jumps of 0.4 s: for tests that run whole selections on
+    it, whose checks do not need more data."""
+    return make_planted_dataset(n_jumps=8, n_samples=200, embedding="block", noise=1e-4, seed=2)[0]
+
+
 def normalised_mae(metrics, ds, split: str = "test") -> dict[str, np.ndarray]:
     """Per horizon of ``Metrics``: MAE / spread of each component over the split (18,)."""
     spread = np.ptp(ds.q[ds.rows_of(split)], axis=0)

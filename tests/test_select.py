@@ -11,23 +11,14 @@ from typer.testing import CliRunner
 from symrom.cli import app
 from symrom.data.io import write_dataset
 from symrom.experiments.select import SelectionConfig, choose, parse_library, select, selection_rule, to_refine
-from symrom.testing import make_planted_dataset
 
 GRID = SelectionConfig(encoders=("all", "base_position"), latent_dims=(2,), libraries=("poly1+trig+inputs",),
                        thresholds=(1e-3, 1e-2), refine_top=1)
 
 
 @pytest.fixture(scope="module")
-def block():
-    """A planted dataset whose every component a latent drives, small (8 jumps of 0.4 s): each
-    test below runs whole selections on it, and what they check does not need more data."""
-    ds, _ = make_planted_dataset(n_jumps=8, n_samples=200, embedding="block", noise=1e-4, seed=2)
-    return ds
-
-
-@pytest.fixture(scope="module")
-def selected(block):
-    return block, select(block, GRID)
+def selected(small_block):
+    return small_block, select(small_block, GRID)
 
 
 def test_selection_table_and_choice(selected):
@@ -142,8 +133,8 @@ def test_bad_grids_are_named():
     assert parse_library("poly2+inputs") == {"poly_order": 2, "trig": False, "inputs": True}
 
 
-def test_cli_train_select(block, tmp_path):
-    ds = block
+def test_cli_train_select(small_block, tmp_path):
+    ds = small_block
     data = tmp_path / "d.h5"
     write_dataset(ds, data)
     r = CliRunner().invoke(app, ["train", str(data), "--select", "--select-dims", "2", "--out", str(tmp_path / "m")])
@@ -192,8 +183,8 @@ def test_interrupted_selection_resumes_from_its_cells(selected, tmp_path):
     assert other.execution["cells_reused"] == 0
 
 
-def test_cli_train_select_resume(block, tmp_path):
-    ds = block
+def test_cli_train_select_resume(small_block, tmp_path):
+    ds = small_block
     data = tmp_path / "d.h5"
     write_dataset(ds, data)
     out = tmp_path / "m"

@@ -21,16 +21,6 @@ Z = BASE_POS.start + 2
 
 
 @pytest.fixture(scope="module")
-def block():
-    """A planted dataset whose every component a latent drives, small (8 jumps of 0.4 s): the
-    whole selections below run on it, and what they check does not need more data."""
-    from symrom.testing import make_planted_dataset
-
-    ds, _ = make_planted_dataset(n_jumps=8, n_samples=200, embedding="block", noise=1e-4, seed=2)
-    return ds
-
-
-@pytest.fixture(scope="module")
 def fitted(planted_block):
     ds, _ = planted_block
     return ds, train(ds, TrainConfig(latent_dim=2, trig=False, threshold=0.0))
@@ -194,8 +184,8 @@ def test_on_randomised_data_the_chosen_model_falls_at_the_datas_flight(randomize
             assert r is not sel.rows[sel.chosen]
 
 
-def test_every_candidate_is_rolled_out_free_and_checked(block):
-    ds = block
+def test_every_candidate_is_rolled_out_free_and_checked(small_block):
+    ds = small_block
     sel = select(ds, GRID)
     d = json.loads(json.dumps(sel.to_dict()))
     assert d["version"] == 3 and set(d["refusals"]) == {"physics", "integrator", "free"}
@@ -211,8 +201,8 @@ def test_every_candidate_is_rolled_out_free_and_checked(block):
     assert not [x for x in chosen["refused"] if x["check"] == "physics"]
 
 
-def test_refinements_are_kept_and_a_resumed_selection_redoes_nothing(block, tmp_path):
-    ds = block
+def test_refinements_are_kept_and_a_resumed_selection_redoes_nothing(small_block, tmp_path):
+    ds = small_block
     parts = tmp_path / "parts"
     first = select(ds, GRID, cells_dir=parts)
     stored = list((parts / "refined").glob("*.json"))
