@@ -191,7 +191,8 @@ def test_a_run_holding_one_experiment_renders(run_dir, tmp_path):
 
 def test_a_new_experiment_of_a_known_role_appears_and_an_unknown_role_falls_back(run_dir, tmp_path):
     run = tmp_path / "more"
-    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep", "a1_sim*", "go1_proxy*"))
+    # Without the data the sections are the same, less the figures drawn from it.
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep", "a1_sim*", "go1_proxy*", "data"))
     files = {"model": "go1_sim/model.json", "metrics": "go1_sim/eval/metrics.json", "data": "data/go1_sim.h5"}
     _summary(run, [ManifestEntry("go1_sim", LEARNED, files=files),
                    ManifestEntry("go1_sim/retrained", LEARNED, "a second training", files=files, of="go1_sim"),
@@ -206,7 +207,11 @@ def test_a_new_experiment_of_a_known_role_appears_and_an_unknown_role_falls_back
 
 def test_missing_files_and_a_missing_manifest_become_notes(run_dir, tmp_path):
     run = tmp_path / "broken"
-    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep"))
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("sweep", "go1_*"))
+    # The two broken entries alone: their notes do not need the other experiments' figures drawn.
+    _summary(run, [ManifestEntry("a1_sim", LEARNED, paper="a1_sim", files={
+                       "model": "a1_sim/model.json", "metrics": "a1_sim/eval/metrics.json", "data": "data/a1_sim.h5"}),
+                   ManifestEntry("sweep", SWEEP, files={"result": "sweep/sweep.json"})])
     (run / "a1_sim" / "eval" / "metrics.json").write_text('{"n_jumps": 2, "horizons": {"full": {}}}')
     html = build_report(run, tmp_path / "b.html")[0].read_text()
     assert ("a1_sim/eval/metrics.json is unreadable (metrics.json: key horizons.full.components: missing)"
@@ -219,7 +224,10 @@ def test_missing_files_and_a_missing_manifest_become_notes(run_dir, tmp_path):
 
 def test_diverged_jumps_are_shown(run_dir, tmp_path):
     only = tmp_path / "div"
-    shutil.copytree(run_dir, only, ignore=shutil.ignore_patterns("data", "sweep"))
+    shutil.copytree(run_dir, only, ignore=shutil.ignore_patterns("data", "sweep", "a1_sim*", "go1_proxy*"))
+    # go1_sim alone, whose metrics are changed: the other experiments' figures would add nothing.
+    _summary(only, [ManifestEntry("go1_sim", LEARNED, paper="go1_sim", files={
+        "model": "go1_sim/model.json", "metrics": "go1_sim/eval/metrics.json", "data": "data/go1_sim.h5"})])
     mpath = only / "go1_sim" / "eval" / "metrics.json"
     m = json.loads(mpath.read_text())
     m["horizons"]["full"] = {"diverged_jumps": m["n_jumps"], "components": {}}
