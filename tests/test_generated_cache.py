@@ -94,3 +94,16 @@ def test_without_a_term_table_auto_compiles_once_its_numpy_work_reaches_the_comp
     assert compiled.has_build(model.dynamics())
     np.testing.assert_array_equal(second, _q(model, ds, "generated"))
     np.testing.assert_allclose(second, numpy, rtol=0, atol=1e-9 * np.abs(numpy).max())
+
+
+def test_the_first_rollout_after_the_build_compiles_nothing_more(model_and_data, tmp_path, monkeypatch):
+    # The build compiles for the argument types the integrators pass (the bounds read-only, as
+    # batch.rollout_jumps hands them over): a second build at the first rollout doubled its cost.
+    model, ds = model_and_data
+    monkeypatch.setenv(compiled.CACHE_ENV, str(tmp_path / "cache"))
+    codegen._CACHE.clear()
+    kernel = codegen._compiled(model.dynamics())["rollout"]
+    assert len(kernel.signatures) == 1
+    for reset in (None, 0.1):
+        rollout(model, ds, None, RolloutOptions("rk4", reset=reset, backend="generated"))
+    assert len(kernel.signatures) == 1, kernel.signatures

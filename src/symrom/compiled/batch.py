@@ -69,6 +69,7 @@ def rollout_jumps(kernel: Callable, x_true: np.ndarray, v_true: np.ndarray, driv
     xt, vt, nu = f(x_true, dtype=float), f(v_true, dtype=float), f(drive["nu"], dtype=float)
     ph, lens = f(drive["phase"], dtype=np.int64), f(lens, dtype=np.int64)
     resets, lim = np.asarray(resets, dtype=np.bool_), f(np.broadcast_to(limit, (J, 2 * l)), dtype=float)
+    lim.setflags(write=False)  # read-only whatever limit's shape (a view of it is): one numba type, one build
     div_at = np.full(J, -1, dtype=np.int64)
     over_jumps(lambda r: kernel(xt[r], vt[r], nu[r], ph[r], lens[r], resets, *program, float(dt), int(substeps),
                                 lim[r], X[r], V[r], div_at[r]), lens, int(substeps))

@@ -301,10 +301,11 @@ def _compiled(dynamics: LatentDynamics) -> dict:
         ns["accel_ref"] = numba.njit(ns["accel_ref"])  # LSODA's: rounded as NumPy's reference
         rollout, rhs = numba.njit(fastmath=FASTMATH, nogil=True)(ns["rollout"]), numba.njit(ns["rhs"])
     l = dynamics.latent_dim
-    z = np.zeros((1, 2, l))
+    z, limit = np.zeros((1, 2, l)), np.ones((1, 2 * l))
+    limit.setflags(write=False)  # as ``batch.rollout_jumps`` passes it
     # Compile for the argument types the integrators pass, so that the first real call is fast.
     rollout(z, z, z, np.zeros((1, 2), np.int64), np.array([2], np.int64), np.ones(2, np.bool_), 0.002, 1,
-            np.ones((1, 2 * l)), z.copy(), z.copy(), np.zeros(1, np.int64))
+            limit, z.copy(), z.copy(), np.zeros(1, np.int64))
     rhs(np.zeros(2 * l), 0.0, 0, np.zeros(l))
     if path is not None:
         try:
