@@ -30,7 +30,7 @@ report of it; ``repairs_record`` the dataset's, ``generator["repairs"]``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,7 +47,6 @@ from symrom.data.repair_body import (
     contact_lag,
     estimate_gain,
     estimate_height,
-    feet_velocity,
     grounded,
     shift_flags,
 )
@@ -238,8 +237,6 @@ def repair_log(lg: RawLog, robot: str, limits: RepairLimits = RepairLimits(),
                 dq[:, cols] = dq[:, cols] / v.gain
         if retimed:  # the same positions: only what the velocities give is computed again
             state = body_state(robot, q, dq, pose)
-        else:  # the feet's speeds from the jump's C-ordered copy: einsum sums a CSV log's columns otherwise
-            state = replace(state, feet_vz=feet_velocity(pose, q, dq))
 
         # contacts: a logger's lag of the flags (logged flags only)
         lag, td, lo = (0, {}, {}) if derived else contact_lag(state, contact, limits)

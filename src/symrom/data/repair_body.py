@@ -127,19 +127,14 @@ def body_state(robot: str, q: np.ndarray, dq: np.ndarray, pose: BodyPose | None 
     positions with repaired velocities."""
     mm = mass_model(robot)
     pose = body_pose(robot, q) if pose is None else pose
+    dq = np.ascontiguousarray(dq)  # einsum's order of summing follows the layout: the same bits from a log's columns
     omega = angular_velocity(q[:, BASE_RPY], dq[:, BASE_RPY])
     com_v = np.einsum("nij,nj->ni", pose.R, mm.com_base_rate(q[:, JOINTS], dq[:, JOINTS]))
     com_vz = dq[:, _Z] + np.cross(omega, pose.com_w)[:, 2] + com_v[:, 2]
-    return BodyState(pose.com_z, com_vz, pose.feet_z, feet_velocity(pose, q, dq), pose.force, pose.hold, pose.mass)
-
-
-def feet_velocity(pose: BodyPose, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-    """The feet's vertical velocity (n, 4) m/s at q, dq (n, 18); pose: ``body_pose(robot, q)``.
-    Its last bit follows dq's memory layout (einsum's order of summing)."""
-    omega = angular_velocity(q[:, BASE_RPY], dq[:, BASE_RPY])
     leg_v = np.einsum("nkij,nkj->nki", pose.J, dq[:, JOINTS].reshape(-1, N_LEGS, 3))
-    return (dq[:, None, _Z] + np.cross(omega[:, None, :], pose.feet_w)[:, :, 2]
-            + np.einsum("nij,nkj->nki", pose.R, leg_v)[:, :, 2])
+    feet_vz = (dq[:, None, _Z] + np.cross(omega[:, None, :], pose.feet_w)[:, :, 2]
+               + np.einsum("nij,nkj->nki", pose.R, leg_v)[:, :, 2])
+    return BodyState(pose.com_z, com_vz, pose.feet_z, feet_vz, pose.force, pose.hold, pose.mass)
 
 
 def vertical_forces(state: BodyState, tau: np.ndarray, contact: np.ndarray | None = None) -> np.ndarray:
