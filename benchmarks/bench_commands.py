@@ -11,7 +11,7 @@ gives the medians and the ratio of the medians (after / before), and prints a Ma
 
 Items (``--only`` picks some; ``--reproduce`` and ``--tests`` add the long ones):
 
-- ``version``, ``help``: ``symrom --version``, ``symrom --help``;
+- ``version``, ``help``, ``command_help``: ``symrom --version``, ``symrom --help``, ``symrom train --help``;
 - ``cold_jump``: ``symrom generate --robot a1 --motion froggy --jumps 3 --engine mujoco`` from
   empty caches, and ``warm_jump``: the same on the caches a first run filled; each run also
   records every jump's own time (``OUT.run.json``);
@@ -264,7 +264,7 @@ def main() -> None:
     def plain(*cli):
         return lambda side, folder: (symrom(*cli), folder, fresh(folder))
 
-    for name, cli in (("version", ("--version",)), ("help", ("--help",))):
+    for name, cli in (("version", ("--version",)), ("help", ("--help",)), ("command_help", ("train", "--help"))):
         if want(name):
             items[name] = item_runs(name, sides, args.runs, work, plain(*cli), T)
 

@@ -43,12 +43,23 @@ def test_version_and_help_import_no_numerical_library(args):
 
 def test_version_answers_without_the_command_tree():
     """``symrom --version`` (the console script's ``main``) prints what the application's own
-    ``--version`` prints, without loading typer, click or rich; the probe sees them loaded where
+    ``--version`` prints, without loading typer, click or rich; the probe sees typer loaded where
     the application answers."""
     light, loaded = _loaded("--version", heavy=("typer", "rich"))
     full, loaded_app = _loaded("--version", entry="app", heavy=("typer", "rich"))
     assert light == full and light.startswith("symrom ") and loaded == [], (light, full, loaded)
-    assert loaded_app == ["rich", "typer"]
+    assert loaded_app == ["typer"]
+
+
+@pytest.mark.parametrize("args", [("--help",), ("train", "--help"), ("robot", "show", "--help")])
+def test_help_pages_load_neither_rich_nor_pydantic(args):
+    """Help pages are click's plain text: rich (and the Markdown parser typer's rich help pulls
+    in) and pydantic (which typer reaches for to coerce an absent help flag) are most of a help
+    page's time. The probe sees rich where a command prints through its console."""
+    out, loaded = _loaded(*args, heavy=("rich", "pydantic", "markdown_it"))
+    assert "Usage: symrom" in out and loaded == [], (args, loaded)
+    _, loaded = _loaded("equations", "/nonexistent/model.json", heavy=("rich",))
+    assert loaded == ["rich"]
 
 
 def test_a_command_that_works_does_load_them():

@@ -14,8 +14,6 @@ from collections.abc import Callable
 from typing import Annotated
 
 import typer
-from rich.console import Console
-from rich.markup import escape
 from typer.core import TyperCommand, TyperGroup
 
 
@@ -27,27 +25,61 @@ def _flags_without_type(params: list) -> list:
     return params
 
 
+def _help_off_by_default(option):
+    """A help option absent from the command line reads False, not None: typer coerces a flag's
+    non-bool value through pydantic, whose import would double a command's ``--help`` time."""
+    if option is not None and option.default is None:
+        option.default = False
+    return option
+
+
 class Group(TyperGroup):
     def get_params(self, ctx):
         return _flags_without_type(super().get_params(ctx))
+
+    def get_help_option(self, ctx):
+        return _help_off_by_default(super().get_help_option(ctx))
 
 
 class Command(TyperCommand):
     def get_params(self, ctx):
         return _flags_without_type(super().get_params(ctx))
 
+    def get_help_option(self, ctx):
+        return _help_off_by_default(super().get_help_option(ctx))
 
-app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True,
+
+class _Console:
+    """A rich console made on first use: help pages and ``--version`` never load rich. Its
+    methods are the console's; ``real()`` is the console itself, for what rich holds on to."""
+
+    def __init__(self, **options) -> None:
+        self._options, self._console = options, None
+
+    def real(self):
+        if self._console is None:
+            from rich.console import Console
+
+            self._console = Console(**self._options)
+        return self._console
+
+    def __getattr__(self, name: str):
+        return getattr(self.real(), name)
+
+
+# Help pages in click's plain text: typer's rich help loads rich and a Markdown parser, which
+# would be most of ``symrom --help``'s time.
+app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Symbolic reduced-order models of legged-robot jumping, learned from data.")
-console = Console(stderr=True, log_path=False)  # log lines: time and message, no cli.py:NNN
-out_console = Console()
+console = _Console(stderr=True, log_path=False)  # log lines: time and message, no cli.py:NNN
+out_console = _Console()
 
 STATE = {"debug": False}
 
 Force = Annotated[bool, typer.Option("--force", help="Overwrite an existing output.")]
 BackendName = Annotated[str, typer.Option(
     "--backend", help="Where the tasks run: local (processes on this machine) or ray (a Ray cluster; "
-                      "pip install 'symrom\\[ray]').")]
+                      "pip install 'symrom[ray]').")]
 Address = Annotated[str | None, typer.Option(
     "--address", help="Ray cluster address (host:port, ray://host:10001, auto or local); default "
                       "$RAY_ADDRESS, else a cluster started on this machine with ray start, else a new Ray "
@@ -145,6 +177,8 @@ def guarded(fn: Callable) -> Callable:
             if STATE["debug"]:
                 raise
             msg = str(e).strip().splitlines()[0] if str(e).strip() else e.__class__.__name__
+            from rich.markup import escape
+
             console.print(f"[red]error:[/red] {escape(flag_text(msg))}", highlight=False, soft_wrap=True)
             raise typer.Exit(1) from None
 
@@ -178,6 +212,8 @@ def note(text: str) -> None:
 
 def warn(text: str) -> None:
     """A warning line on stderr."""
+    from rich.markup import escape
+
     console.print(f"[yellow]warning:[/yellow] {escape(text)}", highlight=False, soft_wrap=True)
 
 
@@ -208,7 +244,7 @@ class progress_bar:
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
             self._bar = Progress(TextColumn("{task.description}"), BarColumn(),
-                                 TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(), console=console,
+                                 TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(), console=console.real(),
                                  transient=False)
             self._task = self._bar.add_task(self.description, total=self.total)
             self._bar.start()

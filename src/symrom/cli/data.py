@@ -175,7 +175,7 @@ def import_cmd(
     topics: Annotated[str | None, typer.Option(
         "--topics", help="Bag topics: joints=/joint_states,base=/odom,contacts=/foot_contacts (any subset).")] = None,
     mapping: Annotated[Path | None, typer.Option(
-        "--mapping", help="TOML file with a \\[topics] table (joints, base, contacts); --topics overrides it.")] = None,
+        "--mapping", help="TOML file with a [topics] table (joints, base, contacts); --topics overrides it.")] = None,
     dt: Annotated[float | None, typer.Option(
         "--dt", help="Sample period of the dataset, s (default: the coarsest "
                      "jump's period); other jumps are resampled.")] = None,

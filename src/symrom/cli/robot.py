@@ -8,7 +8,7 @@ import typer
 
 from symrom.cli.common import Command, Force, Group, app, guarded, out_console, say
 
-robot_app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True,
+robot_app = typer.Typer(cls=Group, add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                         help="Robot descriptions: write one from a robot model, show one as symrom reads it.")
 app.add_typer(robot_app, name="robot")
 
