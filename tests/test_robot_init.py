@@ -324,7 +324,7 @@ def test_pybullet_refuses_an_mjcf_only_robot_in_one_line(written, tmp_path):
 def test_robot_show_prints_the_description_as_symrom_reads_it(written, monkeypatch):
     # rich fixes a console's width from COLUMNS when it is made; a CI shell's 80 columns would wrap the names
     from symrom.cli.common import out_console
-    monkeypatch.setattr(out_console, "width", 200)
+    monkeypatch.setattr(out_console.real(), "width", 200)
     d = written["anymal_c"].description
     s = robot_summary(d.source)
     assert s.name == "anymal_c" and s.urdf_derived and s.model == d.mjcf_path and s.format == 2
