@@ -116,7 +116,7 @@ def _draw(panels: _Panels, ds: Dataset, rollouts: dict[str, Rollout], jump: int,
             style = styles.get(key, dict(color="C0" if i <= 1 else f"C{i}", **reset_style))
             label = "predicted, full horizon" if key == "full" else f"predicted, {key} s resets"
             ax.plot(t, ro.q_pred[idx[0]][:, c], label=label, **style)
-        ax.set_title(f"{comp} [{Q_UNITS[comp]}]", fontsize=10)
+        ax.set_title(f"{comp} [{Q_UNITS[comp]}]", fontsize=10, y=1.0)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     for ax in axes.ravel()[1:]:
         for h, l in zip(*ax.get_legend_handles_labels()):
