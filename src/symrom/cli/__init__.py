@@ -36,8 +36,8 @@ def main() -> None:  # pragma: no cover - entry point
         __getattr__("app")(args)
     finally:
         # What the command leaves lives until the process ends: out of the collector's reach, so
-        # that Python's exit does not sweep it for cycles (numba's compiler alone holds hundreds
-        # of thousands of objects); nothing of it needs a finaliser run.
+        # that Python's exit does not sweep it for cycles (a generation leaves some 150,000
+        # objects, most of them numba's); nothing of it needs a finaliser run.
         import gc
 
         gc.freeze()
