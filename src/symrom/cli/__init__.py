@@ -27,7 +27,20 @@ def main() -> None:  # pragma: no cover - entry point
 
         print(f"symrom {__version__}")
         return
-    __getattr__("app")(args)
+    if next((a for a in args if not a.startswith("-")), None) != "show":  # the one command that draws
+        import os
+
+        # so MuJoCo's import does not look for an OpenGL library this command never uses
+        os.environ.setdefault("MUJOCO_GL", "disable")
+    try:
+        __getattr__("app")(args)
+    finally:
+        # What the command leaves lives until the process ends: out of the collector's reach, so
+        # that Python's exit does not sweep it for cycles (a generation leaves some 150,000
+        # objects, most of them numba's); nothing of it needs a finaliser run.
+        import gc
+
+        gc.freeze()
 
 
 def __getattr__(name: str):

@@ -11,6 +11,7 @@ import functools
 import re
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -33,9 +34,51 @@ def _help_off_by_default(option):
     return option
 
 
+try:  # typer's coercion seam (``_plain_values``); another typer keeps its own coercion throughout
+    from typer._coercion import RuntimeParam, build_runtime_param
+    from typer._param_types import coerce_cli_path
+except ImportError:  # pragma: no cover - depends on the installed typer
+    RuntimeParam = None
+
+_PLAIN_INT = re.compile(r"[+-]?(0|[1-9][0-9]*)")
+
+if RuntimeParam is not None:
+    class _Plain(RuntimeParam):
+        """A text, integer or path option's coercion without pydantic (``_plain_values``)."""
+
+        def _coerce_value(self, value, param, ctx):
+            kind = self.annotation
+            if kind is str and isinstance(value, str):
+                return value
+            if kind is int and (type(value) is int or isinstance(value, str) and _PLAIN_INT.fullmatch(value)):
+                return int(value)
+            if kind is Path and isinstance(value, (str, Path)):
+                return coerce_cli_path(Path(value), self.parameter_info, path_type=Path, param=param, ctx=ctx)
+            return build_runtime_param(param.type_descriptor)._coerce_value(value, param=param, ctx=ctx)
+
+
+def _plain_values(params: list) -> list:
+    """typer coerces every option's value through pydantic, whose import would be a large part
+    of a command's start-up: a text, integer or path option (one value, no parser, range or
+    choices) is coerced here instead, as pydantic does for its plain values (a text as it is,
+    digits as their integer, a path as ``Path`` with typer's own checks); any other value goes
+    to typer's coercion, with its messages."""
+    if RuntimeParam is None:
+        return params
+    for p in params:
+        desc = getattr(p, "type_descriptor", None)
+        if (desc is None or getattr(p, "_runtime_param", 0) is not None or desc.annotation not in (str, int, Path)
+                or p.nargs != 1 or p.multiple or desc.file_annotation is not None or desc.is_ranged
+                or desc.choices is not None or desc.parameter_info.parser is not None
+                or getattr(desc.parameter_info, "path_type", None) is not None):
+            continue
+        p._runtime_param = _Plain(parameter_info=desc.parameter_info, annotation=desc.annotation)
+    return params
+
+
 class Group(TyperGroup):
     def get_params(self, ctx):
-        return _flags_without_type(super().get_params(ctx))
+        return _plain_values(_flags_without_type(super().get_params(ctx)))
 
     def get_help_option(self, ctx):
         return _help_off_by_default(super().get_help_option(ctx))
@@ -43,7 +86,7 @@ class Group(TyperGroup):
 
 class Command(TyperCommand):
     def get_params(self, ctx):
-        return _flags_without_type(super().get_params(ctx))
+        return _plain_values(_flags_without_type(super().get_params(ctx)))
 
     def get_help_option(self, ctx):
         return _help_off_by_default(super().get_help_option(ctx))

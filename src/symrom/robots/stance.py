@@ -9,10 +9,12 @@ Units: m, rad; base-frame feet (4, 3); joint angles (12,) in symrom's order.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
-from symrom.robots import get_robot, leg_kinematics
+from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.description import RobotDescription
 from symrom.robots.kinematics import LegKinematics
 
@@ -66,7 +68,13 @@ def feet_under_hips(kin: LegKinematics) -> np.ndarray:
 def standing_joints(robot: str, height: float | None = None, dx: float = 0.0) -> np.ndarray:
     """(12,) joint angles for the base at ``height`` m (default: the start height) above
     level ground, feet under the hips shifted ``dx`` m forward (base frame)."""
-    return stand(get_robot(robot), leg_kinematics(robot), height, dx)
+    return _standing(robot_key(robot), height, dx).copy()
+
+
+@lru_cache(maxsize=256)
+def _standing(key: str, height: float | None, dx: float) -> np.ndarray:
+    # kept per process: every jump's controller stands its robot at the same heights
+    return stand(get_robot(key), leg_kinematics(key), height, dx)
 
 
 def stand(desc: RobotDescription, kin: LegKinematics, height: float | None = None, dx: float = 0.0) -> np.ndarray:

@@ -42,14 +42,13 @@ from typing import TYPE_CHECKING
 
 import daqp
 import numpy as np
-import scipy.linalg
-import scipy.sparse as sp
 
 from symrom.names import GRAVITY
 from symrom.sim.controllers.compiled import clip_forces, condensed_qp
 
 if TYPE_CHECKING:
     import osqp
+    import scipy.sparse as sp
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
@@ -134,6 +133,8 @@ def discretize(Ac: np.ndarray, Bc: np.ndarray, dt: float) -> tuple[np.ndarray, n
     if series is None:
         M = np.zeros((Ac.shape[0] + Bc.shape[1],) * 2)
         M[:Ac.shape[0], :Ac.shape[0]], M[:Ac.shape[0], Ac.shape[0]:] = Ac, Bc
+        import scipy.linalg  # here: the SRB model never needs it
+
         E = scipy.linalg.expm(M * dt)
         return E[:Ac.shape[0], :Ac.shape[0]], E[:Ac.shape[0], Ac.shape[0]:]
     A, F = series
@@ -178,6 +179,8 @@ def friction_matrix(mu: float, horizon: int) -> sp.csc_matrix:
     Returns C (5 * 4 h, 12 h); rows per foot: [fz, fx - mu fz, -fx - mu fz,
     fy - mu fz, -fy - mu fz].
     """
+    import scipy.sparse as sp  # here: only the osqp solver's sparse form needs it
+
     block = np.array([[0, 0, 1], [1, 0, -mu], [-1, 0, -mu], [0, 1, -mu], [0, -1, -mu]], float)
     return sp.csc_matrix(sp.block_diag([block] * (4 * horizon)))
 
@@ -249,8 +252,20 @@ class ConvexMPC:
         cfg, h = self.config, self.config.horizon
         self.inertia_body = np.asarray(self.inertia_body, dtype=float)
         self._L = np.tile(np.asarray(cfg.weights, dtype=float), h)  # diagonal of L
-        nx, nu = N_X * h, N_U * h
-        self._nx, self._nu = nx, nu
+        self._nx, self._nu = N_X * h, N_U * h
+        self._sparse = False  # the sparse form's parts (``_sparse_form``), made at the first OSQP solve
+        self._solver: osqp.OSQP | None = None
+        self._yaw_model: tuple | None = None  # ``_yaw_parts`` of the last yaw
+        self._daqp_cache: dict[int, tuple] = {}  # ``_daqp_parts`` by the number of foot-steps down
+        self._sense: np.ndarray | None = None  # DAQP's last active set, and the feet down then
+        self._sense_down = b""
+        self.solve_times: list[float] = []
+
+    def _sparse_form(self) -> None:
+        """The parts of OSQP's sparse form that stay from solve to solve (DAQP needs none)."""
+        import scipy.sparse as sp  # here: only the osqp solver needs it
+
+        cfg, h, nx, nu = self.config, self.config.horizon, self._nx, self._nu
         self._P = sp.diags(np.concatenate([2.0 * self._L, np.full(nu, 2.0 * cfg.alpha)]),
                            format="csc")
         # Dynamics rows x_{k+1} - A x_k - B u_k = (A x0 if k == 0 else 0); A and B get a
@@ -297,12 +312,7 @@ class ConvexMPC:
         self._hi0 = np.zeros(nx + n_fric)
         self._fz_rows = nx + 5 * np.arange(n_fric // 5)
         self._q_scale = -2.0 * self._L  # linear cost of the states is q_scale * x_ref
-        self._solver: osqp.OSQP | None = None
-        self._yaw_model: tuple | None = None  # ``_yaw_parts`` of the last yaw
-        self._daqp_cache: dict[int, tuple] = {}  # ``_daqp_parts`` by the number of foot-steps down
-        self._sense: np.ndarray | None = None  # DAQP's last active set, and the feet down then
-        self._sense_down = b""
-        self.solve_times: list[float] = []
+        self._sparse = True
 
     def _matrix_data(self, A: np.ndarray, B: np.ndarray) -> np.ndarray:
         """Data array (CSC order) of the constraint matrix for the discrete model A, B."""
@@ -384,6 +394,8 @@ class ConvexMPC:
                     contact: np.ndarray, yaw: float) -> tuple[np.ndarray, str]:
         """Forces U (12 h,) N and OSQP's status, from the sparse form."""
         cfg = self.config
+        if not self._sparse:
+            self._sparse_form()
         A, B = self.model(r_feet, yaw)
         data = self._matrix_data(A, B)
         lo, hi = self._bounds(x0, A, contact)
@@ -391,6 +403,7 @@ class ConvexMPC:
         np.multiply(self._q_scale, x_ref.reshape(-1), out=q[:self._nx])
         if self._solver is None:
             import osqp  # here: only the osqp solver needs it
+            import scipy.sparse as sp
 
             self._solver = osqp.OSQP()
             M = sp.csc_matrix((data, self._M_template.indices, self._M_template.indptr),

@@ -192,6 +192,8 @@ class MujocoWorld:
         self._signs_arr = np.asarray(self.signs, dtype=float)
         d = self.data  # views of MjData's fixed-size arrays (each attribute read makes a new one)
         self._views = (d.qpos, d.qvel, d.xmat, d.xpos, d.cvel, d.subtree_com)
+        self._ctrl = d.ctrl
+        self._dt = self.model.opt.timestep  # s, a float (each read of ``opt`` makes a new wrapper)
         self._pyramidal = self.model.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
         self._pushed = False  # a base force is set for the next tick
         self._quat = np.empty(4)
@@ -325,13 +327,16 @@ class MujocoWorld:
         """Apply joint torques ``tau`` (12,) N m for one tick; return the applied (12,) (held
         joints: their servos' torques), or None with ``report=False``."""
         tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), self._neg_limit), self.torque_limit)
-        if tau.shape != (N_JOINTS,) or not np.isfinite(tau).all():
+        # (count_nonzero: a C call, where ``.all()`` goes through NumPy's Python wrapper)
+        if tau.shape != (N_JOINTS,) or np.count_nonzero(np.isfinite(tau)) != N_JOINTS:
             raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
         m, d = self.model, self.data
-        ctrl = tau * self.signs
         if self.held.size:
+            ctrl = tau * self.signs
             ctrl[self.held] = d.ctrl[self.held]  # the servos' targets stay
-        d.ctrl[:] = ctrl
+            d.ctrl[:] = ctrl
+        else:
+            np.multiply(tau, self.signs, out=self._ctrl)
         # step2 then step1: after a step the positions, contacts and velocities of the new state
         # are computed, so ``state`` reads them without a second forward pass.
         mujoco.mj_step2(m, d)
@@ -345,7 +350,7 @@ class MujocoWorld:
             d.xfrc_applied[self._base, :3] = 0.0
             self._pushed = False
         mujoco.mj_step1(m, d)
-        self.t += m.opt.timestep
+        self.t += self._dt
         return applied if report else None
 
     def hold_joints(self, joints: list[int]) -> None:
