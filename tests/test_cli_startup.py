@@ -62,6 +62,18 @@ def test_help_pages_load_neither_rich_nor_pydantic(args):
     assert loaded == ["rich"]
 
 
+def test_plain_options_are_parsed_without_pydantic():
+    """A command whose options are text, integers and paths parses them without pydantic (the
+    import typer 0.29 makes to coerce any value), and a value that is not an integer still gets
+    typer's own message."""
+    out, loaded = _loaded("generate", "--robot", "nosuchrobot", "--jumps", "3", "--out", "/nonexistent/d/x.h5",
+                          heavy=("pydantic",))
+    assert loaded == [], out
+    r = subprocess.run([sys.executable, "-c", "from symrom.cli import main; main()", "generate", "--jumps", "abc",
+                        "--out", "x.h5"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "Invalid value for '--jumps'" in r.stderr, r.stderr
+
+
 def test_a_command_that_works_does_load_them():
     """The probe sees a heavy import when there is one (so the test above can fail)."""
     _, loaded = _loaded("equations", "/nonexistent/model.json")
