@@ -57,7 +57,8 @@ class BodySource(Protocol):
 
     def gravity_torques(self, q_joints: np.ndarray, gravity_base: np.ndarray) -> np.ndarray:
         """Joint torques (12,) N m that hold the legs still at joint angles q_joints (12,) rad
-        with the base fixed, gravity_base (3,) m/s^2 being gravity in the base frame."""
+        with the base fixed, gravity_base (3,) m/s^2 being gravity in the base frame (an array or a
+        sequence of numbers)."""
 
 
 class UnknownBodySourceError(ValueError):
@@ -135,4 +136,5 @@ class LegGravity:
 
     def torques(self, q_joints: np.ndarray, R: np.ndarray) -> np.ndarray:
         """(12,) N m for joint angles (12,) rad and base orientation R (3, 3) base -> world."""
-        return self._source.gravity_torques(q_joints, -GRAVITY * R[2])  # R^T (0, 0, -g)
+        r0, r1, r2 = R[2].tolist()  # R^T (0, 0, -g), the products NumPy's -g * R[2] takes
+        return self._source.gravity_torques(q_joints, (-GRAVITY * r0, -GRAVITY * r1, -GRAVITY * r2))

@@ -38,9 +38,14 @@ class UrdfBody:
         self.order = np.array([movable.index(names[n]) for n in desc.joint_names])
         self.inv = np.argsort(self.order)
         self.zeros = [0.0] * len(movable)
-        signs = np.asarray(desc.signs, dtype=float)
-        self._signs_in = signs[self.inv]  # signs in inverse-dynamics order
-        self._signs_out = signs
+        signs = np.asarray(desc.signs, dtype=float).tolist()
+        # (index, sign) pairs as Python numbers: a tick's twelve products cost less in a list than
+        # in NumPy's calls, and are the same IEEE products
+        self._into = [(int(i), signs[i]) for i in self.inv]  # symrom's order -> inverse dynamics'
+        self._out = [(int(i), s) for i, s in zip(self.order, signs)]  # and back
+        # the same joints in the same order and signs (the built-in robots): nothing to map, and a
+        # product with 1.0 is the number itself
+        self._plain = self.order.tolist() == list(range(len(signs))) and all(s == 1.0 for s in signs)
         self.lock = threading.Lock()
 
     def standing_links(self) -> RigidLinks:
@@ -78,13 +83,16 @@ class UrdfBody:
 
     def gravity_torques(self, q_joints: np.ndarray, gravity_base: np.ndarray) -> np.ndarray:
         """(12,) N m holding the legs at q_joints (12,) rad, base fixed, under gravity_base (3,)
-        m/s^2 (base frame): PyBullet's inverse dynamics at zero velocity and acceleration."""
-        gx, gy, gz = np.asarray(gravity_base, dtype=float).tolist()
-        q = np.asarray(q_joints, dtype=float)[self.inv] * self._signs_in
+        m/s^2 (base frame; an array or a sequence of numbers): PyBullet's inverse dynamics at zero velocity and acceleration."""
+        gx, gy, gz = gravity_base.tolist() if isinstance(gravity_base, np.ndarray) else gravity_base
+        q = np.asarray(q_joints, dtype=float).tolist()
+        plain = self._plain
+        if not plain:
+            q = [q[i] * s for i, s in self._into]
         with self.lock:
             p.setGravity(gx, gy, gz, physicsClientId=self.cid)
-            tau = p.calculateInverseDynamics(self.rob, q.tolist(), self.zeros, self.zeros, physicsClientId=self.cid)
-        return np.array(tau)[self.order] * self._signs_out
+            tau = p.calculateInverseDynamics(self.rob, q, self.zeros, self.zeros, physicsClientId=self.cid)
+        return np.array(tau if plain else [tau[i] * s for i, s in self._out])
 
     def __del__(self) -> None:
         try:

@@ -118,6 +118,28 @@ def mujoco_state(qpos, qvel, xmat, xpos, cvel, subtree_com, body_root, base, fee
 
 
 @njit
+def mujoco_torques(tau, neg_limit, limit, signs, clipped, ctrl):
+    """A MuJoCo tick's torques: tau (12,) N m saturated at +-limit into clipped (as NumPy's
+    ``minimum(maximum(tau, neg_limit), limit)``), and, if all of them are finite, clipped x signs
+    written to ctrl (MuJoCo's, URDF signs). Returns whether they were finite; ctrl is left as it
+    was if not."""
+    finite = True
+    for j in range(tau.shape[0]):
+        t = tau[j]
+        if t < neg_limit[j]:  # comparisons: a NaN stays NaN, as in NumPy's
+            t = neg_limit[j]
+        if t > limit[j]:
+            t = limit[j]
+        clipped[j] = t
+        if not math.isfinite(t):
+            finite = False
+    if finite:
+        for j in range(tau.shape[0]):
+            ctrl[j] = clipped[j] * signs[j]
+    return finite
+
+
+@njit
 def mujoco_foot_forces(con_geom, con_frame, con_friction, con_dim, con_efc, efc_force, leg_of_geom, ground, f):
     """The ground's force f (4, 3) N on each foot, world, from MuJoCo's contacts (pyramidal
     friction cones): per foot/ground contact with constraint rows (efc address >= 0), the
@@ -234,7 +256,7 @@ def settle(dispatcher, args: tuple, loose: tuple[int, ...]) -> None:
 
 # The reads each engine calls every tick, and what a hardware-like world adds on any engine
 # (``warm_up``).
-ENGINE_ROUTINES = {"pybullet": ("base_state",), "mujoco": ("mujoco_state", "mujoco_foot_forces"),
+ENGINE_ROUTINES = {"pybullet": ("base_state",), "mujoco": ("mujoco_state", "mujoco_foot_forces", "mujoco_torques"),
                    "proxy": ("proxy_readings", "proxy_motors")}
 
 
@@ -253,6 +275,8 @@ def warm_up(engines: tuple[str, ...] = ("pybullet", "mujoco")) -> None:
         base_state(zero, (0.0, 0.0, 0.0, 1.0), zero, zero, np.zeros(3), unit, q, dq, R)
     if "mujoco" in engines:
         settle_mujoco(*mujoco_arguments())
+        v12 = np.ones(12)
+        mujoco_torques(v12, -v12, v12, v12, np.empty(12), np.empty(12))
     if "proxy" in engines:
         v3, v4, v12 = np.zeros(3), np.zeros((4, 3)), np.zeros(12)
         proxy_readings(q, dq, v3, v4, v4, np.zeros(63), 0.0, 0.0, 0.0, v3, np.empty(18), np.empty(18), np.empty(3),

@@ -48,7 +48,7 @@ from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_JOINTS, N_LEGS, N_Q
 from symrom.robots import ActuatorEffects, RobotDescription, get_robot, robot_key
 from symrom.robots.kinematics import rpy_to_matrix
 from symrom.robots.mjcf import drop_missing_meshes, foot_frames
-from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state, settle_mujoco
+from symrom.sim.engines.compiled import base_state, mujoco_foot_forces, mujoco_state, mujoco_torques, settle_mujoco
 from symrom.sim.engines.world import (
     RobotState,
     WorldConfig,
@@ -326,17 +326,20 @@ class MujocoWorld:
     def step(self, tau: np.ndarray, report: bool = True) -> np.ndarray | None:
         """Apply joint torques ``tau`` (12,) N m for one tick; return the applied (12,) (held
         joints: their servos' torques), or None with ``report=False``."""
-        tau = np.minimum(np.maximum(np.asarray(tau, dtype=float), self._neg_limit), self.torque_limit)
-        # (count_nonzero: a C call, where ``.all()`` goes through NumPy's Python wrapper)
-        if tau.shape != (N_JOINTS,) or np.count_nonzero(np.isfinite(tau)) != N_JOINTS:
-            raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
+        tau = np.ascontiguousarray(tau, dtype=float)
         m, d = self.model, self.data
-        if self.held.size:
+        if self.held.size or tau.shape != (N_JOINTS,):
+            tau = np.minimum(np.maximum(tau, self._neg_limit), self.torque_limit)
+            if tau.shape != (N_JOINTS,) or np.count_nonzero(np.isfinite(tau)) != N_JOINTS:
+                raise ValueError(f"tau must be {N_JOINTS} finite torques, got {tau!r}")
             ctrl = tau * self.signs
             ctrl[self.held] = d.ctrl[self.held]  # the servos' targets stay
             d.ctrl[:] = ctrl
-        else:
-            np.multiply(tau, self.signs, out=self._ctrl)
+        else:  # saturate, check and set the actuators in one compiled call
+            clipped = np.empty(N_JOINTS)
+            if not mujoco_torques(tau, self._neg_limit, self.torque_limit, self._signs_arr, clipped, self._ctrl):
+                raise ValueError(f"tau must be {N_JOINTS} finite torques, got {clipped!r}")
+            tau = clipped
         # step2 then step1: after a step the positions, contacts and velocities of the new state
         # are computed, so ``state`` reads them without a second forward pass.
         mujoco.mj_step2(m, d)
