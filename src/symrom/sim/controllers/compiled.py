@@ -68,16 +68,19 @@ def clip_forces(U, c, fz_min, fz_max, mu):
 
 
 @njit
-def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_ref, k_land, d_land,
+def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, h_ref, k_land, d_land,
                         posture, qj, dqj, limit, tau):
     """Joint torques tau (12,) N m of the pronk controller on the ground
     (``PronkController.torque``): J_k^T f_k for the feet's forces f_base (4, 3) N (base
     frame) through the leg Jacobians J (4, 3, 3), plus the legs' weight tau_g (12,), plus
     with ``land`` the landing impedance (spring k_land N/m towards p_land (4, 3) m for legs
     in the air, p_b (4, 3) m the feet now, z towards -h_ref m; damping d_land N s/m of the
-    feet's velocities v_rel (4, 3) m/s; contact (4,)), plus the posture terms (posture
-    (3, 12): kp, kd, q_stand) for qj, dqj (12,); clipped to +-limit (12,).
-    Sums in the order of the NumPy expressions they replace, so the results are the same."""
+    feet's velocities relative to the base, J_k dq_k m/s; contact (4,)), plus the posture
+    terms (posture (3, 12): kp, kd, q_stand) for qj, dqj (12,); clipped to +-limit (12,).
+    Sums in the order of the NumPy expressions they replace, so the results are the same:
+    the feet's velocities as ``np.einsum("kij,kj->ki", J, dq)`` sums them (its loop over
+    contiguous rows of three adds the first and third products, then the second, then the
+    output's zero)."""
     for k in range(4):
         for i in range(3):
             tau[3 * k + i] = J[k, 0, i] * f_base[k, 0] + J[k, 1, i] * f_base[k, 1] + J[k, 2, i] * f_base[k, 2]
@@ -88,7 +91,8 @@ def pronk_stance_torque(J, f_base, tau_g, land, p_b, p_land, contact, v_rel, h_r
         for k in range(4):
             for a in range(3):
                 target = -h_ref if a == 2 else p_b[k, a] if contact[k] != 0 else p_land[k, a]
-                F[k, a] = k_land * (target - p_b[k, a]) - d_land * v_rel[k, a]
+                v = ((J[k, a, 0] * dqj[3 * k] + J[k, a, 2] * dqj[3 * k + 2]) + J[k, a, 1] * dqj[3 * k + 1]) + 0.0
+                F[k, a] = k_land * (target - p_b[k, a]) - d_land * v
         for k in range(4):
             for i in range(3):
                 tau[3 * k + i] += J[k, 0, i] * F[k, 0] + J[k, 1, i] * F[k, 1] + J[k, 2, i] * F[k, 2]
@@ -380,7 +384,7 @@ def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
     kin.one(np.zeros(12))
     if "pronk" in motions:
         J, f4, t12 = np.zeros((4, 3, 3)), np.zeros((4, 3)), np.zeros(12)
-        pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), f4, 0.3, 1.0, 1.0,
+        pronk_stance_torque(J, f4, t12, True, f4, f4, np.ones(4, dtype=np.uint8), 0.3, 1.0, 1.0,
                             np.zeros((3, 12)), t12, t12, np.ones(12), np.empty(12))
         clip_forces(np.zeros((2, 4, 3)), np.ones((2, 4)), 0.0, 1.0, 0.6)
         h, m = 2, 6

@@ -339,6 +339,7 @@ class PronkController:
         self._last_solve = -np.inf
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
+        self._land_z: tuple[float, float, float] | None = None  # ``_ref_land_height``'s terms
         # the jump's events (the public read-only properties)
         self._push_start: tuple[float, np.ndarray] | None = None
         self._liftoff: tuple[np.ndarray, np.ndarray] | None = None
@@ -468,6 +469,13 @@ class PronkController:
         ew = np.exp(-w * tau)
         return z_f + (a0 + b0 * tau) * ew, (b0 - w * (a0 + b0 * tau)) * ew
 
+    def _ref_land_height(self, tau: float) -> float:
+        """The height m of ``_ref_land_z`` at one time tau s after touchdown, the same number in
+        Python's floats (the touchdown's terms kept from the touchdown on, ``_land_z``)."""
+        z_f, a0, b0 = self._land_z
+        ew = float(np.exp(-self.gains.land_omega * tau))
+        return z_f + (a0 + b0 * tau) * ew
+
     # ------------------------------------------------------------------ control
     def _mpc_forces(self, state, contact_now: np.ndarray) -> np.ndarray:
         """Solve the MPC for the current state; (4, 3) N, world, ground on foot."""
@@ -510,6 +518,10 @@ class PronkController:
                 self._phase = "land"
                 self._t_td = t
                 self._td_state = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
+                # _ref_land_z's terms of the touchdown, floats, for the landing's ticks
+                z_f = self.spec.start_height - 0.01
+                a0 = float(self._td_state[0][2]) - z_f
+                self._land_z = (z_f, a0, float(self._td_state[1][2]) + self.gains.land_omega * a0)
                 self._last_solve = -np.inf
 
     def _start_push(self, state: RobotState) -> None:
@@ -567,15 +579,15 @@ class PronkController:
             # Cartesian impedance per leg in the base frame: spring along the base z axis
             # towards the reference leg length, damping of the foot velocity relative to the
             # base; legs still in the air also get a spring holding their landing x and y.
-            h_ref = self._ref_land_z(max(state.t - self._t_td, 0.0))[0] - self.body.foot_radius
+            h_ref = self._ref_land_height(max(state.t - self._t_td, 0.0)) - self.body.foot_radius
             p_land = self._p_land if self._q_land is not None else p_b
-            v_rel = np.einsum("kij,kj->ki", J, dqj.reshape(N_LEGS, 3))  # feet relative to the base
         else:
-            h_ref, p_land, v_rel = 0.0, p_b, p_b  # unused
-        # J^T f + legs' weight (+ landing impedance) + posture terms (hold hip abduction with
-        # kp_hx, kd_hx; damp the legs with kd_stance), clipped: one compiled call
+            h_ref, p_land = 0.0, p_b  # unused
+        # J^T f + legs' weight (+ landing impedance, damping the feet's velocities relative to the
+        # base, J dq) + posture terms (hold hip abduction with kp_hx, kd_hx; damp the legs with
+        # kd_stance), clipped: one compiled call
         tau = np.empty(N_JOINTS)
-        stance_torque(J, f_base, tau_g, land, p_b, p_land, state.contact, v_rel, h_ref, g.k_land, g.d_land,
+        stance_torque(J, f_base, tau_g, land, p_b, p_land, state.contact, h_ref, g.k_land, g.d_land,
                       self._posture, qj, dqj, self._clip_at, tau)
         if self.compensation.active:
             return self.compensation.clipped(tau, dqj, self.torque_limit)
@@ -616,7 +628,7 @@ class PronkController:
         torques tau_g (12,) N m and the posture terms, within the limits (one compiled call)."""
         qj, dqj = state.q[JOINTS], state.dq[JOINTS]
         tau = np.empty(N_JOINTS)
-        stance_torque(J, f_base, tau_g, False, p_b, p_b, state.contact, p_b, 0.0, 0.0, 0.0,
+        stance_torque(J, f_base, tau_g, False, p_b, p_b, state.contact, 0.0, 0.0, 0.0,
                       self._posture, qj, dqj, self._clip_at, tau)
         if self.compensation.active:
             return self.compensation.clipped(tau, dqj, self.torque_limit)
@@ -641,9 +653,10 @@ class PronkController:
             return True
         if self._phase != "land" or self._t_td is None:
             return False
+        if not state.t - self._t_td >= self.params.settle_time:  # the cheap test first
+            return False
         v, w = state.dq[BASE_POS], state.omega
-        settled = float(v @ v) < 0.15 ** 2 and float(w @ w) < 0.6 ** 2
-        return state.t - self._t_td >= self.params.settle_time and settled
+        return float(v @ v) < 0.15 ** 2 and float(w @ w) < 0.6 ** 2
 
 
 class PronkMotion(PlainMotion):
