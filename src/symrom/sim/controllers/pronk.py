@@ -411,39 +411,41 @@ class PronkController:
         (0/1) at the MPC's steps after t: t + k dt, k = 1..h. Squares are taken of Python
         floats, as ever (``x ** 2`` is libm's pow there, not NumPy's x * x)."""
         cfg, pr, pl = self.gains.mpc, self.params, self.plan
-        ts = np.array([t + (k + 1) * cfg.dt for k in range(cfg.horizon)])
+        h = cfg.horizon
+        times = [t + (k + 1) * cfg.dt for k in range(h)]
+        ts = np.array(times)
         if self._phase == "land" and self._t_td is not None:
             pos, vel = self._ref_land(np.maximum(ts - self._t_td, 0.0))
-            return pos, vel, np.ones(cfg.horizon)
+            return pos, vel, np.ones(h)
         x0, e, v_to = self._x0, self._e, self._v_to
-        pos, vel, contact = np.empty((cfg.horizon, 3)), np.zeros((cfg.horizon, 3)), np.ones(cfg.horizon)
-        crouch = ts < pr.crouch_time
-        hold = ~crouch & (ts < pl.t_push)
-        tau = ts - pl.t_push
-        later = ~crouch & ~hold
-        push = later & (tau < pl.push_time)
-        flight = later & ~push
-        if crouch.any():  # cosine from standing height down to the crouch
-            x = np.pi * ts[crouch] / pr.crouch_time
+        pos, vel, contact = np.empty((h, 3)), np.zeros((h, 3)), np.ones(h)
+        # The times increase, so each phase is a run of steps: crouch [0, n_c), hold [n_c, n_h),
+        # push [n_h, n_p), flight [n_p, h) (the same steps and numbers as masks of ts would give).
+        taus = [x - pl.t_push for x in times]
+        n_c = sum(x < pr.crouch_time for x in times)
+        n_h = max(n_c, sum(x < pl.t_push for x in times))
+        n_p = max(n_h, sum(x < pl.push_time for x in taus))
+        if n_c:  # cosine from standing height down to the crouch
+            x = np.pi * ts[:n_c] / pr.crouch_time
             s = 0.5 * (1 - np.cos(x))
             ds = 0.5 * np.pi / pr.crouch_time * np.sin(x)
             h0, h1 = self.spec.start_height, pr.crouch_height
-            pos[crouch, 0], pos[crouch, 1], pos[crouch, 2] = x0[0], x0[1], h0 + (h1 - h0) * s
-            vel[crouch, 2] = (h1 - h0) * ds
-        pos[hold] = x0[0], x0[1], pr.crouch_height
-        if push.any():  # constant acceleration from rest
-            a = np.array([0.5 * x ** 2 / pl.push_time for x in tau[push].tolist()])
-            pos[push] = self._p_crouch + a[:, None] * v_to
-            vel[push] = (tau[push] / pl.push_time)[:, None] * v_to
-        if flight.any():  # ballistic
-            tf = tau[flight] - pl.push_time
+            pos[:n_c, 0], pos[:n_c, 1], pos[:n_c, 2] = x0[0], x0[1], h0 + (h1 - h0) * s
+            vel[:n_c, 2] = (h1 - h0) * ds
+        pos[n_c:n_h] = x0[0], x0[1], pr.crouch_height
+        if n_p > n_h:  # constant acceleration from rest
+            a = np.array([0.5 * x ** 2 / pl.push_time for x in taus[n_h:n_p]])
+            pos[n_h:n_p] = self._p_crouch + a[:, None] * v_to
+            vel[n_h:n_p] = (np.array(taus[n_h:n_p]) / pl.push_time)[:, None] * v_to
+        if n_p < h:  # ballistic
+            tf = np.array(taus[n_p:]) - pl.push_time
             rise = np.zeros((tf.size, 3))
             rise[:, 2] = [pl.vz * x - 0.5 * GRAVITY * x ** 2 for x in tf.tolist()]
-            pos[flight] = self._p_to + (pl.vx * tf)[:, None] * e + rise
+            pos[n_p:] = self._p_to + (pl.vx * tf)[:, None] * e + rise
             fall = np.zeros((tf.size, 3))
             fall[:, 2] = pl.vz - GRAVITY * tf
-            vel[flight] = pl.vx * e + fall
-            contact[flight] = 0.0
+            vel[n_p:] = pl.vx * e + fall
+            contact[n_p:] = 0.0
         return pos, vel, contact
 
     def _ref_land(self, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -514,7 +516,7 @@ class PronkController:
                 self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
         if self._phase == "flight":
             since = t - (pl.t_push + pl.push_time + self._release)
-            if (np.any(state.contact) and since > 0.05) or since > pl.flight_time + 0.4:
+            if (np.count_nonzero(state.contact) and since > 0.05) or since > pl.flight_time + 0.4:
                 self._phase = "land"
                 self._t_td = t
                 self._td_state = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
@@ -553,11 +555,11 @@ class PronkController:
                     self._liftoff = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
                 return self._released_torque(state)
         was_flight = self._phase == "flight"
-        if was_flight and not state.contact.any():
+        if was_flight and not np.count_nonzero(state.contact):
             self._airborne = True
         self._update_phase(state)
         if (was_flight and self._phase == "land" and self._touchdown is None and self._airborne
-                and state.contact.any()):
+                and np.count_nonzero(state.contact)):
             self._touchdown = (state.t, state.q[BASE_POS].copy())
         g = self.gains
         if self._phase == "flight":
