@@ -126,28 +126,34 @@ def condensed_qp(W4, VA, V, Bm, x0, x_ref, alpha, H, g):
     are computed, the rest mirrored.
     """
     h, m, nu = W4.shape[0], W4.shape[1], Bm.shape[1]
-    T = np.empty((m, nu))
+    # Each sum is taken in a row of accumulators (the same terms in the same order, from +0) and
+    # stored once: stores into H and T inside the sums would make every step a memory round trip.
+    T, acc = np.empty((m, nu)), np.empty(nu)
     for j in range(h):
         for k in range(j, h):
-            T[:, :] = 0.0
             for a in range(m):  # T = W_jk Bm, rows at a time (the inner loops run along rows)
+                for c in range(nu):
+                    acc[c] = 0.0
                 for b in range(m):
                     w = W4[j, a, k, b]
                     for c in range(nu):
-                        T[a, c] += w * Bm[b, c]
+                        acc[c] += w * Bm[b, c]
+                for c in range(nu):
+                    T[a, c] = acc[c]
             for r in range(nu):  # H_jk = Bm^T T
                 row = j * nu + r
                 for c in range(nu):
-                    H[row, k * nu + c] = 0.0
+                    acc[c] = 0.0
                 for a in range(m):
                     w = 2.0 * Bm[a, r]
                     for c in range(nu):
-                        H[row, k * nu + c] += w * T[a, c]
-    n = h * nu
-    for i in range(n):
+                        acc[c] += w * T[a, c]
+                # the block and its mirror below the diagonal; on the diagonal, its upper triangle
+                for c in range(r if k == j else 0, nu):
+                    H[row, k * nu + c] = acc[c]
+                    H[k * nu + c, row] = acc[c]
+    for i in range(h * nu):
         H[i, i] += 2.0 * alpha
-        for c in range(i):  # the lower blocks mirror the upper ones
-            H[i, c] = H[c, i]
     v = np.empty(h * m)
     for i in range(h * m):
         acc = 0.0

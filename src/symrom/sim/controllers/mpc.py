@@ -257,6 +257,9 @@ class ConvexMPC:
         self._solver: osqp.OSQP | None = None
         self._yaw_model: tuple | None = None  # ``_yaw_parts`` of the last yaw
         self._daqp_cache: dict[int, tuple] = {}  # ``_daqp_parts`` by the number of foot-steps down
+        # by the foot-steps down (their flags' bytes): how many, the forces kept (12 h,) bool, their
+        # indices and the rows and columns of H kept (None: all)
+        self._kept_cache: dict[bytes, tuple] = {}
         self._sense: np.ndarray | None = None  # DAQP's last active set, and the feet down then
         self._sense_down = b""
         self.solve_times: list[float] = []
@@ -429,23 +432,27 @@ class ConvexMPC:
         """
         cfg = self.config
         down = np.asarray(contact, dtype=float).reshape(-1) != 0.0  # (4 h,) foot-steps on the ground
+        pattern = down.tobytes()
         U = np.zeros(self._nu)
-        n_down = int(down.sum())
+        if pattern not in self._kept_cache:
+            kept = np.repeat(down, 3)  # (12 h,) the forces in the problem
+            keep = np.flatnonzero(kept)
+            some = keep.size < kept.size
+            self._kept_cache[pattern] = (int(down.sum()), kept, keep, np.ix_(keep, keep) if some else None)
+        n_down, kept, keep, rows_cols = self._kept_cache[pattern]
         if n_down == 0:
             self._sense = None
             return U, "solved"
         H, g = self.condensed_form(yaw).qp(self._input_map(r_feet, yaw)[MOVING], x0, x_ref, cfg.alpha)
-        kept = np.repeat(down, 3)  # (12 h,) the forces in the problem
-        if n_down < down.size:
-            keep = np.flatnonzero(kept)
-            H, g = H[np.ix_(keep, keep)], g[keep]
+        if rows_cols is not None:
+            H, g = H[rows_cols], g[keep]
         rows, hi, lo = self._daqp_parts(n_down)
-        warm = self._sense if self._sense is not None and self._sense_down == down.tobytes() else None
+        warm = self._sense if self._sense is not None and self._sense_down == pattern else None
         for sense in ((warm, None) if warm is not None else (None,)):
             x, _, flag, info = (daqp.solve(H, g, rows, hi, lo) if sense is None
                                 else daqp.solve(H, g, rows, hi, lo, sense))
             if flag >= 1 and np.all(np.isfinite(x)):
-                self._sense, self._sense_down = (info["lam"] != 0.0).astype(np.int32), down.tobytes()
+                self._sense, self._sense_down = (info["lam"] != 0.0).astype(np.int32), pattern
                 U[kept] = x
                 return U, "solved"
         self._sense = None

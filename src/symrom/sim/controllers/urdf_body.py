@@ -83,8 +83,10 @@ class UrdfBody:
 
     def gravity_torques(self, q_joints: np.ndarray, gravity_base: np.ndarray) -> np.ndarray:
         """(12,) N m holding the legs at q_joints (12,) rad, base fixed, under gravity_base (3,)
-        m/s^2 (base frame; an array or a sequence of numbers): PyBullet's inverse dynamics at zero velocity and acceleration."""
-        gx, gy, gz = gravity_base.tolist() if isinstance(gravity_base, np.ndarray) else gravity_base
+        m/s^2 (base frame; an array or a sequence of numbers): PyBullet's inverse dynamics at zero
+        velocity and acceleration."""
+        g = gravity_base
+        gx, gy, gz = g.tolist() if isinstance(g, np.ndarray) else g
         q = np.asarray(q_joints, dtype=float).tolist()
         plain = self._plain
         if not plain:
