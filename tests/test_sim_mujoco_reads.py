@@ -69,3 +69,26 @@ def test_the_base_push_lasts_one_tick():
         after = w.state().dq[14]
         assert pushed > -9.81 * w.config.dt + 1e-3  # the push held it up against gravity
         assert after - pushed == pytest.approx(-9.81 * w.config.dt, rel=1e-3)  # then free fall
+
+
+def test_compiled_torques_are_numpys_saturation_and_leave_ctrl_on_a_nan():
+    from symrom.sim.engines.compiled import mujoco_torques
+
+    rng = np.random.default_rng(4)
+    limit = np.abs(rng.normal(size=12)) * 20.0 + 1.0
+    signs = np.where(rng.random(12) < 0.5, -1.0, 1.0)
+    for _ in range(200):
+        tau = rng.normal(size=12) * 30.0
+        tau[rng.random(12) < 0.2] = -0.0
+        clipped, ctrl = np.empty(12), np.empty(12)
+        assert mujoco_torques(tau, -limit, limit, signs, clipped, ctrl)
+        ref = np.minimum(np.maximum(tau, -limit), limit)
+        np.testing.assert_array_equal(clipped.view(np.int64), ref.view(np.int64))
+        np.testing.assert_array_equal(ctrl.view(np.int64), (ref * signs).view(np.int64))
+    tau[3] = np.nan
+    before = ctrl.copy()
+    assert not mujoco_torques(tau, -limit, limit, signs, clipped, ctrl)
+    assert np.isnan(clipped[3])
+    np.testing.assert_array_equal(ctrl, before)
+    with pytest.raises(ValueError, match="finite"):
+        MujocoWorld("go1").step(np.full(12, np.nan))  # (an infinite torque saturates, as in NumPy)
