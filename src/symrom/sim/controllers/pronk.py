@@ -339,7 +339,7 @@ class PronkController:
         self._last_solve = -np.inf
         self._t_td: float | None = None
         self._td_state: tuple[np.ndarray, np.ndarray] | None = None
-        self._land_z: tuple[float, float, float] | None = None  # ``_ref_land_height``'s terms
+        self._land_z: tuple[float, float, float] | None = None  # the landing height's terms, kept at touchdown
         # the jump's events (the public read-only properties)
         self._push_start: tuple[float, np.ndarray] | None = None
         self._liftoff: tuple[np.ndarray, np.ndarray] | None = None
@@ -462,12 +462,10 @@ class PronkController:
 
     def _ref_land_z(self, tau):
         """Vertical part of ``_ref_land`` tau s (float or array) after touchdown: height m and
-        speed m/s, critically damped from (z_td, vz_td) to the standing height."""
+        speed m/s, critically damped from (z_td, vz_td) to the standing height (the terms kept
+        at touchdown, ``_land_z``)."""
         w = self.gains.land_omega
-        p_td, v_td = self._td_state
-        z_f = self.spec.start_height - 0.01
-        a0 = p_td[2] - z_f
-        b0 = v_td[2] + w * a0
+        z_f, a0, b0 = self._land_z
         ew = np.exp(-w * tau)
         return z_f + (a0 + b0 * tau) * ew, (b0 - w * (a0 + b0 * tau)) * ew
 
@@ -520,7 +518,8 @@ class PronkController:
                 self._phase = "land"
                 self._t_td = t
                 self._td_state = (state.q[BASE_POS].copy(), state.dq[BASE_POS].copy())
-                # _ref_land_z's terms of the touchdown, floats, for the landing's ticks
+                # the landing height's terms (``_ref_land_z``): the standing height less 1 cm, and
+                # the touchdown's offset from it and rate, critically damped at land_omega
                 z_f = self.spec.start_height - 0.01
                 a0 = float(self._td_state[0][2]) - z_f
                 self._land_z = (z_f, a0, float(self._td_state[1][2]) + self.gains.land_omega * a0)
