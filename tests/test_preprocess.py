@@ -170,8 +170,8 @@ def test_froggy_partial_is_per_jump():
 def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_signal():
     """``savgol_derivative`` gives ``scipy.signal.savgol_filter(..., deriv=1, mode="interp")``
     bit for bit (the datasets stay byte for byte) on rows of any trailing shape, windows and
-    orders, and a fresh process that builds a dataset's derivatives never imports
-    ``scipy.signal``; a cubic's derivative comes out exact, ends included."""
+    orders, and a fresh process that builds a dataset's derivatives imports neither
+    ``scipy.signal`` nor ``scipy.ndimage``; a cubic's derivative comes out exact, ends included."""
     import os
     import subprocess
     import sys
@@ -192,8 +192,38 @@ def test_savgol_derivative_is_scipys_to_the_last_bit_without_importing_scipy_sig
     np.testing.assert_allclose(savgol_derivative((t ** 3 - t)[:, None], 9, 3, 0.002)[:, 0], 3 * t ** 2 - 1,
                                rtol=0, atol=1e-9)
     code = ("import sys, numpy as np; from symrom.data.preprocess import differentiate; "
-            "differentiate(np.ones((30, 18)), 0.002, np.zeros(30, int)); print('scipy.signal' in sys.modules)")
+            "differentiate(np.ones((30, 18)), 0.002, np.zeros(30, int)); "
+            "print('scipy.signal' in sys.modules, 'scipy.ndimage' in sys.modules)")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(symrom.__file__).parents[1]),
                                                          os.environ.get("PYTHONPATH", "")])}
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
-    assert out.returncode == 0 and out.stdout.split() == ["False"], out.stderr
+    assert out.returncode == 0 and out.stdout.split() == ["False", "False"], out.stderr
+
+
+@pytest.mark.parametrize("kind", ["symmetric", "antisymmetric", "general"])
+def test_correlation_inside_is_ndimages_to_the_last_bit(kind):
+    """The rows ``_correlate_inside`` fills are ``scipy.ndimage.correlate1d``'s bit for bit, for
+    weights SciPy pairs about the centre (symmetric, antisymmetric) and weights it does not (any,
+    even-sized with a convolution's origin), and exactly the rows whose window lies inside."""
+    from scipy.ndimage import correlate1d
+
+    from symrom.data.preprocess import _correlate_inside
+
+    rng = np.random.default_rng(3)
+    for k in (1, 2, 3, 4, 5, 8, 9, 13):
+        if kind != "general" and k % 2 == 0:
+            continue
+        for n in (k, k + 1, 37):
+            w = rng.normal(size=k) * 50.0
+            if kind == "symmetric":
+                w = w + w[::-1]
+            elif kind == "antisymmetric":
+                w = w - w[::-1]
+            x = rng.normal(size=(n, 2, 3)) * 10.0 ** rng.uniform(-3, 3)
+            origin = -1 if k % 2 == 0 else 0
+            out = np.full_like(x, np.nan)
+            _correlate_inside(x, w, origin, out)
+            inside = ~np.isnan(out[:, 0, 0])
+            assert inside.sum() == n - k + 1
+            ref = correlate1d(x, w, axis=0, mode="constant", origin=origin)
+            np.testing.assert_array_equal(out[inside], ref[inside])

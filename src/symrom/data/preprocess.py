@@ -29,14 +29,13 @@ def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> 
     """Savitzky-Golay first derivative of ``x`` (n, d) along its rows, sampled every ``dt`` s:
     SciPy's ``savgol_filter(x, window, polyorder, deriv=1, delta=dt, axis=0, mode="interp")``
     to the last bit (``tests/test_preprocess.py``), without importing ``scipy.signal`` (a second
-    of every process that builds a dataset). ``polyorder < window <= n``.
+    of every process that builds a dataset) or ``scipy.ndimage``. ``polyorder < window <= n``.
 
     Inside, the derivative at each sample of the least-squares polynomial through the
     ``window`` samples centred on it (one correlation, SciPy's coefficients, its LAPACK solve);
     within ``window // 2`` samples of either end, the derivative of the polynomial fitted to
     the first or last ``window`` samples (scaled columns, as SciPy's polyfit)."""
     from scipy.linalg import lstsq
-    from scipy.ndimage import convolve1d
 
     x = np.asarray(x, dtype=float)
     n, half = x.shape[0], window // 2
@@ -48,7 +47,8 @@ def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> 
     unit = np.zeros(polyorder + 1)
     unit[1] = 1.0 / dt
     coeffs = lstsq(powers, unit, cond=eps * max(powers.shape))[0]
-    out = convolve1d(x, coeffs, axis=0, mode="constant")
+    out = np.empty_like(x)
+    _correlate_inside(x, coeffs[::-1], 0 if window % 2 else -1, out)
     # the ends: one polynomial per column through the first / last window, its derivative there
     t = np.arange(window, dtype=float)
     vander = t[:, None] ** np.arange(polyorder, -1, -1, dtype=float)[None, :]
@@ -65,6 +65,45 @@ def savgol_derivative(x: np.ndarray, window: int, polyorder: int, dt: float) -> 
             value = value * at + row
         out[rows] = (value / dt).reshape((rows.stop - rows.start, *x.shape[1:]))
     return out
+
+
+def _correlate_inside(x: np.ndarray, w: np.ndarray, origin: int, out: np.ndarray) -> None:
+    """Rows of ``out`` (n, ...) whose window lies inside ``x`` (n, ...): the correlation of ``x``'s
+    rows with the weights ``w`` (k,) centred at ``k // 2`` and shifted by ``origin`` (0, or -1 for an
+    even ``k``: a convolution's centre), summed in the order and pairing of SciPy's
+    ``ndimage.correlate1d`` so that every row is its result to the last bit. Whole rows at a time in
+    NumPy: importing ``scipy.ndimage`` (and ``scipy.special`` with it) costs more than the sums.
+
+    An odd ``w`` that reads the same backwards, or its negative, within one ulp of 1 (as SciPy
+    tests it) pairs the samples either side of the centre before weighting them; any other sums
+    the last tap first, then the rest in order. Other rows of ``out`` are left as they were."""
+    k, n = w.size, x.shape[0]
+    before, after = k // 2, k - k // 2 - 1
+    lo, hi = before + origin, n - after + origin  # rows i with x[i - before - origin ... i + after - origin]
+    if hi <= lo:
+        return
+
+    def tap(j: int) -> np.ndarray:  # sample j (-before..after) of every row's window
+        return x[lo + j - origin:hi + j - origin]
+
+    eps = np.finfo(float).eps
+    pairing = 0
+    if k % 2:
+        mirror = [(w[before + i], w[before - i]) for i in range(1, before + 1)]
+        if all(abs(a - b) <= eps for a, b in mirror):
+            pairing = 1
+        elif all(abs(a + b) <= eps for a, b in mirror):
+            pairing = -1
+    rows = out[lo:hi]
+    if pairing:
+        rows[...] = tap(0) * w[before]
+        for j in range(-before, 0):
+            pair = tap(j) + tap(-j) if pairing > 0 else tap(j) - tap(-j)
+            rows += pair * w[before + j]
+    else:
+        rows[...] = tap(after) * w[before + after]
+        for j in range(-before, after):
+            rows += tap(j) * w[before + j]
 
 
 def differentiate(x: np.ndarray, dt: float, jump: np.ndarray, method: str = "savgol",
