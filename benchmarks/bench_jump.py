@@ -5,7 +5,8 @@ Pronk (``--model``, a learned pronk model, planned for the robot it was trained 
 fitted aSLIP parameters): seeded
 targets (``--targets`` of them, seed ``--seed``) drawn uniformly over the learned planner's
 reach (``RobotPlanner.reach``: its bounds within its training jumps' envelope), each planned
-by every planner (learned, point mass on the description's mass, aSLIP; height guards) and
+by every planner (learned, point mass on the description's mass, aSLIP; height guards, all at the
+learned model's training jumps' lift-off and touchdown heights where it records them) and
 executed in ``--engine`` (MuJoCo by default) with each control (``plan``: open loop;
 ``mpc``: re-planned at 100 Hz) in each world (``none``; ``payload``: 20 % of the robot's mass
 fixed to the base; ``friction``: ground friction 0.5; ``motors``: every motor delivers 85 %
@@ -44,7 +45,7 @@ from provenance import provenance
 
 from symrom.model.persistence import load_model
 from symrom.plan.execute import TILTED
-from symrom.plan.jump import jump, make_planner, read_aslip_params
+from symrom.plan.jump import jump, make_planner, read_aslip_params, training_heights
 from symrom.robots import get_robot
 from symrom.sim.proxy import Disturbances
 
@@ -114,11 +115,16 @@ def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: in
     model = load_model(model_path)
     robot = robot or model.provenance.data.robot or "go1"  # the jumps of the model's own robot
     aslip = read_aslip_params(aslip_path) if aslip_path else None
-    built = {k: make_planner(k, robot, model=model, aslip=aslip) for k in planners if k != "aslip" or aslip}
+    # every planner's height guards at the learned model's training jumps' lift-off and touchdown
+    # heights, which the learned planner takes by default (``plan.jump.training_heights``)
+    heights = training_heights(model)
+    built = {k: make_planner(k, robot, model=model, aslip=aslip, heights=heights)
+             for k in planners if k != "aslip" or aslip}
     reach = built["learned"].reach()
     tx = targets(reach, n, seed)
     res = {"robot": robot, "engine": engine, "targets": tx.tolist(), "seed": seed, "model": str(model_path),
-           "aslip": str(aslip_path) if aslip_path else None, "reach": reach.to_dict(), "results": {}}
+           "aslip": str(aslip_path) if aslip_path else None, "reach": reach.to_dict(),
+           "heights_m": None if heights is None else list(heights), "results": {}}
     all_worlds = worlds(robot)
     for w in world_names:
         for kind, planner in built.items():

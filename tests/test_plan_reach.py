@@ -149,3 +149,29 @@ def test_the_envelope_of_planted_jumps():
     assert pushed["phases"]["contact"]["max"] == pytest.approx([11.0, 300.0, -2.0])
     assert jump_envelope(ds, [0])["push_wrench"]["phases"]["contact"]["max"] == pytest.approx([10.0, 250.0, -3.0])
     assert jump_envelope(ds, []) is None
+
+
+def test_a_learned_pronk_lifts_off_and_lands_at_its_training_jumps_heights():
+    """A learned model's pronk takes its envelope's median lift-off and touchdown heights for its
+    height guards; without an envelope, or for a baseline not given any, the pronk's take-off
+    height; a baseline given heights takes them (the benchmark's same care); bad heights are
+    refused naming them."""
+    from symrom.plan.jump import make_planner, training_heights
+
+    env = {**ENVELOPE, "liftoff_z_m": 0.345, "touchdown_z_m": 0.347}
+    model = planted_model(*GO1_LIKE, info={"envelope": env})
+    assert training_heights(model) == (0.345, 0.347)
+    learned = make_planner("learned", "go1", model=model)
+    assert (learned.liftoff_height, learned.touchdown_height) == (0.345, 0.347)
+    plain = make_planner("learned", "go1", model=planted_model(*GO1_LIKE))
+    assert training_heights(planted_model(*GO1_LIKE)) is None
+    assert plain.liftoff_height == plain.touchdown_height == pytest.approx(0.33)
+    pm = make_planner("point-mass", "go1")
+    assert pm.liftoff_height == pm.touchdown_height == pytest.approx(0.33)
+    given = make_planner("point-mass", "go1", heights=training_heights(model))
+    assert (given.liftoff_height, given.touchdown_height) == (0.345, 0.347)
+    # the plan's lift-off is at the new height: the planned push ends where the base reaches it
+    plan = learned.plan(learned.motion.q_crouch, np.zeros(18), 0.2)
+    assert plan.success and plan.nodes[learned.nlp._n_knots][1] == pytest.approx(0.345, abs=1e-6)
+    with pytest.raises(ValueError, match="heights must be positive"):
+        make_planner("point-mass", "go1", heights=(0.33, float("nan")))

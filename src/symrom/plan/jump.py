@@ -58,7 +58,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 3  # 2: apex_rule, apex_floor; 3: rest, upright
+LANDING_FORMAT = 4  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights
 TRAJECTORY_FORMAT = 2
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
@@ -274,12 +274,15 @@ class RobotPlanner:
 
 
 def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip: ASlipParams | None = None,
-                 config: PlanConfig | None = None, guards: str = "height", motion: str | None = None) -> RobotPlanner:
+                 config: PlanConfig | None = None, guards: str = "height", motion: str | None = None,
+                 heights: tuple[float, float] | None = None) -> RobotPlanner:
     """Build the NLP of planner ``kind`` for ``robot`` once; ``model`` for ``learned``,
     ``aslip`` for ``aslip``; ``guards`` (``GUARDS``): ``height`` (``HeightGuards``) or, for the
     learned planner, ``learned`` (the model's own switches, ``LearnedGuards``); ``motion``
     (``MOTIONS``): the jump planned (default: the learned model's training motion, else the
-    pronk; a learned model plans only its own)."""
+    pronk; a learned model plans only its own); ``heights``: the base's (lift-off, touchdown)
+    heights m the height guards use (default: the motion's, ``motion_plan``, but for a learned
+    model's pronk its training jumps' medians, ``training_heights``)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
     if guards not in GUARDS:
@@ -297,6 +300,13 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     mass = desc.mass
     cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
     mp = motion_plan(motion, robot, cfg)
+    if heights is None and kind == "learned" and motion == "pronk":
+        heights = training_heights(model)
+    if heights is not None:
+        z_lo, z_td = (float(h) for h in heights)
+        if not (np.isfinite(z_lo) and np.isfinite(z_td) and z_lo > 0 and z_td > 0):
+            raise ValueError(f"the lift-off and touchdown heights must be positive, got {heights}")
+        mp = replace(mp, liftoff_height=z_lo, touchdown_height=z_td)
     q_crouch = mp.q_crouch
     legs = {STANCE_PHASE: ALL_LEGS, PARTIAL_PHASE: REAR}
     envelope = None
@@ -335,6 +345,21 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     # apex of the training jumps where that is lower: a model knows the motion only where its data went
     nominal = mp.nominal_apex if envelope is None else min(mp.nominal_apex, float(envelope["apex_z_m"][1]))
     return RobotPlanner(kind, robot, guards, nlp, crouch, mp.liftoff_height, nominal, mp, envelope)
+
+
+def training_heights(model: HybridModel | None) -> tuple[float, float] | None:
+    """A learned model's training jumps' median base heights (m) at lift-off (their flight's
+    first row) and touchdown (the first row after it), from its envelope; None without one.
+
+    The pronk's own take-off height (0.33 m on the Go1) is where its push's force ends; the feet
+    leave 8-10 ms later at 0.345 m, the trunk having lost upward speed lifting the legs, and come
+    down with the base at 0.347 m. Height guards at the take-off height make a planned flight
+    last tens of ms longer than the robot's, and its closed loop lands short (docs/benchmarks.md,
+    "Jumps to a target")."""
+    env = None if model is None else model.provenance.data.envelope
+    if not env or env.get("liftoff_z_m") is None or env.get("touchdown_z_m") is None:
+        return None
+    return float(env["liftoff_z_m"]), float(env["touchdown_z_m"])
 
 
 def reads_pitch(model: HybridModel) -> bool:
@@ -448,6 +473,7 @@ class JumpResult:
     planned_target_z: float | None = None
     reach: JumpReach | None = None
     in_reach: bool = True
+    heights: tuple[float, float] | None = None  # the guards' (lift-off, touchdown) heights, m
 
     @property
     def error_x(self) -> float:
@@ -479,12 +505,15 @@ class JumpResult:
              "liftoff": dict(zip(("x", "z", "vx", "vz"), ex.liftoff.tolist())), "t_push_s": ex.t_push,
              "push_duration_s": ex.push_s, "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,
              "rest": ex.rest, "upright": ex.upright,
+             "heights": None if self.heights is None else dict(zip(("liftoff_z", "touchdown_z"), self.heights)),
              "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
                            "start of the push (m); error_x: landing_x - target_x; error_z: apex_z - target_z; "
                            "apex_z: largest base height between lift-off and touchdown (m); rest_x: base x at "
                            "the end of the run, from the same start (m); rest: base height (m), roll and "
                            f"pitch (rad) at the end; upright: roll and pitch within {TILTED:g} rad of level and the "
-                           f"base at least {LYING:g} of its standing height at the end",
+                           f"base at least {LYING:g} of its standing height at the end; heights: the base "
+                           "heights (m) at which the plan's height guards put lift-off (the push's end) and "
+                           "touchdown",
              "plan": plan.to_dict()}
         if ex.replans is not None:
             r = ex.replans
@@ -599,7 +628,8 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
                  disturbances=disturbances)
     return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex,
                       apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
-                      planned_target_z=z, reach=reach, in_reach=in_reach)
+                      planned_target_z=z, reach=reach, in_reach=in_reach,
+                      heights=(planner.liftoff_height, planner.touchdown_height))
 
 
 @dataclass(frozen=True)
