@@ -168,6 +168,9 @@ def test_a_learned_pronk_lifts_off_and_lands_at_its_training_jumps_heights():
     assert plain.liftoff_height == plain.touchdown_height == pytest.approx(0.33)
     pm = make_planner("point-mass", "go1")
     assert pm.liftoff_height == pm.touchdown_height == pytest.approx(0.33)
+    # on another robot of its build the model's heights are not that robot's: its own take-off height
+    other = make_planner("learned", "a1", model=model)  # the A1 is of the Go1's build
+    assert other.liftoff_height == pytest.approx(make_planner("point-mass", "a1").liftoff_height)
     given = make_planner("point-mass", "go1", heights=training_heights(model))
     assert (given.liftoff_height, given.touchdown_height) == (0.345, 0.347)
     # the plan's lift-off is at the new height: the planned push ends where the base reaches it

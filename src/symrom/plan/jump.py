@@ -282,7 +282,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     (``MOTIONS``): the jump planned (default: the learned model's training motion, else the
     pronk; a learned model plans only its own); ``heights``: the base's (lift-off, touchdown)
     heights m the height guards use (default: the motion's, ``motion_plan``, but for a learned
-    model's pronk its training jumps' medians, ``training_heights``)."""
+    model's pronk on its own robot its training jumps' medians, ``training_heights``)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
     if guards not in GUARDS:
@@ -300,8 +300,10 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     mass = desc.mass
     cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
     mp = motion_plan(motion, robot, cfg)
-    if heights is None and kind == "learned" and motion == "pronk":
-        heights = training_heights(model)
+    if heights is None and kind == "learned" and motion == "pronk" and model is not None:
+        own = model.provenance.data.robot
+        if own is None or robot_key(own) == robot_key(robot):  # another robot's heights differ
+            heights = training_heights(model)
     if heights is not None:
         z_lo, z_td = (float(h) for h in heights)
         if not (np.isfinite(z_lo) and np.isfinite(z_td) and z_lo > 0 and z_td > 0):
