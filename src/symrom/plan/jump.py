@@ -300,15 +300,6 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     mass = desc.mass
     cfg = config or PlanConfig(fz_max=PlanConfig.fz_max * mass / get_robot("go1").mass)
     mp = motion_plan(motion, robot, cfg)
-    if heights is None and kind == "learned" and motion == "pronk" and model is not None:
-        own = model.provenance.data.robot
-        if own is None or robot_key(own) == robot_key(robot):  # another robot's heights differ
-            heights = training_heights(model)
-    if heights is not None:
-        z_lo, z_td = (float(h) for h in heights)
-        if not (np.isfinite(z_lo) and np.isfinite(z_td) and z_lo > 0 and z_td > 0):
-            raise ValueError(f"the lift-off and touchdown heights must be positive, got {heights}")
-        mp = replace(mp, liftoff_height=z_lo, touchdown_height=z_td)
     q_crouch = mp.q_crouch
     legs = {STANCE_PHASE: ALL_LEGS, PARTIAL_PHASE: REAR}
     envelope = None
@@ -316,11 +307,14 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         if model is None:
             raise ValueError("the learned planner needs a model (model.json)")
         trained_on = model.provenance.data.robot
-        if trained_on is not None and robot_key(trained_on) != robot_key(robot):
+        own_robot = trained_on is None or robot_key(trained_on) == robot_key(robot)
+        if not own_robot:
             check_model_robot(trained_on, robot)
         B = {st.phase: force_input_map(model, robot, q_crouch, legs[st.phase]) for st in mp.stances}
         dyn: PlanDynamics = LearnedDynamics(model, B if motion != "pronk" else B[STANCE_PHASE])
         envelope = model.provenance.data.envelope
+        if heights is None and motion == "pronk" and own_robot:  # another robot's heights differ
+            heights = training_heights(model)
     elif kind == "point-mass":
         dyn = PointMass(mass)
     else:
@@ -329,6 +323,11 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         feet = leg_kinematics(robot).foot_positions(q_crouch[None, JOINTS])[0]  # base frame
         pivot = feet.mean(axis=0)
         dyn = ASlipDynamics(aslip.m, params=aslip, pivot=(float(pivot[0]), float(pivot[2] + q_crouch[BASE_POS][2])))
+    if heights is not None:
+        z_lo, z_td = (float(h) for h in heights)
+        if not (np.isfinite(z_lo) and np.isfinite(z_td) and z_lo > 0 and z_td > 0):
+            raise ValueError(f"the lift-off and touchdown heights must be positive, got {heights}")
+        mp = replace(mp, liftoff_height=z_lo, touchdown_height=z_td)
     last = mp.stances[-1].phase
     rule = LearnedGuards.of(model, stance=last, flight=FLIGHT_PHASE) if guards == "learned" else HeightGuards()
     # the legs' torques at the start and at the end of the push (crouch, take-off height)
