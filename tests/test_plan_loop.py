@@ -340,3 +340,34 @@ def test_a_planned_pronk_hands_over_to_its_flight_as_its_own_push_does():
     assert contact[np.searchsorted(t, t_end)].all()  # four feet down when the push's force ends
     assert not contact[first].any()  # none when the flight begins
     assert np.isfinite(ex.landing_x) and ex.apex_z > 0.38
+
+
+def test_a_later_stances_replans_take_their_own_proximal_weight():
+    """``prox_later`` weighs the step of a re-plan made within the rear-only part and no other:
+    in the first stance the schedule is the same whatever it is; within the later one, whose law
+    has a weak force gain (a fifth of the contact's), a larger weight moves the forces less from
+    the last schedule's."""
+    contact = [{"nu1": GAIN_X, "dxi1": DAMP_X}, {"nu2": GAIN_Z, "1": G_C}]
+    partial = [{"nu1": GAIN_X / 5}, {"nu2": GAIN_Z / 5, "1": G_C}]
+    model = planted_model(contact, [{}, {"1": -GRAVITY}], phases=("contact", "partial", "flight"), third=partial)
+    dyn = LearnedDynamics(model, {"contact": np.eye(2), "partial": np.eye(2)})
+    nlp = JumpPlanner(dyn, mass=13.0, stances=(Stance("contact", 3, 0.05, 0.15), Stance("partial", 3, 0.04, 0.10)))
+    q0 = np.zeros(18)
+    q0[Z] = 0.21
+    plan = nlp.solve(dyn.initial_state(q0, np.zeros(18)), 0.3, z_liftoff=Z_LO, min_apex=0.43, z_touchdown=0.30)
+    assert plan.success, plan.status
+    d0, d1 = plan.durations  # plan.states: the push's start, then each knot's end (3 and 3)
+    moved = {}
+    for weight in (0.03, 0.2, 2.0):
+        rp = Replanner(nlp, prox_later=weight)
+        rp.begin(plan, 0.3, plan.x0, Z_LO, 0.30, None, 0.43)
+        behind = np.array([1.0, 1.0, 0.98, 0.98])  # velocities behind the plan's
+        first = rp.step(plan.states[1] * behind, d0 / 3)
+        tau = d0 + d1 / 3
+        warm = rp._warm(tau, 1)[3:].reshape(-1, 2) * 13.0 * GRAVITY  # the last schedule's forces, N
+        after = rp.step(plan.states[4] * behind, tau)
+        assert after.first == 1 and rp.stats.status == ["ok", "ok"]
+        # the forward force: the vertical one is held by the lift-off guard whatever the weight
+        moved[weight] = (np.concatenate(first.forces), float(np.abs(after.forces[0][:, 0] - warm[:, 0]).mean()))
+    assert np.array_equal(moved[0.03][0], moved[0.2][0]) and np.array_equal(moved[0.03][0], moved[2.0][0])
+    assert moved[0.03][1] > moved[0.2][1] > moved[2.0][1] > 0

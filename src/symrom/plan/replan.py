@@ -13,8 +13,9 @@ model, constraints and objective, shrinking its horizon as the push goes on:
   NLP's constraints; the objective the NLP's (landing distance, apex, effort, smoothness).
 - *One step* (real-time iteration): the constraints linearised and the objective's residuals
   (Gauss-Newton) taken about the last re-plan's solution shifted to now, with a small
-  proximal term; the QP (dense, tens of variables) solved by DAQP and its step taken. A QP
-  DAQP cannot solve keeps the last schedule.
+  proximal term (a larger one on the forces within a later stance: ``prox_later``); the QP
+  (dense, tens of variables) solved by DAQP and its step taken. A QP DAQP cannot solve keeps
+  the last schedule.
 
 The first schedule is the NLP's plan; every re-plan warm-starts from the one before. Units:
 m, s, N; forces scaled by the robot's weight inside the QP.
@@ -97,10 +98,14 @@ class Replanner:
     ``begin(plan, ...)`` takes the NLP's plan and the targets; ``step(s, tau)`` re-plans from
     the model state s (n,) measured tau s after the push began and returns the ``Schedule``.
     prox: the proximal weight on each step (per s^2 on durations, per (m g)^2 on forces);
-    min_left: the least time left in the current stance, s."""
+    prox_later: the weight on the forces of a re-plan made within a stance after the first (a
+    froggy's rear-only part), where nothing later can take back an overreaction and the law was
+    fit on a few rows per jump; min_left: the least time left in the current stance, s."""
 
-    def __init__(self, nlp: JumpPlanner, prox: float = 0.03, prox_time: float = 0.03, min_left: float = 0.004):
+    def __init__(self, nlp: JumpPlanner, prox: float = 0.03, prox_time: float = 0.03, prox_later: float = 0.1,
+                 min_left: float = 0.004):
         self.nlp, self.prox, self.prox_time, self.min_left = nlp, float(prox), float(prox_time), float(min_left)
+        self.prox_later = float(prox_later)
         self._fns: dict[int, ca.Function] = {}
         self._bounds: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._began: dict[int, float] = {}  # when each stance began, s since the push began
@@ -245,7 +250,8 @@ class Replanner:
         lo_c, hi_c = self._bounds[first]
         ny = y0.size
         n_t = len(self.nlp.stances) - first + 2  # durations come first in y
-        H = Jr.T @ Jr + np.diag(np.r_[np.full(n_t, self.prox_time), np.full(ny - n_t, self.prox)])
+        prox = self.prox if first == 0 else self.prox_later
+        H = Jr.T @ Jr + np.diag(np.r_[np.full(n_t, self.prox_time), np.full(ny - n_t, prox)])
         f = Jr.T @ r
         bu = np.concatenate([hi_y - y0, hi_c - c])
         bl = np.concatenate([lo_y - y0, lo_c - c])
