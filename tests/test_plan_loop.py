@@ -205,6 +205,20 @@ def test_jump_cli_closed_loop_under_a_payload(tmp_path):
     assert 0 < r["solve_time_median_s"] < 0.01
 
 
+def test_a_faster_closed_loop_records_its_own_rate(tmp_path):
+    """``jump(..., replan_hz=200)`` re-plans every 5 ms, and landing.json says 200 Hz."""
+    import json
+
+    from symrom.plan.jump import jump, make_planner, write_landing
+
+    model = planted_model([{"nu1": 0.062, "nu2": -0.0075}, {"nu2": 0.085, "1": -9.68}], [{}, {"1": -10.2}])
+    r = jump(make_planner("learned", "go1", model=model), 0.25, engine="mujoco", control="mpc", replan_hz=200.0)
+    write_landing(tmp_path / "j", r, trajectory=False)
+    d = json.loads((tmp_path / "j" / "landing.json").read_text())["replans"]
+    assert d["rate_hz"] == 200.0 and d["count"] >= 20
+    assert np.allclose(np.diff(d["t_s"]), 0.005, atol=1.5e-3)
+
+
 def test_froggy_jump_end_to_end(tmp_path):
     """A froggy model (Newton's law on the A1's mass in each phase) plans four feet then the rear
     feet alone and the A1 executes it: the rear feet push alone before the flight, it lands."""

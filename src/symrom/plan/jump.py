@@ -475,6 +475,7 @@ class JumpResult:
     reach: JumpReach | None = None
     in_reach: bool = True
     heights: tuple[float, float] | None = None  # the guards' (lift-off, touchdown) heights, m
+    replan_hz: float = REPLAN_HZ  # the closed loop's re-planning rate, Hz
 
     @property
     def error_x(self) -> float:
@@ -519,7 +520,7 @@ class JumpResult:
         if ex.replans is not None:
             r = ex.replans
             times = np.asarray(r.solve_time_s, float)
-            d["replans"] = {"rate_hz": REPLAN_HZ, "count": len(times),
+            d["replans"] = {"rate_hz": self.replan_hz, "count": len(times),
                             "solve_time_median_s": float(np.median(times)) if times.size else None,
                             "solve_time_max_s": float(times.max()) if times.size else None,
                             "not_ok": int(sum(s != "ok" for s in r.status)), **r.to_dict()}
@@ -630,7 +631,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex,
                       apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
                       planned_target_z=z, reach=reach, in_reach=in_reach,
-                      heights=(planner.liftoff_height, planner.touchdown_height))
+                      heights=(planner.liftoff_height, planner.touchdown_height), replan_hz=float(replan_hz))
 
 
 @dataclass(frozen=True)
