@@ -99,8 +99,8 @@ class Replanner:
     the model state s (n,) measured tau s after the push began and returns the ``Schedule``.
     prox: the proximal weight on each step (per s^2 on durations, per (m g)^2 on forces);
     prox_later: the weight on the forces of a re-plan made within a stance after the first (a
-    froggy's rear-only part), where nothing later can take back an overreaction and the law was
-    fit on a few rows per jump; min_left: the least time left in the current stance, s."""
+    froggy's rear-only part, 2-4 re-plans long: nothing later takes an overreaction back), chosen
+    on simulated froggy jumps; min_left: the least time left in the current stance, s."""
 
     def __init__(self, nlp: JumpPlanner, prox: float = 0.03, prox_time: float = 0.03, prox_later: float = 0.1,
                  min_left: float = 0.004):
