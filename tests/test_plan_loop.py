@@ -206,15 +206,25 @@ def test_jump_cli_closed_loop_under_a_payload(tmp_path):
 
 
 def test_a_faster_closed_loop_records_its_own_rate(tmp_path):
-    """``jump(..., replan_hz=200)`` re-plans every 5 ms, and landing.json says 200 Hz."""
+    """``symrom jump --control mpc --replan-hz 200`` re-plans every 5 ms, and landing.json says
+    200 Hz; a rate below 100 Hz is refused in one line and nothing is written."""
     import json
 
-    from symrom.plan.jump import jump, make_planner, write_landing
+    from typer.testing import CliRunner
 
-    model = planted_model([{"nu1": 0.062, "nu2": -0.0075}, {"nu2": 0.085, "1": -9.68}], [{}, {"1": -10.2}])
-    r = jump(make_planner("learned", "go1", model=model), 0.25, engine="mujoco", control="mpc", replan_hz=200.0)
-    write_landing(tmp_path / "j", r, trajectory=False)
-    d = json.loads((tmp_path / "j" / "landing.json").read_text())["replans"]
+    from symrom.cli import app
+    from symrom.model.persistence import save_model
+
+    save_model(planted_model([{"nu1": 0.062, "nu2": -0.0075}, {"nu2": 0.085, "1": -9.68}], [{}, {"1": -10.2}]),
+               tmp_path / "model.json")
+    args = ["jump", str(tmp_path / "model.json"), "--target-x", "0.25", "--engine", "mujoco", "--control", "mpc",
+            "--no-trajectory"]
+    res = CliRunner().invoke(app, [*args, "--replan-hz", "50", "--out", str(tmp_path / "slow")])
+    assert res.exit_code != 0 and "100 Hz or faster, got 50" in res.output and len(res.output.strip().splitlines()) == 1
+    assert not (tmp_path / "slow").exists()
+    res = CliRunner().invoke(app, [*args, "--replan-hz", "200", "--out", str(tmp_path / "fast")])
+    assert res.exit_code == 0, res.output
+    d = json.loads((tmp_path / "fast" / "landing.json").read_text())["replans"]
     assert d["rate_hz"] == 200.0 and d["count"] >= 20
     assert np.allclose(np.diff(d["t_s"]), 0.005, atol=1.5e-3)
 

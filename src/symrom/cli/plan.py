@@ -28,8 +28,10 @@ def jump_cmd(
     engine: Annotated[str, typer.Option("--engine", help=ENGINE_HELP)] = "pybullet",
     control: Annotated[str | None, typer.Option(
         "--control", help="plan (the push planned once, open loop) or mpc (re-planned from the measured state at "
-                          "100 Hz); default: plan on the model's own robot, mpc on another robot "
+                          "--replan-hz); default: plan on the model's own robot, mpc on another robot "
                           "of its build.")] = None,
+    replan_hz: Annotated[float, typer.Option(
+        "--replan-hz", help="How often mpc re-plans the rest of the push, Hz (100 or faster).")] = 100.0,
     motion: Annotated[str | None, typer.Option(
         "--motion", help="pronk or froggy (default: the model's; point-mass and aslip: pronk).")] = None,
     payload: Annotated[float, typer.Option("--payload", help="A load fixed to the base, kg (a disturbance).")] = 0.0,
@@ -55,7 +57,7 @@ def jump_cmd(
 
     check_output_file(out, force, inputs=() if model_path is None else (model_path,))
     req = JumpRequest(target_x, target_z, robot, planner, model_path, guards, engine, control, motion, payload,
-                      friction, motor_scale, closest)
+                      friction, motor_scale, closest, replan_hz)
     with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
         try:
             result = run_jump(req, out, trajectory=trajectory, force=force)

@@ -527,6 +527,12 @@ class JumpResult:
         return d
 
 
+def check_replan_hz(replan_hz: float) -> None:
+    """Refuse a closed loop's re-planning rate below ``REPLAN_HZ`` (Hz)."""
+    if not (np.isfinite(replan_hz) and replan_hz >= REPLAN_HZ):
+        raise ValueError(f"the re-planning rate must be {REPLAN_HZ:g} Hz or faster, got {replan_hz:g}")
+
+
 def _check_targets(planner: RobotPlanner, target_x: float, target_z: float | None) -> None:
     if not (np.isfinite(target_x) and target_x >= 0):
         raise ValueError(f"the target x must be a non-negative distance in m, got {target_x}")
@@ -602,8 +608,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     ``closest``). Raise ``PlanError`` if the plan fails."""
     if control not in CONTROLS:
         raise ValueError(f"unknown control {control!r}; choose from {', '.join(CONTROLS)}")
-    if not (np.isfinite(replan_hz) and replan_hz >= 100.0):
-        raise ValueError(f"the re-planning rate must be 100 Hz or faster, got {replan_hz}")
+    check_replan_hz(replan_hz)
     _check_targets(planner, target_x, target_z)
     reach, in_reach = None, True
     x, z = target_x, target_z
@@ -642,7 +647,8 @@ class JumpRequest:
     the control (``CONTROLS``; None: ``plan`` on the model's own robot, ``mpc`` on another robot
     of its build, where the model's forces do not carry over open loop), the motion (None: the
     model's, else the pronk), the world's disturbances (payload kg, ground friction or None, motor
-    scale) and whether an out-of-reach target gets the closest reachable jump (else it is refused)."""
+    scale), whether an out-of-reach target gets the closest reachable jump (else it is refused)
+    and the closed loop's re-planning rate (Hz, ``REPLAN_HZ`` or faster)."""
 
     target_x: float
     target_z: float | None = None
@@ -657,6 +663,7 @@ class JumpRequest:
     friction: float | None = None
     motor_scale: float = 1.0
     closest: bool = False
+    replan_hz: float = REPLAN_HZ
 
 
 def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, force: bool = False) -> JumpResult:
@@ -673,6 +680,7 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
     if req.control is not None and req.control not in CONTROLS:
         raise ValueError(f"the control must be one of {', '.join(CONTROLS)}, got {req.control!r}")
     check_engine(req.engine)
+    check_replan_hz(req.replan_hz)
     if req.planner == "point-mass" and req.model_path is not None:
         raise ValueError(f"the point-mass planner uses no model: leave model_path={str(req.model_path)!r} out "
                          "(or plan with the learned or aslip planner)")
@@ -692,7 +700,7 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
     control = req.control or ("mpc" if trained_on is not None and robot_key(trained_on) != robot_key(robot) else "plan")
     built = make_planner(req.planner, robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)
     result = jump(built, req.target_x, req.target_z, engine=req.engine, control=control,
-                  disturbances=disturbances, closest=req.closest)
+                  disturbances=disturbances, closest=req.closest, replan_hz=req.replan_hz)
     write_landing(out, result, trajectory=trajectory, force=force)
     return result
 
@@ -725,6 +733,7 @@ __all__ = [
     "RobotPlanner",
     "aim",
     "check_model_robot",
+    "check_replan_hz",
     "jump",
     "make_planner",
     "motion_plan",
