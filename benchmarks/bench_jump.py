@@ -243,8 +243,16 @@ def verdicts(res: dict, fr: dict | None) -> list[str]:
         out.append(f"re-plan <= 2 ms median on one core: {'met' if t <= 2e-3 else 'NOT met'} "
                    f"(worst world's CPU median {1e3 * t:.2f} ms)")
     if fr is not None:
-        worst = max(r["median_with_failures_m"] for r in fr["results"].values())
+        # the target is the nominal world's; a disturbed open loop is not meant to land
+        rs = fr["results"].values()
+        worst = max(r["median_with_failures_m"] for r in rs if r.get("world", "none") == "none")
         out.append(f"froggy within 3 cm median: {'met' if worst <= 0.03 else 'NOT met'} (worst {_cm(worst)})")
+        disturbed = [r["median_with_failures_m"] for r in rs
+                     if r.get("world", "none") != "none" and r["control"] == "mpc"]
+        if disturbed:
+            worst = max(disturbed)
+            out.append(f"froggy mpc within 3 cm median under disturbances: {'met' if worst <= 0.03 else 'NOT met'} "
+                       f"(worst {_cm(worst)})")
     return out
 
 
