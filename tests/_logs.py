@@ -8,7 +8,7 @@ from functools import cache
 from pathlib import Path
 
 import numpy as np
-from _simdata import reference_file, tmp_path
+from _simdata import reference_file, shared
 from scipy.interpolate import CubicSpline
 
 from symrom.data.io import read_dataset
@@ -34,8 +34,8 @@ def sim_go1():
 @cache
 def proxy_go1(n_jumps: int = 6, seed: int = 11):
     """Hardware-like Go1 jumps (the proxy: other masses, latency, sensor noise), 500 Hz."""
-    out = tmp_path("proxy.h5")
-    return generate(GenerateConfig("go1", "pronk", n_jumps, seed=seed, proxy=True), out)
+    return read_dataset(shared(f"proxy_{n_jumps}_{seed}.h5", lambda out: generate(
+        GenerateConfig("go1", "pronk", n_jumps, seed=seed, proxy=True), out)))
 
 
 @cache

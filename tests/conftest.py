@@ -30,6 +30,10 @@ if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
 if "SYMROM_CACHE_DIR" not in os.environ:
     os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")
     atexit.register(shutil.rmtree, os.environ["SYMROM_CACHE_DIR"], True)
+# The simulated datasets the tests share (tests/_simdata.py), made once for every worker of a run.
+if "SYMROM_TESTS_SHARED" not in os.environ:
+    os.environ["SYMROM_TESTS_SHARED"] = tempfile.mkdtemp(prefix="symrom-simtests-shared-")
+    atexit.register(shutil.rmtree, os.environ["SYMROM_TESTS_SHARED"], True)
 
 
 @pytest.fixture(scope="session")

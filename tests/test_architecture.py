@@ -6,6 +6,7 @@ from __future__ import annotations
 import ast
 import re
 import sys
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -77,10 +78,17 @@ def _resolve(name: str) -> str:
     return "symrom"
 
 
-def _type_only(tree: ast.AST) -> set[int]:
+@cache
+def _nodes(path: Path) -> tuple[ast.AST, ...]:
+    """Every node of ``path``'s syntax tree, the module first (``ast.walk``'s order); parsed once
+    per session, as most rules read every module."""
+    return tuple(ast.walk(ast.parse(path.read_text())))
+
+
+def _type_only(path: Path) -> set[int]:
     """ids of the import nodes under ``if TYPE_CHECKING:`` (never executed)."""
     out: set[int] = set()
-    for node in ast.walk(tree):
+    for node in _nodes(path):
         if isinstance(node, ast.If) and getattr(node.test, "id", getattr(node.test, "attr", "")) == "TYPE_CHECKING":
             out |= {id(n) for stmt in node.body for n in ast.walk(stmt)}
     return out
@@ -89,10 +97,9 @@ def _type_only(tree: ast.AST) -> set[int]:
 def _imports(path: Path, runtime_only: bool = False) -> list[tuple[str, int]]:
     """The symrom modules ``path`` imports, anywhere in it (also inside functions), with
     their lines; ``runtime_only``: leaving out imports for type checkers only."""
-    tree = ast.parse(path.read_text())
-    skip = _type_only(tree) if runtime_only else set()
+    skip = _type_only(path) if runtime_only else set()
     out = []
-    for node in ast.walk(tree):
+    for node in _nodes(path):
         if id(node) in skip:
             continue
         if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "symrom":
@@ -234,7 +241,7 @@ def test_the_library_never_prints_or_exits():
     for path, rel, layer in _modules():
         if layer == "cli":
             continue
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in _nodes(path):
             if isinstance(node, ast.Call):
                 f = node.func
                 name = f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
@@ -261,10 +268,9 @@ def test_the_compiled_code_knows_no_model():
     ``LinearMaps``): it names no class of the model's, not even for a type checker."""
     found = []
     for path in sorted((SRC / "compiled").rglob("*.py")):
-        text = path.read_text()
         found += [f"{path.relative_to(SRC)} names {name}" for name in ("HybridModel", "Library", "LinearAutoencoder")
                   if any(isinstance(n, ast.Name) and n.id == name or isinstance(n, ast.alias) and n.name == name
-                         for n in ast.walk(ast.parse(text)))]
+                         for n in _nodes(path))]
     assert not found, "\n".join(found)
 
 
@@ -273,7 +279,7 @@ def test_the_rollout_layer_knows_no_model():
     entries (its latent inputs ``nu`` and ``phase``); the model's ``GeneratedCode`` reads them."""
     found = []
     for path in sorted((SRC / "rollout").rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in _nodes(path):
             if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) \
                     and node.slice.value in ("nu", "phase"):
                 found.append(f"{path.relative_to(SRC)}:{node.lineno} reads [{node.slice.value!r}]")
@@ -285,10 +291,9 @@ def test_the_planner_composes_the_simulator_through_public_names():
     nothing of sim/ and reads no private attribute (``obj._name``) of anything but itself."""
     found = []
     for path in sorted((SRC / "plan").rglob("*.py")):
-        tree = ast.parse(path.read_text())
-        from_sim = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+        from_sim = {a.asname or a.name for node in _nodes(path) if isinstance(node, ast.ImportFrom)
                     and (node.module or "").startswith("symrom.sim") for a in node.names}
-        for node in ast.walk(tree):
+        for node in _nodes(path):
             if isinstance(node, ast.ClassDef):
                 found += [f"{path.name}:{node.lineno} subclasses {b.id}" for b in node.bases
                           if isinstance(b, ast.Name) and b.id in from_sim]
@@ -310,17 +315,16 @@ def test_library_messages_name_parameters_not_flags():
     for path, rel, layer in _modules():
         if layer == "cli":
             continue
-        tree = ast.parse(path.read_text())
-        docs = {id(n.body[0].value) for n in ast.walk(tree)
+        docs = {id(n.body[0].value) for n in _nodes(path)
                 if isinstance(n, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)) and n.body
                 and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
         texts, parts = [], set()
-        for node in ast.walk(tree):  # an f-string as one text, its constant parts joined
+        for node in _nodes(path):  # an f-string as one text, its constant parts joined
             if isinstance(node, ast.JoinedStr):
                 consts = [v for v in node.values if isinstance(v, ast.Constant)]
                 parts |= {id(v) for v in consts}
                 texts.append((node.lineno, "".join(str(v.value) for v in consts)))
-        texts += [(n.lineno, n.value) for n in ast.walk(tree) if isinstance(n, ast.Constant)
+        texts += [(n.lineno, n.value) for n in _nodes(path) if isinstance(n, ast.Constant)
                   and isinstance(n.value, str) and id(n) not in docs | parts]
         found += [f"{rel}:{line}: {text[:80]!r}" for line, text in texts
                   if FLAG.search(text) and not any(c in text for c in COMMAND_LINES)]

@@ -32,6 +32,20 @@ def planted(tmp_path_factory):
     return d, m, import_logs([csv], robot="go1", split="1,0,0")[0]
 
 
+@pytest.fixture(scope="module")
+def bags(planted):
+    """The planted jump's bag of a kind, written once for the tests that only read it."""
+    d, m, _ = planted
+    written = {}
+
+    def bag(kind: str):
+        if kind not in written:
+            written[kind] = _bag(kind, d, m)
+        return written[kind]
+
+    return bag
+
+
 def _bag(kind: str, d, m, **kw):
     if kind == "ros1":
         return write_ros1(d / f"{kind}.bag", m, **kw)
@@ -42,9 +56,9 @@ def _bag(kind: str, d, m, **kw):
 
 @pytest.mark.parametrize("kind, layout", [("ros1", "ros1 bag"), ("ros2-sqlite3", "ros2 bag"),
                                           ("ros2-mcap", "ros2 bag"), ("mcap", "mcap")])
-def test_a_bag_imports_as_its_csv_log(planted, tmp_path, kind, layout):
-    _, m, want = planted
-    bag = _bag(kind, tmp_path, m)
+def test_a_bag_imports_as_its_csv_log(planted, bags, kind, layout):
+    _, _, want = planted
+    bag = bags(kind)
     assert log_kind(bag) == layout.split()[0]
     got, _ = import_logs([bag], robot="go1", split="1,0,0")
     for key in ARRAYS:
@@ -56,9 +70,9 @@ def test_a_bag_imports_as_its_csv_log(planted, tmp_path, kind, layout):
     assert f["checks"] == [] and f["consistency"] == [] and len(f["sha256"]) == 64
 
 
-def test_the_command_reads_a_bag_and_names_its_topics(planted, tmp_path):
-    _, m, want = planted
-    bag = _bag("ros1", tmp_path, m)
+def test_the_command_reads_a_bag_and_names_its_topics(planted, bags, tmp_path):
+    _, _, want = planted
+    bag = bags("ros1")
     out = tmp_path / "d.h5"
     r = _import(bag, "--robot", "go1", "--out", out)
     assert r.exit_code == 0, r.output
@@ -109,9 +123,8 @@ def test_joint_states_in_the_urdf_sign_convention(planted, tmp_path):
     np.testing.assert_array_equal(lg.tau, m["tau"])
 
 
-def test_a_ros2_database_given_alone_names_its_folder(planted, tmp_path):
-    _, m, _ = planted
-    folder = _bag("ros2-sqlite3", tmp_path, m)
+def test_a_ros2_database_given_alone_names_its_folder(bags, tmp_path):
+    folder = bags("ros2-sqlite3")
     (db,) = folder.glob("*.db3")
     one_line_error(_import(db, "--robot", "go1", "--out", tmp_path / "x.h5"),
                    "the database of a ROS 2 bag; give its folder", str(folder))

@@ -257,10 +257,17 @@ def _continuous(ds, jumps) -> tuple[dict, list[int]]:
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}, starts
 
 
-def test_a_continuous_five_jump_recording_is_cut_into_five_jumps(tmp_path):
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """Five hardware-like jumps as one recording in the hardware layout (Time never restarts),
+    read by both segmentation tests."""
+    rec, starts = _continuous(proxy_go1(), range(5))
+    return rec, starts, write_hardware(tmp_path_factory.mktemp("rec") / "rec.csv", [rec], accelerations=False)
+
+
+def test_a_continuous_five_jump_recording_is_cut_into_five_jumps(tmp_path, recording):
     ds = proxy_go1()
-    rec, starts = _continuous(ds, range(5))
-    log = write_hardware(tmp_path / "rec.csv", [rec], accelerations=False)  # Time never restarts
+    rec, starts, log = recording
     out = tmp_path / "d.h5"
     # --lenient: the proxy's sensor noise can move the time-scale check's median a little past its
     # 5 % on a quiet jump (the times here are exact); what is tested is the cutting
@@ -288,9 +295,8 @@ def test_a_continuous_five_jump_recording_is_cut_into_five_jumps(tmp_path):
     assert whole.n_jumps == 1 and whole.generator["segments"] == []
 
 
-def test_split_counts_apply_after_segmentation(tmp_path):
-    rec, _ = _continuous(proxy_go1(), range(5))
-    log = write_hardware(tmp_path / "rec.csv", [rec], accelerations=False)
+def test_split_counts_apply_after_segmentation(recording):
+    _, _, log = recording
     with pytest.raises(ValueError, match=r"0.8,0.1,0.1'.*5 jumps divide as 4 train, 1 val, 0 test.*test split"):
         import_logs([log], robot="go1", split="0.8,0.1,0.1")
 

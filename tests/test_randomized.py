@@ -42,13 +42,15 @@ def test_the_draws_that_stopped_a1_froggy_are_replaced_by_fresh_ones(seed, jump)
 @pytest.mark.slow
 @pytest.mark.parametrize("engine", ["pybullet", "mujoco"])
 def test_randomised_generation_finishes_on_go1_pronk_and_a1_froggy(engine):
-    """Randomised runs finish in each engine: Go1 pronk seed 0 (2 jumps) and A1 froggy seed 2
-    (3 jumps; at the ranges' former landing rate, 0.23, one A1 jump in eight failed its eight
+    """Randomised runs finish in each engine: Go1 pronk seed 0 (1 jump) and A1 froggy seed 2
+    (2 jumps; at the ranges' former landing rate, 0.23, one A1 jump in eight failed its eight
     draws, and this seed stopped): in both engines its draws include ones that do not land,
     replaced and recorded, and its kept jumps hold both kinds of push, the long ones 0.2 s and
     more on the rear feet. ``benchmarks/bench_randomized.py`` runs 10 seeds x 40 jumps."""
     rear, retried = [], False
-    for robot, motion, seeds, n in (("go1", "pronk", (0,), 2), ("a1", "froggy", (2,), 3)):
+    # froggy's first two jumps (a long push; a quick one kept after a replaced draw, in both
+    # engines) meet every check below; a second pronk jump, like the first, lands at its first draw
+    for robot, motion, seeds, n in (("go1", "pronk", (0,), 1), ("a1", "froggy", (2,), 2)):
         for seed in seeds:
             ds = generate(GenerateConfig(robot, motion, n, seed=seed, randomize=True, engine=engine),
                           tmp_path(f"randomized_{motion}_{engine}_{seed}.h5"), force=True)

@@ -20,6 +20,10 @@ from symrom.robots.stance import standing_joints
 from symrom.sim.controllers.body import RigidLinks
 from symrom.sim.engines.bullet import client, p, release
 
+# Only the links' masses, inertias and joints are read: without its meshes a URDF loads in
+# milliseconds instead of a second, and its dynamics are the same to the bit.
+_FLAGS = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_IGNORE_VISUAL_SHAPES | p.URDF_IGNORE_COLLISION_SHAPES
+
 
 class UrdfBody:
     """The body source of robot ``robot`` (its key) from its URDF (see the module docstring)."""
@@ -28,8 +32,7 @@ class UrdfBody:
         self.robot = robot
         desc = get_robot(robot)
         self.cid = client()
-        self.rob = p.loadURDF(str(desc.urdf_path), useFixedBase=True,
-                              flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.cid)
+        self.rob = p.loadURDF(str(desc.urdf_path), useFixedBase=True, flags=_FLAGS, physicsClientId=self.cid)
         names = {p.getJointInfo(self.rob, i, physicsClientId=self.cid)[1].decode(): i
                  for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))}
         movable = [i for i in range(p.getNumJoints(self.rob, physicsClientId=self.cid))
@@ -54,7 +57,7 @@ class UrdfBody:
         desc = get_robot(self.robot)
         cid = client()
         try:
-            rob = p.loadURDF(str(desc.urdf_path), flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+            rob = p.loadURDF(str(desc.urdf_path), flags=_FLAGS, physicsClientId=cid)
             names = {p.getJointInfo(rob, i, physicsClientId=cid)[1].decode(): i
                      for i in range(p.getNumJoints(rob, physicsClientId=cid))}
             q = standing_joints(self.robot) * desc.signs  # URDF angles
