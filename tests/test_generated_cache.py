@@ -16,8 +16,10 @@ from symrom.rollout.integrate import GENERATED_PAYS_STEPS, RolloutOptions, rollo
 
 @pytest.fixture(scope="module")
 def model_and_data(planted_block):
+    # l = 1: the tests compile its generated code four times (two processes, cache on and off),
+    # each build the cheaper for the smaller model
     ds, _ = planted_block
-    return train(ds, TrainConfig(latent_dim=3, poly_order=1)), ds
+    return train(ds, TrainConfig(latent_dim=1, poly_order=1)), ds
 
 
 def _q(model, ds, backend):
@@ -80,7 +82,7 @@ def test_without_a_term_table_auto_compiles_once_its_numpy_work_reaches_the_comp
     integrate = importlib.import_module("symrom.rollout.integrate")
     ds, _ = planted_block
     monkeypatch.setenv(compiled.CACHE_ENV, "off")
-    rom = SymbolicROM(2, Polynomial(1) + Inputs() + Custom(("exp(-xi2**2)",), ("bump",)))
+    rom = SymbolicROM(1, Polynomial(1) + Inputs() + Custom(("exp(-xi1**2)",), ("bump",)))  # l = 1: a cheaper build
     model = rom.fit(ds).model
     assert term_table(model.library.terms) is None
     codegen._CACHE.clear()

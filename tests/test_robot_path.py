@@ -103,7 +103,7 @@ def test_the_whole_path_on_a_robot_from_its_model_alone(tmp_path):
     landing = json.loads((tmp_path / "jump" / "landing.json").read_text())
     assert landing["robot"] == str(desc.resolve()) and landing["engine"] == "mujoco"
     assert landing["apex_rule"] == "at least nominal" and landing["target_reachable"]
-    assert abs(landing["error_x"]) < 0.05, landing["error_x"]  # 2.1 cm short (2 training jumps)
+    assert abs(landing["error_x"]) < 0.05, landing["error_x"]  # 4.9 cm short (2 training jumps)
 
 
 @pytest.mark.slow

@@ -172,25 +172,31 @@ def test_compiled_rk4_matches_numpy_for_other_sizes_and_libraries(planted_block,
             np.testing.assert_allclose(x, y, rtol=1e-10, atol=1e-10)
 
 
-def _c_rollout(model, ds, j, reset, substeps=2):
-    """The latent path (n, 2l) of jump j by the exported C's RK4 step (compiled with cc)."""
+@pytest.fixture(scope="module")
+def c_library(model_and_data, tmp_path_factory):
+    """The module's model exported as C and compiled with cc, once for every jump and reset."""
     import ctypes
     import shutil
     import subprocess
-    import tempfile
-    from pathlib import Path
 
     from symrom.export import export
-    from symrom.rollout.integrate import reset_mask
 
     cc = shutil.which("cc") or shutil.which("gcc")
     if cc is None:
         pytest.skip("no C compiler")
-    tmp = Path(tempfile.mkdtemp())
-    files = export(model, "c", tmp)
+    tmp = tmp_path_factory.mktemp("c_export")
+    files = export(model_and_data[0], "c", tmp)
     subprocess.run([cc, "-std=c99", "-O2", "-shared", "-fPIC", "-o", str(tmp / "m.so"), str(files[1]), "-lm"],
                    check=True, capture_output=True)
-    lib = ctypes.CDLL(str(tmp / "m.so"))
+    return ctypes.CDLL(str(tmp / "m.so"))
+
+
+def _c_rollout(lib, model, ds, j, reset, substeps=2):
+    """The latent path (n, 2l) of jump j by the exported C's RK4 step (``lib``: ``c_library``)."""
+    import ctypes
+
+    from symrom.rollout.integrate import reset_mask
+
     D = ctypes.POINTER(ctypes.c_double)
     sysm = model.rollout_system(ds, np.array([j]))
     x, v, nu, ph = sysm.x[0], sysm.v[0], sysm.drive["nu"][0], sysm.drive["phase"][0]
@@ -208,7 +214,7 @@ def _c_rollout(model, ds, j, reset, substeps=2):
 
 
 @pytest.mark.parametrize("reset", [None, 0.1])
-def test_compiled_and_exported_rollouts_agree_with_lsoda(model_and_data, reset):
+def test_compiled_and_exported_rollouts_agree_with_lsoda(model_and_data, c_library, reset):
     """The fixed-step paths against LSODA at tight tolerances (at odeint's default tolerance
     it is LSODA's own error, ~1e-6 over a jump, that shows)."""
     model, ds = model_and_data
@@ -220,7 +226,7 @@ def test_compiled_and_exported_rollouts_agree_with_lsoda(model_and_data, reset):
             np.testing.assert_allclose(x, y, rtol=0, atol=1e-6)
             np.testing.assert_allclose(vx, vy, rtol=0, atol=1e-6)
     for i, j in enumerate(jumps):
-        path = _c_rollout(model, ds, int(j), reset)
+        path = _c_rollout(c_library, model, ds, int(j), reset)
         np.testing.assert_allclose(path[:, :model.latent_dim], ref.xi[i], rtol=0, atol=1e-6)
         np.testing.assert_allclose(path[:, model.latent_dim:], ref.dxi[i], rtol=0, atol=1e-6)
 
