@@ -26,14 +26,20 @@ if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", str(_share))
     os.environ.setdefault(THREADS_ENV, str(_share))
     limit_threads(_share)
+
+
+def _session_folder(env: str, prefix: str) -> None:
+    """A temporary folder named by ``env`` for the whole run: made by the process that starts
+    the run (pytest-xdist's workers inherit the name) and removed when that process ends."""
+    if env not in os.environ:
+        os.environ[env] = tempfile.mkdtemp(prefix=prefix)
+        atexit.register(shutil.rmtree, os.environ[env], True)
+
+
 # The generated code's disk cache of the test session, not the user's (symrom.compiled.codegen).
-if "SYMROM_CACHE_DIR" not in os.environ:
-    os.environ["SYMROM_CACHE_DIR"] = tempfile.mkdtemp(prefix="symrom-tests-cache-")
-    atexit.register(shutil.rmtree, os.environ["SYMROM_CACHE_DIR"], True)
+_session_folder("SYMROM_CACHE_DIR", "symrom-tests-cache-")
 # The simulated datasets the tests share (tests/_simdata.py), made once for every worker of a run.
-if "SYMROM_TESTS_SHARED" not in os.environ:
-    os.environ["SYMROM_TESTS_SHARED"] = tempfile.mkdtemp(prefix="symrom-simtests-shared-")
-    atexit.register(shutil.rmtree, os.environ["SYMROM_TESTS_SHARED"], True)
+_session_folder("SYMROM_TESTS_SHARED", "symrom-simtests-shared-")
 
 
 @pytest.fixture(scope="session")

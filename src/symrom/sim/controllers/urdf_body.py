@@ -20,8 +20,8 @@ from symrom.robots.stance import standing_joints
 from symrom.sim.controllers.body import RigidLinks
 from symrom.sim.engines.bullet import client, p, release
 
-# Only the links' masses, inertias and joints are read: without its meshes a URDF loads in
-# milliseconds instead of a second, and its dynamics are the same to the bit.
+# Only the links' masses, inertias and joints are read: without its meshes a mesh robot's URDF
+# loads in milliseconds instead of up to a second or more, and its dynamics are the same to the bit.
 _FLAGS = p.URDF_USE_INERTIA_FROM_FILE | p.URDF_IGNORE_VISUAL_SHAPES | p.URDF_IGNORE_COLLISION_SHAPES
 
 
