@@ -304,9 +304,10 @@ def _compiled(dynamics: LatentDynamics) -> dict:
     z, limit = np.zeros((1, 2, l)), np.ones((1, 2 * l))
     limit.setflags(write=False)  # as ``batch.rollout_jumps`` passes it
     # Compile for the argument types the integrators pass, so that the first real call is fast.
+    # LSODA's ``rhs`` compiles at its first call: most models never run SciPy's LSODA, and it
+    # was about a quarter of a build.
     rollout(z, z, z, np.zeros((1, 2), np.int64), np.array([2], np.int64), np.ones(2, np.bool_), 0.002, 1,
             limit, z.copy(), z.copy(), np.zeros(1, np.int64))
-    rhs(np.zeros(2 * l), 0.0, 0, np.zeros(l))
     if path is not None:
         try:
             from symrom.atomic import write_text_atomic
@@ -332,10 +333,10 @@ class GeneratedFunctions:
 
     integrator(x_true, v_true, drive, lens, resets, limit, dt, substeps): RK4 with the
     interface of ``symrom.compiled.kernel.table_integrator``'s integrators (drive: nu (J,
-    n_max, l), phase (J, n_max)); rhs(y (2l,), t, phase index, nu (l,)) -> dy/dt (2l,), for
-    SciPy's LSODA; c_rhs(): the address of the same as a C function ``void f(double t,
-    double *y, double *dy, double *p)``, p = [phase index, nu (l)], for a compiled LSODA
-    (``symrom.rollout.compiled_lsoda``), compiled on the first call."""
+    n_max, l), phase (J, n_max)), compiled with the build; rhs(y (2l,), t, phase index, nu
+    (l,)) -> dy/dt (2l,), for SciPy's LSODA; c_rhs(): the address of the same as a C function
+    ``void f(double t, double *y, double *dy, double *p)``, p = [phase index, nu (l)], for a
+    compiled LSODA (``symrom.rollout.compiled_lsoda``); these two compiled on their first call."""
 
     integrator: Callable
     rhs: Callable
