@@ -104,8 +104,16 @@ def test_the_first_rollout_after_the_build_compiles_nothing_more(model_and_data,
     model, ds = model_and_data
     monkeypatch.setenv(compiled.CACHE_ENV, str(tmp_path / "cache"))
     codegen._CACHE.clear()
-    kernel = codegen._compiled(model.dynamics())["rollout"]
+    entry = codegen._compiled(model.dynamics())
+    kernel = entry["rollout"]
     assert len(kernel.signatures) == 1
     for reset in (None, 0.1):
         rollout(model, ds, None, RolloutOptions("rk4", reset=reset, backend="generated"))
     assert len(kernel.signatures) == 1, kernel.signatures
+    # SciPy's LSODA's right-hand side is not part of the build: compiled at its first call, once
+    assert entry["rhs"].signatures == []
+    jumps = ds.jumps_in("test")[:1]
+    lsoda = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="generated", lsoda_solver="scipy"))
+    assert len(entry["rhs"].signatures) == 1, entry["rhs"].signatures
+    reference = rollout(model, ds, jumps, RolloutOptions("lsoda", backend="numpy", lsoda_solver="scipy"))
+    np.testing.assert_allclose(lsoda.q_pred[0], reference.q_pred[0], rtol=0, atol=1e-9)
