@@ -54,7 +54,7 @@ GENERATED_PAYS_STEPS = 4_000_000
 # batch of jumps counts each step once), this call's included, reach the compile's worth in
 # time, so that it never takes much more than twice the better choice's time; both measured in
 # docs/benchmarks.md, "Rollouts".
-GENERATED_PAYS_NUMPY_STEPS = 1_500
+GENERATED_PAYS_NUMPY_STEPS = 1_000
 _NUMPY_STEPS: dict[str, int] = {}  # per model (``RolloutSystem.key``): NumPy RK4 steps run in this process
 # scipy: odeint entered from Python per sample interval; numbalsoda: the loop and the
 # solver compiled (needs the model's generated code).
