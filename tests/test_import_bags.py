@@ -3,6 +3,8 @@ here with rosbags: each imports to the same dataset as the CSV log of the same j
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import pytest
 from _logs import jump, sim_go1, write_plain, write_ros1, write_ros2
@@ -36,14 +38,7 @@ def planted(tmp_path_factory):
 def bags(planted):
     """The planted jump's bag of a kind, written once for the tests that only read it."""
     d, m, _ = planted
-    written = {}
-
-    def bag(kind: str):
-        if kind not in written:
-            written[kind] = _bag(kind, d, m)
-        return written[kind]
-
-    return bag
+    return cache(lambda kind: _bag(kind, d, m))
 
 
 def _bag(kind: str, d, m, **kw):
