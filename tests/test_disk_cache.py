@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -82,26 +83,89 @@ def test_a_new_process_compiles_nothing_an_earlier_one_compiled(tmp_path, monkey
     assert compiled == [], compiled
 
 
-HELPER = LISTENER + """
-from symrom.compiled import warm_windows
+# A kernel of its own, in a module of the test's folder: compiled in a second, where the
+# refinements' window kernel takes fourteen.
+TINY = """
+import numba
 
-warm_windows()
-print(json.dumps(compiled))
+
+@numba.njit(cache=True)
+def tiny(x):
+    return x + 1.0
+"""
+
+# Says when it starts, holds the lock (the first helper until a line comes on its input),
+# compiles or loads the kernel in it, and prints what numba compiled and when it held the lock.
+HELPER = LISTENER + """
+import sys
+import time
+
+from symrom.execution import compile_lock
+from tiny_kernel import tiny
+
+print("started", flush=True)
+with compile_lock(tiny):
+    entered = time.time()
+    print("locked", flush=True)
+    if sys.argv[1] == "first":
+        sys.stdin.readline()
+    tiny(1.0)
+    done = time.time()
+print(json.dumps({"compiled": compiled, "entered": entered, "done": done}))
 """
 
 
-def test_two_window_helpers_at_once_compile_the_kernel_once_into_the_disk_cache(tmp_path):
+def test_a_second_helper_waits_for_the_lock_and_loads_the_first_ones_build(tmp_path):
     # The selection starts a helper beside its grid, and a cold run starts one beside its first
-    # simulation: on an empty cache one compiles the refinements' kernel into numba's disk cache
-    # while the other waits for it (execution.compile_lock) and loads its build.
+    # simulation: on an empty cache one compiles into numba's disk cache while the other waits for
+    # it (execution.compile_lock) and loads its build.
+    (tmp_path / "tiny_kernel.py").write_text(TINY)
     cache = tmp_path / "numba"
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache),
-               PYTHONPATH=os.pathsep.join([str(SRC), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    procs = [subprocess.Popen([sys.executable, "-c", HELPER], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                              text=True, env=env) for _ in range(2)]
-    outs = [p.communicate(timeout=900) for p in procs]
-    assert all(p.returncode == 0 for p in procs), [err[-2000:] for _, err in outs]
-    compiled = sorted((json.loads(out.strip().splitlines()[-1]) for out, _ in outs), key=len)
-    assert compiled[0] == [] and "rk4_windows" in compiled[1], compiled
-    assert [p.name for p in cache.rglob("*rk4_windows*.nbi")]
-    assert [p.name for p in cache.rglob("*rk4_windows*.nbc")]
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache), PYTHONPATH=os.pathsep.join(
+        [str(SRC), str(tmp_path), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    procs = []
+    try:
+        for role in ("first", "second"):
+            procs.append(subprocess.Popen([sys.executable, "-c", HELPER, role], stdin=subprocess.PIPE,
+                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env))
+            assert procs[-1].stdout.readline() == "started\n", procs[-1].stderr.read()[-2000:]
+            if role == "first":
+                assert procs[0].stdout.readline() == "locked\n", procs[0].stderr.read()[-2000:]
+        time.sleep(0.5)  # the second reaches the lock while the first holds it
+        procs[0].stdin.write("go\n")
+        procs[0].stdin.flush()
+        outs = [p.communicate(timeout=300) for p in procs]
+    finally:
+        for p in procs:
+            p.kill()
+    assert [p.returncode for p in procs] == [0, 0], [err[-2000:] for _, err in outs]
+    first, second = (json.loads(out.strip().splitlines()[-1]) for out, _ in outs)
+    assert second["entered"] >= first["done"]  # it waited for the first's block
+    assert (first["compiled"], second["compiled"]) == (["tiny"], [])  # and loaded its build
+    assert [p.name for p in cache.rglob("*tiny*.nbc")]
+
+
+def test_the_window_helper_compiles_the_kernel_under_the_lock(monkeypatch):
+    # What the helper runs (warm_windows): the refinements' kernel, called once, inside
+    # compile_lock for that kernel (the test above holds the lock to its word).
+    import contextlib
+
+    import symrom.execution
+    from symrom.compiled import kernel
+
+    events = []
+
+    def fake_kernel(*args):
+        events.append(("called", len(args)))
+
+    @contextlib.contextmanager
+    def lock(dispatcher):
+        events.append(("lock", dispatcher))
+        yield
+        events.append(("unlock", dispatcher))
+
+    arity = kernel.kernels()["rk4_windows"].py_func.__code__.co_argcount
+    monkeypatch.setattr(kernel, "kernels", lambda: {"rk4_windows": fake_kernel})
+    monkeypatch.setattr(symrom.execution, "compile_lock", lock)
+    kernel.warm_windows()
+    assert events == [("lock", fake_kernel), ("called", arity), ("unlock", fake_kernel)], events
