@@ -1,4 +1,4 @@
-"""Shared fixtures: planted datasets made once per test session, one local Ray instance."""
+"""Shared fixtures: planted datasets made once per test session."""
 
 from __future__ import annotations
 
@@ -40,15 +40,6 @@ def _session_folder(env: str, prefix: str) -> None:
 _session_folder("SYMROM_CACHE_DIR", "symrom-tests-cache-")
 # The simulated datasets the tests share (tests/_simdata.py), made once for every worker of a run.
 _session_folder("SYMROM_TESTS_SHARED", "symrom-simtests-shared-")
-
-
-@pytest.fixture(scope="session")
-def ray_address():
-    """One local Ray instance with 2 CPUs for the whole session; its address."""
-    ray = pytest.importorskip("ray")
-    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING", log_to_driver=False)
-    yield ray.get_runtime_context().gcs_address
-    ray.shutdown()
 
 
 @pytest.fixture(scope="session")

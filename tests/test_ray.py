@@ -39,6 +39,15 @@ JUMPS = 2
 ENGINE = "mujoco"
 
 
+@pytest.fixture(scope="module")
+def ray_address():
+    """One local Ray instance with 2 CPUs for this file's tests, shut down after them (its
+    daemons would otherwise idle beside the rest of the session); its address."""
+    ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING", log_to_driver=False)
+    yield ray.get_runtime_context().gcs_address
+    ray.shutdown()
+
+
 def _generate_args(out: Path, *extra: str) -> list[str]:
     return ["generate", "--robot", "go1", "--motion", "pronk", "--jumps", str(JUMPS), "--seed", str(SEED),
             "--engine", ENGINE, "--out", str(out), "--backend", "ray", *extra]
@@ -111,8 +120,11 @@ def test_ray_map_results_retries_and_errors(ray_address, tmp_path):
     done = {d.key: d for d in RayBackend().map(_tasks.die_once, [(x, (x,)) for x in range(2)], (str(tmp_path),))}
     assert {k: d.value for k, d in done.items()} == {0: 0, 1: 10}
     for d in done.values():
-        assert [r["attempt"] for r in d.retries] == [0]
-        assert d.retries[0]["cause"].startswith("WorkerCrashedError")
+        # One lost attempt each, or two where Ray had queued a task's first attempt on the other
+        # task's worker as it died (that attempt is lost without having run): numbered in order.
+        assert [r["attempt"] for r in d.retries] in ([0], [0, 1]), d.retries
+        assert all(r["cause"].startswith("WorkerCrashedError") for r in d.retries)
+    assert sum(len(d.retries) for d in done.values()) <= 3
 
     with pytest.raises(WorkerLostError, match="doomed 0: its worker died 2 times, more than the 1 retries allowed"):
         list(RayBackend(max_retries=1).map(_tasks.always_die, [(0, (0,))], label="doomed"))
