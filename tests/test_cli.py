@@ -58,6 +58,7 @@ def test_demo_runs_the_pipeline_and_refuses_to_overwrite(tmp_path):
     table = json.loads((out / "go1_sim" / "selection" / "selection.json").read_text())
     assert table["chosen"] is not None and table["rows"][table["chosen"]]["score"] is not None
     assert (out / "go1_sim" / "equations.txt").read_text().startswith("[contact]")
+    assert len(list((out / "go1_sim" / "eval").glob("jump_*.png"))) == 1  # its first test jump drawn
     report = (out / "report.md").read_text()
     assert "Table 2" in report
     # The report names the run's directory, not the temporary one the run was made in.

@@ -107,6 +107,8 @@ class ReproduceConfig:
     backend: str = "local"
     address: str | None = None
     engine: str = "pybullet"  # the physics engine of every generated dataset
+    # Each evaluation's figure of its first test jump (eval/jump_K.png); the report draws its own.
+    jump_figures: bool = True
 
     def execution(self) -> Backend:
         """The back end of the heavy steps (generation, selection, sweep): ``backend`` with

@@ -50,7 +50,8 @@ def evaluated(model: HybridModel, ds: Dataset, out: Path, cfg: ReproduceConfig, 
         return Metrics.read(out / "metrics.json")
     metrics, rollouts = evaluate_model(model, ds, split, (None, 0.1), RolloutOptions(method=cfg.integrator),
                                  model_name=str(out.parent / "model.json"), data_name=title)
-    write_evaluation(out, metrics, rollouts, ds, [int(ds.jumps_in(split)[0])], title=title)
+    write_evaluation(out, metrics, rollouts, ds, [int(ds.jumps_in(split)[0])] if cfg.jump_figures else [],
+                     title=title)
     return metrics
 
 
