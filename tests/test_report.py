@@ -541,6 +541,25 @@ def test_horizon_figure_draws_the_papers_rmse(built, tmp_path, monkeypatch):
     assert not [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label().startswith("paper")]
 
 
+def test_horizon_panels_over_many_decades_drop_minor_ticks_and_narrow_ones_keep_their_labels(tmp_path,
+                                                                                              monkeypatch):
+    from matplotlib.ticker import NullLocator
+
+    # joint angles over 5 decades, the CoM position within a factor 1.3, the orientation within 30
+    rmse = {"full": {c: 10.0 ** -(1 + k % 6) if k < 6 else (0.02 + 0.002 * k if k < 9 else 0.3 / (k - 7) ** 3)
+                     for k, c in enumerate(TABLE2_COMPONENTS)}}
+    floor = {c: v / 2 for c, v in rmse["full"].items()}
+    fig = _figure_of(monkeypatch, figures.horizon_figure, rmse, floor, tmp_path / "h.png")
+    wide, narrow, middle = fig.axes[:3]
+    assert isinstance(wide.yaxis.get_minor_locator(), NullLocator)
+    assert not isinstance(narrow.yaxis.get_minor_locator(), NullLocator)
+    assert not isinstance(middle.yaxis.get_minor_locator(), NullLocator)
+    lo, hi = narrow.get_ylim()  # no power of ten inside: the minor ticks carry the values
+    assert not [v for v in narrow.get_yticks() if lo <= v <= hi]
+    labels = [t.get_text() for t in narrow.get_yticklabels(minor=True) if lo <= t.get_position()[1] <= hi]
+    assert len([t for t in labels if t]) >= 2, labels
+
+
 def test_selection_figure_names_the_yardstick_its_score_divides_by(tmp_path, monkeypatch):
     from symrom.evaluate.records import SELECTION
     from symrom.report.run import Run

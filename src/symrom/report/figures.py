@@ -199,6 +199,10 @@ def tradeoff_figure(sweep: dict, path: str | os.PathLike, title: str = "") -> Pa
     return _save(fig, path)
 
 
+# A horizon panel keeps its minor ticks (labelled where no power of ten falls inside) only when its
+# values span less than this ratio.
+MINOR_TICKS_BELOW = 100.0
+
 # Table 2's components by unit, one panel each.
 HORIZON_PANELS = (("joint angles [rad]", TABLE2_COMPONENTS[:6]), ("CoM position [m]", TABLE2_COMPONENTS[6:9]),
                   ("orientation [rad]", TABLE2_COMPONENTS[9:]))
@@ -215,6 +219,8 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
     (``{label: {component: rmse}}``, the labels of ``rmse``: drawn as a short bar in the
     horizon's colour, beside its point); log scale, one panel per unit (rad or m)."""
     plt = _pyplot()
+    from matplotlib.ticker import NullLocator
+
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.4), gridspec_kw={"width_ratios": [6, 3, 3]})
     for ax, (unit, comps) in zip(axes, HORIZON_PANELS):
         x = np.arange(len(comps))
@@ -231,6 +237,14 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
                         color=style["color"], alpha=0.75, label=f"paper, {label}", zorder=4)
         ax.set_xticks(x, comps)
         ax.set_yscale("log")
+        shown = [v for v in (*(floor[c] for c in comps if floor is not None),
+                             *(vals.get(c) for vals in rmse.values() for c in comps),
+                             *(vals.get(c) for vals in (paper or {}).values() for c in comps))
+                 if v is not None and np.isfinite(v) and v > 0]
+        if shown and max(shown) >= MINOR_TICKS_BELOW * min(shown):
+            # Over many decades the powers of ten label the panel, and the minor ticks, each a
+            # gridline, would only crowd it (and take half of the figure's drawing time).
+            ax.yaxis.set_minor_locator(NullLocator())
         ax.set_title(unit, fontsize=10)
         ax.grid(alpha=0.3, which="both")
     axes[0].set_ylabel("RMSE (unit of the panel)")
