@@ -27,6 +27,31 @@ def model_and_data(planted_block):
     return train(ds, TrainConfig()), ds
 
 
+def test_read_only_inputs_take_the_writable_ones_build_and_give_their_numbers(model_and_data):
+    # Ray's object store hands arrays over read-only: one build for both, not one more per process.
+    from symrom.compiled.codec import _kernels
+
+    model, ds = model_and_data
+    ae, phase = model.autoencoder, model.phase_index(ds)
+    bounds = np.array([[0, 57], [400, 700]])
+
+    def frozen(a):
+        a = a.copy()
+        a.flags.writeable = False
+        return a
+
+    X = np.random.default_rng(0).normal(size=(2, 300, model.latent_dim))
+    lens = np.array([57, 300])
+    writable = (*encode_states(ae, ds.q, ds.dq, bounds), *encode_inputs(ae, ds.u, phase, bounds),
+                *decode_jumps(ae, X, lens))
+    read_only = (*encode_states(ae, frozen(ds.q), frozen(ds.dq), bounds),
+                 *encode_inputs(ae, frozen(ds.u), frozen(phase), bounds), *decode_jumps(ae, frozen(X), lens))
+    for a, b in zip(writable, read_only, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert {name: len(k.signatures) for name, k in _kernels().items()} == \
+        {"encode_states": 1, "encode_inputs": 1, "decode": 1}
+
+
 def test_jumps_of_unequal_length_encode_and_decode_as_the_autoencoder(model_and_data):
     model, ds = model_and_data
     ae, phase = model.autoencoder, model.phase_index(ds)

@@ -108,6 +108,19 @@ def _kernels() -> dict[str, object]:
     return _KERNELS
 
 
+def _read_only(*arrays: np.ndarray, dtype=float) -> list[np.ndarray]:
+    """C-contiguous read-only views (copies only where the layout or dtype asks): the kernels
+    are compiled for read-only inputs alone, so that arrays handed over read-only (Ray's object
+    store) and writable ones take the same build, instead of a second one per process; the same
+    numbers either way."""
+    out = []
+    for a in arrays:
+        v = np.ascontiguousarray(a, dtype=dtype).view()
+        v.flags.writeable = False
+        out.append(v)
+    return out
+
+
 def _starts_lens(bounds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.ascontiguousarray(bounds[:, 0], dtype=np.int64),
             np.ascontiguousarray(bounds[:, 1] - bounds[:, 0], dtype=np.int64))
@@ -126,9 +139,8 @@ def encode_states(ae: LinearMaps, q: np.ndarray, dq: np.ndarray, bounds: np.ndar
     if rows.shape != (n_max,):
         raise ValueError(f"rows: shape {rows.shape}, expected ({n_max},) (the longest jump)")
     x, v = np.empty((2, J, n_max, l))  # one block: fewer page faults (huge pages from 4 MB)
-    f = np.ascontiguousarray
     k = _kernels()["encode_states"]
-    q, dq, W_e, B_e = f(q, dtype=float), f(dq, dtype=float), f(ae.W_e, dtype=float), f(ae.B_e, dtype=float)
+    q, dq, W_e, B_e = _read_only(q, dq, ae.W_e, ae.B_e)
     over_jumps(lambda r: k(q, dq, starts[r], lens[r], rows, W_e, B_e, x[r], v[r]), np.full(J, n_max))
     return x, v
 
@@ -141,9 +153,8 @@ def encode_inputs(ae: LinearMaps, u: np.ndarray, phase: np.ndarray,
     J, l = len(starts), ae.latent_dim
     n_max = int(lens.max()) if J else 0
     nu, ph = np.empty((J, n_max, l)), np.empty((J, n_max), dtype=np.int64)
-    f = np.ascontiguousarray
     k = _kernels()["encode_inputs"]
-    u, phase, M = f(u, dtype=float), f(phase, dtype=np.int64), f(ae.input_map.T, dtype=float)
+    (u, M), (phase,) = _read_only(u, ae.input_map.T), _read_only(phase, dtype=np.int64)
     over_jumps(lambda r: k(u, phase, starts[r], lens[r], M, nu[r], ph[r]), np.full(J, n_max))
     return nu, ph
 
@@ -173,7 +184,6 @@ def decode_jumps(ae: LinearMaps, X: np.ndarray, lens: np.ndarray) -> list[np.nda
     offsets = np.zeros(len(lens), dtype=np.int64)
     np.cumsum(lens[:-1], out=offsets[1:])
     out = np.empty((int(lens.sum()), ae.W_d.shape[0]))
-    f = np.ascontiguousarray
-    X, W_t, B_d, k = f(X, dtype=float), f(ae.W_d.T, dtype=float), f(ae.B_d, dtype=float), _kernels()["decode"]
+    (X, W_t, B_d), k = _read_only(X, ae.W_d.T, ae.B_d), _kernels()["decode"]
     over_jumps(lambda r: k(X[r], lens[r], offsets[r], W_t, B_d, out), lens)
     return [out[a:a + n] for a, n in zip(offsets.tolist(), lens.tolist())]
