@@ -32,7 +32,7 @@ def run(tmp_path_factory):
     # One train and one val jump per file: too few to judge a model's physics or its free prediction
     # by (tests/test_select_use.py does), so the checks refuse nothing here; the table holds them.
     # The evaluations' jump figures are left out (the report draws its own; the demo's test and
-    # tests/test_frontdoor.py see them drawn), the longest part of this run otherwise.
+    # tests/test_frontdoor.py see them drawn), a third of this run otherwise.
     cfg = replace(quick, sweep_dims=(1, 2), sweep_seeds=2, workers=1,
                   adam=AdamConfig(epochs=2, refine_epochs=1, threshold_every=1),
                   selection=replace(quick.selection, checks=()), jump_figures=False)
