@@ -237,11 +237,9 @@ def horizon_figure(rmse: dict[str, dict[str, float | None]], floor: dict[str, fl
                         color=style["color"], alpha=0.75, label=f"paper, {label}", zorder=4)
         ax.set_xticks(x, comps)
         ax.set_yscale("log")
-        shown = [v for v in (*(floor[c] for c in comps if floor is not None),
-                             *(vals.get(c) for vals in rmse.values() for c in comps),
-                             *(vals.get(c) for vals in (paper or {}).values() for c in comps))
-                 if v is not None and np.isfinite(v) and v > 0]
-        if shown and max(shown) >= MINOR_TICKS_BELOW * min(shown):
+        shown = np.concatenate([np.asarray(ln.get_ydata(), dtype=float) for ln in ax.get_lines()] or [[]])
+        shown = shown[np.isfinite(shown) & (shown > 0)]  # what the panel draws
+        if shown.size and shown.max() >= MINOR_TICKS_BELOW * shown.min():
             # Over many decades the powers of ten label the panel, and the minor ticks, each a
             # gridline, would only crowd it (and take half of the figure's drawing time).
             ax.yaxis.set_minor_locator(NullLocator())
