@@ -90,6 +90,33 @@ def test_force_distribution_matches_the_pseudo_inverse(legs):
                                    _distribute_numpy(feet, centre, legs, force, moment), atol=1e-9)
 
 
+def test_the_froggy_products_are_numbas_own_to_the_bit():
+    """``matvec``, ``matmul`` and ``pinv_apply`` call BLAS and LAPACK as numba's ``@`` and
+    ``np.linalg.pinv`` do: the same bits, for every shape the force distribution gives (six rows,
+    one to four legs' columns, rank deficient or nearly so) and for 3 x 3 products
+    with either factor transposed."""
+    import numba
+
+    @numba.njit
+    def generic(A, b, R, Y, x):
+        return np.linalg.pinv(A) @ b, R.T @ Y, R @ Y, R @ x
+
+    rng = np.random.default_rng(5)
+    # (columns, the second leg's columns a multiple of the first's plus this much noise, or None)
+    for n, near in ((3, None), (6, None), (9, None), (12, None), (6, 0.0), (6, 1e-13)):
+        A = rng.normal(size=(6, n))
+        if near is not None:  # rank 5, or a singular value between the cut and 1e-12 of the largest
+            A[:, 3:] = A[:, :3] * 2.0 + near * rng.normal(size=(6, 3))
+        b, R, Y, x = rng.normal(size=6), rng.normal(size=(3, 3)), rng.normal(size=(3, 3)), rng.normal(size=3)
+        want = generic(A, b, R, Y, x)
+        got = (compiled.pinv_apply(A, b), compiled.matmul(R, Y, True), compiled.matmul(R, Y, False),
+               compiled.matvec(R, x))
+        for w, g in zip(want, got):
+            assert w.shape == g.shape and np.array_equal(w, g), (n, w, g)
+    with pytest.raises(np.linalg.LinAlgError, match="infs or NaNs"):
+        compiled.pinv_apply(np.full((6, 6), np.nan), np.ones(6))
+
+
 @pytest.mark.slow
 # a flight_pitch below the flight's pitch, so that the turned targets are compared too
 # (and the flight's targets tracked, so that their velocities are compared too)

@@ -12,11 +12,101 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+from numba import types
 
 from symrom.names import GRAVITY
 from symrom.robots.compiled import legs_one
 
 njit = numba.njit(cache=True)
+
+# numba's own entry points into SciPy's BLAS and LAPACK, the ones its ``@`` and
+# ``np.linalg.pinv`` call. ``matvec``, ``matmul`` and ``pinv_apply`` call them with the
+# arguments those do, so the results are the same to the bit (the generated datasets depend on
+# it), and they compile in a fraction of the time of numba's generic implementations (which
+# check, dispatch and copy for any layout and type): seconds of a cold start.
+_F8 = types.CPointer(types.float64)
+_gemm = types.ExternalFunction("numba_xxgemm", types.intc(
+    types.char, types.char, types.char, types.intp, types.intp, types.intp, _F8, _F8, types.intp, _F8, types.intp,
+    _F8, _F8, types.intp))  # kind, transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc
+_gemv = types.ExternalFunction("numba_xxgemv", types.intc(
+    types.char, types.char, types.intp, types.intp, _F8, _F8, types.intp, _F8, _F8, _F8))  # kind, trans, m, n,
+# alpha, a, lda, x, beta, y
+_gesdd = types.ExternalFunction("numba_ez_gesdd", types.intc(
+    types.char, types.char, types.intp, types.intp, _F8, types.intp, _F8, _F8, types.intp, _F8, types.intp))
+# kind, jobz, m, n, a, lda, s, u, ldu, vt, ldvt
+_DOUBLE, _ECONOMY, _CONJ, _NOTRANS, _TRANS = ord("d"), ord("S"), ord("C"), ord("n"), ord("t")
+
+
+@njit
+def matvec(A, x):
+    """A @ x as numba computes it: A (m, n), x (n,) float64 -> (m,)."""
+    m, n = A.shape
+    A = np.ascontiguousarray(A)
+    x = np.ascontiguousarray(x)
+    out = np.empty(m)
+    one, zero = np.ones(1), np.zeros(1)
+    # BLAS is column-major: a row-major A is its transpose there
+    _gemv(_DOUBLE, _TRANS, n, m, one.ctypes, A.ctypes, n, x.ctypes, zero.ctypes, out.ctypes)
+    return out
+
+
+@njit
+def matmul(A, B, transpose_a):
+    """A @ B as numba computes it, or with ``transpose_a`` A.T @ B as numba computes
+    ``A.T @ B``: A, B float64 matrices -> C-ordered (rows of A or A.T, columns of B)."""
+    A = np.ascontiguousarray(A)
+    B = np.ascontiguousarray(B)
+    if transpose_a:
+        k, m = A.shape
+    else:
+        m, k = A.shape
+    n = B.shape[1]
+    out = np.empty((m, n))
+    one, zero = np.ones(1), np.zeros(1)
+    # out^T = B^T A^T in BLAS's column-major view of the row-major arrays
+    _gemm(_DOUBLE, _NOTRANS, _TRANS if transpose_a else _NOTRANS, n, m, k, one.ctypes, B.ctypes, n, A.ctypes,
+          m if transpose_a else k, zero.ctypes, out.ctypes, n)
+    return out
+
+
+@njit
+def pinv_apply(A, b):
+    """np.linalg.pinv(A) @ b as numba computes it (rcond 1e-15): A (m, n), b (m,) float64 ->
+    (n,). Raises ``np.linalg.LinAlgError`` for a non-finite A or an SVD that does not converge."""
+    m, n = A.shape
+    a = np.empty((n, m)).T  # column-major (m, n): LAPACK overwrites it, then holds the result
+    for i in range(m):
+        for j in range(n):
+            v = A[i, j]
+            if not np.isfinite(v):
+                raise np.linalg.LinAlgError("Array must not contain infs or NaNs.")
+            a[i, j] = v
+    r = min(m, n)
+    u, s, vt = np.empty((r, m)), np.empty(r), np.empty((n, r))
+    if _gesdd(_DOUBLE, _ECONOMY, m, n, a.ctypes, m, s.ctypes, u.ctypes, m, vt.ctypes, r) != 0:
+        raise np.linalg.LinAlgError("SVD did not converge.")
+    # invert the singular values above the cut, scale the smaller factor by them, and multiply
+    # over the kept ones only
+    cut_at, cut = s[0] * 1e-15, 0
+    for k in range(r):
+        if s[k] > cut_at:
+            s[k] = 1.0 / s[k]
+            cut = k
+    cut += 1
+    if m >= n:
+        for i in range(n):
+            for j in range(cut):
+                vt[i, j] = vt[i, j] * s[j]
+    else:
+        for i in range(cut):
+            si = s[i]
+            for j in range(r):
+                u[i, j] = u[i, j] * si
+    one, zero = np.ones(1), np.zeros(1)
+    _gemm(_DOUBLE, _CONJ, _CONJ, n, m, cut, one.ctypes, vt.ctypes, r, u.ctypes, m, zero.ctypes, a.ctypes, n)
+    out = np.empty(n)  # a: the pseudo-inverse (n, m), column-major
+    _gemv(_DOUBLE, _NOTRANS, n, m, one.ctypes, a.ctypes, n, b.ctypes, zero.ctypes, out.ctypes)
+    return out
 
 
 @njit
@@ -37,7 +127,7 @@ def distribute(foot_pos, centre, legs, force, moment, mu, grf):
     b = np.empty(6)
     for a in range(3):
         b[a], b[3 + a] = force[a], moment[a]
-    sol = np.linalg.pinv(A) @ b
+    sol = pinv_apply(A, b)
     grf[:, :] = 0.0
     for i in range(m):
         fx, fy, fz = sol[3 * i], sol[3 * i + 1], max(sol[3 * i + 2], 0.0)
@@ -208,7 +298,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     to_base[0, 0], to_base[1, 1], to_base[2, 2] = 1.0, 1.0, 1.0
     plumb = to_base  # level frame to base frame, where a leg is held plumb
     if stage == FLIGHT or (stage == LAND and plumb_land != 0):
-        plumb = R.T @ Y
+        plumb = matmul(R, Y, True)
     if stage == FLIGHT:  # legs hang plumb (level frame) for the landing
         to_base = plumb
     plumb_lo, plumb_hi = 0, 0  # the legs k with plumb_lo <= k < plumb_hi are held plumb
@@ -232,7 +322,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         pitch_ref = prm[_PITCH] * smooth((t - prm[_T_SETTLE]) / prm[_T_CROUCH])
     err = np.zeros(3)
     err[0], err[1] = q[15], q[16] - pitch_ref
-    tilt = R @ err
+    tilt = matvec(R, err)
     level = np.empty(3)
     for a in range(3):
         level[a] = -prm[_K_ATT] * tilt[a]
@@ -254,7 +344,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         sa, ca = np.sin(prm[_ANGLE]), np.cos(prm[_ANGLE])
         along = np.zeros(3)
         along[0], along[2] = sa, ca
-        direction = Y @ along
+        direction = matvec(Y, along)
         travel = prm[_SPEED] * (t - t_push)
         b_d, thrust = np.empty(3), np.empty(3)
         for a in range(3):
@@ -265,7 +355,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
         for k in range(4):
             for a in range(3):
                 stroke[k, a] = feet_w[k, a] - b_d[a]
-        p_stroke = stroke @ Y
+        p_stroke = matmul(stroke, Y, False)
         for k in range(4):
             v_d[k, 0], v_d[k, 1], v_d[k, 2] = -prm[_SPEED] * sa, 0.0, -prm[_SPEED] * ca
         for k in range(4):
@@ -295,7 +385,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
             ce, se = np.cos(excess), np.sin(excess)
             P = np.zeros((3, 3))
             P[0, 0], P[0, 2], P[1, 1], P[2, 0], P[2, 2] = ce, se, 1.0, -se, ce
-            to_base = to_base @ P
+            to_base = matmul(to_base, P, False)
             for k in range(4):
                 z_leg[k] = (feet0[k, 2] - prm[_STAND] + (feet0[k, 0] + x_off[k]) * se) / ce - feet0[k, 2]
     else:  # land
@@ -323,7 +413,7 @@ def froggy_torque(stage, t, prm, t_push, t_land, mass, q, dq, R, omega, contact,
     lv = np.empty(3)
     for k in range(4):
         lv[0], lv[1], lv[2] = feet0[k, 0] + x_off[k] + shift, feet0[k, 1], feet0[k, 2] + z_leg[k]
-        r = (plumb if plumb_lo <= k < plumb_hi else to_base) @ lv
+        r = matvec(plumb if plumb_lo <= k < plumb_hi else to_base, lv)
         for a in range(3):
             p_d[k, a] = r[a]
     if stage == PUSH_ALL or stage == PUSH_REAR:
