@@ -464,10 +464,30 @@ MOTION_ROUTINES = {"pronk": ("legs_one", "pronk_stance_torque", "clip_forces", "
                    "froggy": ("legs_one", "froggy_torque")}
 
 
+# Of those, what a second process can compile beside the one that compiles the motion's routines
+# (``symrom.sim.generation.warm.prepare``): the froggy force distribution, which
+# ``froggy_torque``'s typing reaches only after the leg kinematics and the products, by when the
+# other process has put it in the disk cache (else it is compiled where it is reached, as alone).
+BESIDE_ROUTINES = {"froggy": ("distribute",)}
+
+
 def routines(motion: str) -> list:
     """The compiled routines (numba dispatchers) a controller of ``motion`` calls; none for a
     motion that is not built in."""
     return [legs_one if name == "legs_one" else globals()[name] for name in MOTION_ROUTINES.get(motion, ())]
+
+
+def routines_beside(motion: str) -> list:
+    """The routines of ``motion`` a second process can compile (``BESIDE_ROUTINES``)."""
+    return [globals()[name] for name in BESIDE_ROUTINES.get(motion, ())]
+
+
+def warm_beside(motions: tuple[str, ...] = ("froggy",)) -> None:
+    """Compile (or load) ``routines_beside`` of ``motions`` for the argument types their
+    controller passes them."""
+    if "froggy" in motions:
+        feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+        distribute(feet, np.zeros(3), np.arange(4), np.ones(3), np.zeros(3), 0.6, np.empty((4, 3)))
 
 
 def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:

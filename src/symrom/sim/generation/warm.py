@@ -7,7 +7,9 @@ its disk cache; a later process loads them. ``prepare(motion, engine)`` makes th
 this process before a generation's first jump: loaded from the disk cache, or, on a cold
 cache, compiled, the engine's (and the proxy's) in a helper process beside this one while this
 one compiles the motion's (the longer: the froggy controller's routines are most of a cold
-start), so that the helper's own start-up is off the critical path.
+start), so that the helper's own start-up is off the critical path. The helper first compiles
+the part of the motion's routines this one reaches last (``("beside", motion)``: the froggy
+force distribution), so that this one loads it from the disk cache when it gets there.
 
 ``load_cached()`` loads every routine the disk cache holds and compiles none: the worker
 processes' fork server does so (it imports ``preload``, ``generate._preload``), so that every
@@ -24,8 +26,12 @@ from symrom.sim.engines import compiled as engines
 
 
 def routines(kind: str, name: str) -> list:
-    """The numba dispatchers of a group: ``("engine", name)`` or ``("motion", name)``."""
-    return engines.routines(name) if kind == "engine" else controllers.routines(name)
+    """The numba dispatchers of a group: ``("engine", name)``, ``("motion", name)`` or
+    ``("beside", name)``, the motion's routines another process can compile while this one
+    compiles the rest (``controllers.BESIDE_ROUTINES``)."""
+    if kind == "engine":
+        return engines.routines(name)
+    return controllers.routines_beside(name) if kind == "beside" else controllers.routines(name)
 
 
 def warm(kind: str, name: str) -> None:
@@ -33,6 +39,8 @@ def warm(kind: str, name: str) -> None:
     the argument types the simulation passes them."""
     if kind == "engine":
         engines.warm_up((name,))
+    elif kind == "beside":
+        controllers.warm_beside((name,))
     else:
         controllers.warm_up((name,))
 
@@ -44,9 +52,11 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True, pr
     the proxy's) in a second process while this one compiles the motion's (with more than one
     core). ``load=False``: only make sure the disk cache holds them (for worker processes that
     load them themselves): groups already there are not loaded here."""
-    wanted = (("motion", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
+    wanted = (("motion", motion), ("beside", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
     groups = [g for g in wanted if routines(*g)]  # a plug-in's: none
     cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
+    # the first cold group is compiled here, the rest in the helper in this order: after a cold
+    # motion, its part another process can compile first (its controller reaches it seconds in)
     beside = cold[1:] if helper and len(cold) > 1 and (os.cpu_count() or 1) > 1 else []
     proc = None
     if beside:
