@@ -173,25 +173,26 @@ def test_the_window_helper_compiles_the_kernel_under_the_lock(monkeypatch):
     assert events == [("lock", fake_kernel), ("called", arity), ("unlock", fake_kernel)], events
 
 
-@pytest.mark.parametrize("cpus", [2, 1])
-def test_a_cold_froggy_generation_compiles_the_force_distribution_beside_first(monkeypatch, cpus):
+@pytest.mark.parametrize("cpus, cached", [(2, False), (1, False), (2, True)])
+def test_a_cold_froggy_generation_compiles_the_force_distribution_beside_first(monkeypatch, cpus, cached):
     # On an empty cache the helper process compiles the froggy controller's force distribution
     # before the engine's reads: the controller reaches it only after its kinematics and products,
     # so that it is in the disk cache by then. With one core everything is compiled here, in order.
+    # This process never makes the distribution ready itself: the controller's routines hold it.
     from symrom.sim.generation import warm
 
     done, helper = [], []
-    monkeypatch.setattr(warm, "in_disk_cache", lambda dispatcher: False)
+    monkeypatch.setattr(warm, "in_disk_cache", lambda dispatcher: cached)
     monkeypatch.setattr(warm, "warm", lambda kind, name: done.append((kind, name)))
     monkeypatch.setattr(warm, "start_helper", lambda code: helper.append(code) or "proc")
     monkeypatch.setattr(warm, "wait_helper", lambda proc, timeout: done.append(("waited", proc)))
     monkeypatch.setattr(warm.os, "cpu_count", lambda: cpus)
     warm.prepare("froggy", "mujoco", proxy=True)
-    groups = [("beside", "froggy"), ("engine", "mujoco"), ("engine", "proxy")]
-    if cpus == 1:
-        assert helper == [] and done == [("motion", "froggy"), *groups]
+    engine = [("engine", "mujoco"), ("engine", "proxy")]
+    if cpus == 1 or cached:
+        assert helper == [] and done == [("motion", "froggy"), *engine]
         return
-    assert len(helper) == 1 and helper[0].endswith("; ".join(f"warm{g!r}" for g in groups)), helper
-    # this process: the motion's routines, then the helper's, loaded from the cache it filled
-    assert done == [("motion", "froggy"), ("waited", "proc"), *groups]
+    assert len(helper) == 1 and helper[0].endswith("; ".join(f"warm{g!r}" for g in [("beside", "froggy"), *engine]))
+    # this process: the motion's routines, then the engine's, loaded from the cache the helper filled
+    assert done == [("motion", "froggy"), ("waited", "proc"), *engine]
     assert [d.py_func.__name__ for d in warm.routines("beside", "froggy")] == ["distribute"]

@@ -62,13 +62,15 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True, pr
     if beside:
         proc = start_helper("from symrom.sim.generation.warm import warm; "
                             + "; ".join(f"warm{g!r}" for g in beside))
+    # A "beside" group is never made ready here: the motion's routines hold it (compiled in, or
+    # loaded with them), and only their compile here reads it from the disk cache.
     for g in groups:
-        if g not in beside and (load or g in cold):
+        if g not in beside and g[0] != "beside" and (load or g in cold):
             warm(*g)
     if proc is not None:
         wait_helper(proc, HELPER_TIMEOUT)
         for g in beside:
-            if load or not all(in_disk_cache(d) for d in routines(*g)):
+            if g[0] != "beside" and (load or not all(in_disk_cache(d) for d in routines(*g))):
                 warm(*g)  # from the disk cache the helper filled (or compiled here if it failed)
 
 
