@@ -8,8 +8,9 @@ this process before a generation's first jump: loaded from the disk cache, or, o
 cache, compiled, the engine's (and the proxy's) in a helper process beside this one while this
 one compiles the motion's (the longer: the froggy controller's routines are most of a cold
 start), so that the helper's own start-up is off the critical path. The helper first compiles
-the part of the motion's routines this one reaches last (``("beside", motion)``: the froggy
-force distribution), so that this one loads it from the disk cache when it gets there.
+the part of the motion's routines this one reaches seconds into compiling them
+(``("beside", motion)``: the froggy force distribution), so that this one loads it from the disk
+cache when it gets there.
 
 ``load_cached()`` loads every routine the disk cache holds and compiles none: the worker
 processes' fork server does so (it imports ``preload``, ``generate._preload``), so that every
