@@ -469,6 +469,8 @@ MOTION_ROUTINES = {"pronk": ("legs_one", "pronk_stance_torque", "clip_forces", "
 # ``froggy_torque``'s typing reaches only after the leg kinematics and the products, by when the
 # other process has put it in the disk cache (else it is compiled where it is reached, as alone).
 BESIDE_ROUTINES = {"froggy": ("distribute",)}
+# Feet (4, 3) m of a stance, for compiling the froggy routines with the types a tick passes them
+_WARM_FEET = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
 
 
 def routines(motion: str) -> list:
@@ -486,7 +488,7 @@ def warm_beside(motions: tuple[str, ...] = ("froggy",)) -> None:
     """Compile (or load) ``routines_beside`` of ``motions`` for the argument types their
     controller passes them."""
     if "froggy" in motions:
-        feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+        feet = _WARM_FEET.copy()
         distribute(feet, np.zeros(3), np.arange(4), np.ones(3), np.zeros(3), 0.6, np.empty((4, 3)))
 
 
@@ -507,7 +509,7 @@ def warm_up(motions: tuple[str, ...] = ("pronk", "froggy")) -> None:
         condensed_qp(np.zeros((h, m, h, m)), np.zeros((h * m, 13)), np.zeros((h * m, 13 * h)), np.zeros((m, 12)),
                      np.zeros(13), np.zeros(13 * h), 1.0, np.empty((12 * h, 12 * h)), np.empty(12 * h))
     if "froggy" in motions:
-        feet = np.array([[0.2, -0.1, 0.0], [0.2, 0.1, 0.0], [-0.2, -0.1, 0.0], [-0.2, 0.1, 0.0]])
+        feet = _WARM_FEET.copy()
         q, dq = np.zeros(18), np.zeros(18)
         q[14] = 0.3
         froggy_torque(SETTLE, 0.0, np.ones(len(FROGGY_PARAMS)), 1.0, 0.0, 12.0, q, dq, np.eye(3), np.zeros(3),

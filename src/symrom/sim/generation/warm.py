@@ -35,6 +35,11 @@ def routines(kind: str, name: str) -> list:
     return controllers.routines_beside(name) if kind == "beside" else controllers.routines(name)
 
 
+def cached(kind: str, name: str) -> bool:
+    """Whether numba's disk cache holds every routine of the group."""
+    return all(in_disk_cache(d) for d in routines(kind, name))
+
+
 def warm(kind: str, name: str) -> None:
     """Compile, or load from the disk cache, the routines of the group (``routines``) now, for
     the argument types the simulation passes them."""
@@ -53,25 +58,28 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True, pr
     the proxy's) in a second process while this one compiles the motion's (with more than one
     core). ``load=False``: only make sure the disk cache holds them (for worker processes that
     load them themselves): groups already there are not loaded here."""
-    wanted = (("motion", motion), ("beside", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
+    wanted = (("motion", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
     groups = [g for g in wanted if routines(*g)]  # a plug-in's: none
-    cold = [g for g in groups if not all(in_disk_cache(d) for d in routines(*g))]
-    # the first cold group is compiled here, the rest in the helper in this order: after a cold
-    # motion, its part another process can compile first (its controller reaches it seconds in)
-    beside = cold[1:] if helper and len(cold) > 1 and (os.cpu_count() or 1) > 1 else []
+
+    cold = [g for g in groups if not cached(*g)]
+    spare = helper and (os.cpu_count() or 1) > 1
+    beside = cold[1:] if spare else []  # the first cold group is compiled here, the rest there
+    # Before them, the helper compiles the part of a cold motion's routines that their compile
+    # here reaches seconds in, to be loaded from the disk cache then; this process never makes it
+    # ready itself, since the motion's routines hold it.
+    part = ("beside", motion)
+    first = [part] if spare and ("motion", motion) in cold and not cached(*part) else []
     proc = None
-    if beside:
+    if first or beside:
         proc = start_helper("from symrom.sim.generation.warm import warm; "
-                            + "; ".join(f"warm{g!r}" for g in beside))
-    # A "beside" group is never made ready here: the motion's routines hold it (compiled in, or
-    # loaded with them), and only their compile here reads it from the disk cache.
+                            + "; ".join(f"warm{g!r}" for g in first + beside))
     for g in groups:
-        if g not in beside and g[0] != "beside" and (load or g in cold):
+        if g not in beside and (load or g in cold):
             warm(*g)
     if proc is not None:
         wait_helper(proc, HELPER_TIMEOUT)
         for g in beside:
-            if g[0] != "beside" and (load or not all(in_disk_cache(d) for d in routines(*g))):
+            if load or not cached(*g):
                 warm(*g)  # from the disk cache the helper filled (or compiled here if it failed)
 
 
@@ -79,5 +87,5 @@ def load_cached() -> None:
     """Load every routine of every group that numba's disk cache holds; compile none."""
     for kind, names in (("engine", engines.ENGINE_ROUTINES), ("motion", controllers.MOTION_ROUTINES)):
         for name in names:
-            if all(in_disk_cache(d) for d in routines(kind, name)):
+            if cached(kind, name):
                 warm(kind, name)
