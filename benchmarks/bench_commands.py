@@ -23,6 +23,9 @@ Items (``--only`` picks some; ``--reproduce`` and ``--tests`` add the long ones)
 - ``select_{go1_pybullet,go1_mujoco,a1_froggy}``: ``symrom train DATA --select --workers 2`` on 40
   jumps, generated once beforehand by this checkout (not timed); ``..._max10``: the same with
   ``--max-terms 10``;
+- ``import_log``, ``import_log_repair``: ``symrom import LOG.csv --robot go1 [--repair]`` of 40 Go1
+  pronks written as a plain-layout CSV log (generated once beforehand by this checkout, in
+  MuJoCo; not timed);
 - ``demo``: ``symrom demo --out DIR``;
 - ``rollout``: the default ``rollout()`` of a 3-latent model of 120 planted jumps x 800 samples
   (the median whole call after the first, samples per second), and ``first_calls``: in a new
@@ -332,6 +335,23 @@ def main() -> None:
             if want(item):
                 items[item] = item_runs(item, sides, args.runs, work, lambda side, folder, d=data, x=extra: (
                     symrom("train", str(d), "--out", str(folder / "model"), "--select", "--workers", w, *x), folder,
+                    fresh(folder)), T)
+
+    if want("import_log") or want("import_log_repair"):
+        data = work / "import-go1.h5"
+        r = run(symrom("generate", "--robot", "go1", "--motion", "pronk", "--jumps", "40", "--engine", "mujoco",
+                       "--workers", w, "--out", str(data)), sides[-1].src, work, fresh(work / "gen-import"), T)
+        if r["returncode"] != 0:
+            raise SystemExit(f"generating {data} failed: {r['tail']}")
+        from symrom.data.importers import write_plain_csv
+        from symrom.data.io import read_dataset
+
+        log = work / "import-go1.csv"
+        write_plain_csv(read_dataset(data), log, accelerations=False)
+        for item, extra in (("import_log", ()), ("import_log_repair", ("--repair",))):
+            if want(item):
+                items[item] = item_runs(item, sides, args.runs, work, lambda side, folder, x=extra: (
+                    symrom("import", str(log), "--robot", "go1", "--out", str(folder / "go1.h5"), *x), folder,
                     fresh(folder)), T)
 
     if want("demo"):

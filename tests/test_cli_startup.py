@@ -85,3 +85,45 @@ def test_import_symrom_is_light_and_names_load_on_use():
             "print(light, 'numpy' in sys.modules)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.stdout.split() == ["True", "True"], r.stderr
+
+
+# SciPy's packages below take 0.3-0.6 s each to import (their array-API layer loads numpy.f2py and
+# numpy.testing): each is imported in the function that runs it, not by the modules around it.
+SCIPY_SLOW = ("scipy.integrate", "scipy.interpolate", "scipy.optimize", "scipy.special", "scipy.stats")
+LIBRARY = ("symrom.rollout.integrate", "symrom.rollout.fitting", "symrom.evaluate.metrics", "symrom.baselines.aslip",
+           "symrom.data.importers", "symrom.data.repair", "symrom.data.timebase", "symrom.learn.training",
+           "symrom.learn.finetune", "symrom.experiments.select", "symrom.experiments.reproduce",
+           "symrom.report.figures", "symrom.plan.jump")
+
+
+def test_scipys_slow_packages_load_where_they_run(tmp_path):
+    """Importing the library's modules loads none of SciPy's slow packages, and neither does a
+    CSV import (no repair) that checks the log against physics; an LSODA rollout loads
+    scipy.integrate (so the probe can see one)."""
+    from _logs import jump, write_plain
+    from _simdata import reference_file
+
+    from symrom.data.io import read_dataset
+
+    code = ("import importlib, json, sys\n"
+            "for name in json.loads(sys.argv[1]):\n"
+            "    importlib.import_module(name)\n"
+            "print(json.dumps(sorted(m for m in json.loads(sys.argv[2]) if m in sys.modules)))\n")
+    r = subprocess.run([sys.executable, "-c", code, json.dumps(LIBRARY), json.dumps(SCIPY_SLOW)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and json.loads(r.stdout) == [], (r.stdout, r.stderr)
+
+    ds = read_dataset(reference_file("pronk"))
+    log = write_plain(tmp_path / "log.csv", [jump(ds, j) for j in range(2)], accelerations=False)
+    out, loaded = _loaded("import", str(log), "--robot", ds.robot, "--out", str(tmp_path / "x.h5"),
+                          heavy=SCIPY_SLOW + ("numpy",))
+    assert (tmp_path / "x.h5").is_file() and loaded == ["numpy"], (out, loaded)
+
+    probe = ("import sys, numpy as np\n"
+             "from symrom.rollout.integrate import integrate_lsoda\n"
+             "x = np.zeros((3, 1))\n"
+             "integrate_lsoda(lambda y, t: np.r_[y[1:], -y[:1]], lambda k: (), x, x, np.zeros(3, bool),\n"
+             "                np.full(2, 10.0), 0.01, 500)\n"
+             "print('scipy.integrate' in sys.modules)\n")
+    r = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert r.stdout.split() == ["True"], r.stderr

@@ -27,7 +27,6 @@ from functools import partial
 from typing import ClassVar
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from symrom.baselines.com import (
     COMPONENTS,
@@ -153,6 +152,8 @@ def fit_aslip(ds: Dataset, rows: np.ndarray | None = None, m: float | None = Non
     with k_s, l_0 >= 0. Where the measured force u already explains b'' (no
     spring-like residual), k_s goes to 0 and l_0 is then not identifiable.
     """
+    from scipy.optimize import least_squares  # here: scipy.optimize is slow to import
+
     m = robot_mass(ds.robot) if m is None else float(m)
     rows = ds.rows_of("train") if rows is None else np.asarray(rows, dtype=bool)
     sel = rows & ~flight_rows(ds)

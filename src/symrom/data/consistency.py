@@ -89,7 +89,6 @@ def window_ratios(t: np.ndarray, x: np.ndarray, v: np.ndarray, window: float,
     left out. Returns per window kept its first and last row (k, 2), its ratio (k,) (the
     least-squares factor of the change of x over the trapezoidal integral of v) and its
     integral's sum of squares (k,)."""
-    from scipy.integrate import trapezoid  # here: scipy.integrate is slow to import
 
     n = t.size
     rows, ratios, power = [], [], []
@@ -102,7 +101,7 @@ def window_ratios(t: np.ndarray, x: np.ndarray, v: np.ndarray, window: float,
         if b - a < 3:
             continue
         change = x[b - 1] - x[a]
-        integral = trapezoid(v[a:b], t[a:b], axis=0)
+        integral = np.trapezoid(v[a:b], t[a:b], axis=0)
         if np.sqrt(np.mean(integral ** 2)) < min_motion:
             continue
         rows.append((a, b - 1))
@@ -226,7 +225,6 @@ def retime_stale(t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) 
 def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
                      tau: np.ndarray, contact: np.ndarray, limits: ConsistencyLimits) -> list[dict]:
     """The vertical momentum balance of one jump (module docstring); none without a contact row."""
-    from scipy.integrate import trapezoid
 
     from symrom.data.preprocess import ground_reaction_forces
     from symrom.robots import get_robot
@@ -237,7 +235,7 @@ def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: n
     fz = ground_reaction_forces(robot, q, tau, contact)[:, :, 2].sum(axis=1)  # (n,) N
     span = float(t[-1] - t[0])
     need = m * GRAVITY * span + m * float(dq[-1, 14] - dq[0, 14])
-    got = float(trapezoid(fz, t))
+    got = float(np.trapezoid(fz, t))
     if need <= 0:
         return []
     r = got / need

@@ -45,7 +45,6 @@ from collections import Counter
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.integrate import trapezoid
 
 from symrom.data.repair_clock import RepairLimits, loo_error, robust_fit
 from symrom.names import BASE_POS, BASE_RPY, JOINTS, N_LEGS, leg_slice
@@ -223,13 +222,13 @@ def estimate_gain(t: np.ndarray, state: BodyState, tau: np.ndarray, contact: np.
         if b - a < 5 or not down[a:b + 1].any():
             continue
         span = float(t[b] - t[a])
-        x = float(trapezoid(x_rows[a:b + 1], t[a:b + 1]))
+        x = float(np.trapezoid(x_rows[a:b + 1], t[a:b + 1]))
         if abs(x) < 0.1 * weight * span:  # the feet carry almost nothing here: no information
             continue
         dv = float(vz[b] - vz[a])
         xs.append(x)
-        knees.append(float(trapezoid(knee_rows[a:b + 1], t[a:b + 1])))
-        ys.append(weight * span + state.mass * dv + float(trapezoid(h_rows[a:b + 1], t[a:b + 1])))
+        knees.append(float(np.trapezoid(knee_rows[a:b + 1], t[a:b + 1])))
+        ys.append(weight * span + state.mass * dv + float(np.trapezoid(h_rows[a:b + 1], t[a:b + 1])))
         inside = np.any(np.diff(down[a:b + 1].astype(int), axis=0) != 0)
         static.append(abs(dv) <= limits.static * G * span and not inside)
     xs, ys, static, knees = np.array(xs), np.array(ys), np.array(static, bool), np.array(knees)

@@ -45,15 +45,17 @@ are refused by the repair's caller unless the jump passes the consistency check 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.integrate import trapezoid
-from scipy.interpolate import BSpline
 
 from symrom.data.consistency import window_ratios
 from symrom.data.rawlog import LogError
 from symrom.names import BASE_POS, BASE_RPY, JOINTS
 from symrom.names import GRAVITY as G
+
+if TYPE_CHECKING:  # scipy.interpolate is slow to import: loaded where a clock's rate is fitted
+    from scipy.interpolate import BSpline
 
 # Velocity groups, each with its own gain: (name, q columns).
 VELOCITY_GROUPS = (("joints", JOINTS), ("base position", BASE_POS), ("base angles", BASE_RPY))
@@ -251,6 +253,8 @@ class Rate:
                 + f_hi * np.maximum(t - self.hi, 0.0))
 
     def scaled(self, k: float) -> Rate:
+        from scipy.interpolate import BSpline
+
         return Rate(self.level * k, None if self.spline is None else
                     BSpline(self.spline.t, self.spline.c * k, self.spline.k), self.lo, self.hi, self.sd * k)
 
@@ -278,7 +282,7 @@ def _windows(t: np.ndarray, q: np.ndarray, dq: np.ndarray, cols: slice, limits: 
     noise, lead = np.empty(ratio.size), np.empty(ratio.size)
     for i, (a, b) in enumerate(rows):
         change = x[b] - x[a]
-        integral = trapezoid(v[a:b + 1], t[a:b + 1], axis=0)
+        integral = np.trapezoid(v[a:b + 1], t[a:b + 1], axis=0)
         e = change - ratio[i] * integral
         noise[i] = np.sqrt(e @ e / max(e.size - 1, 1) / power[i])
         lead[i] = (v[b] - v[a]) @ integral / power[i]
@@ -312,6 +316,8 @@ def _spline_rate(w: _Windows, limits: RepairLimits) -> tuple[Rate, np.ndarray, f
     pieces up to one per ``knot`` s, chosen by leave-one-out prediction. Returns the rate,
     its value at the windows, the windows' scatter about it and its leave-one-out error as a
     fraction of a constant's."""
+    from scipy.interpolate import BSpline
+
     # held constant over the first and last windows: a jump's ends (a start from rest, a log
     # cut anywhere) are where the windows fit worst, and an end coefficient would follow them
     lo, hi = float(w.centre[1]), float(w.centre[-2])

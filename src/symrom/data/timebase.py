@@ -45,7 +45,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy.interpolate import Akima1DInterpolator
 
 from symrom.data.dataset import ON_GRID  # a sample within this fraction of a step of k dt is on the grid
 from symrom.names import BASE_RPY
@@ -165,6 +164,8 @@ def resample_jump(t: np.ndarray, arrays: dict[str, np.ndarray | None], contact: 
     (``q`` (n, 18) with the base angles in columns 15-17; None entries pass through);
     contact (n, 4). Returns the new times (m,), the signals (m, d) and contact (m, 4).
     """
+    from scipy.interpolate import Akima1DInterpolator  # here: scipy.interpolate is slow to import
+
     m = int(np.floor(t[-1] / dt + ON_GRID)) + 1
     grid = np.arange(m) * dt
     out: dict[str, np.ndarray | None] = {}

@@ -18,7 +18,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from symrom.data.dataset import Dataset
 from symrom.names import Q_NAMES
@@ -63,6 +62,8 @@ def fit_to_rollouts(make: Callable[[np.ndarray], Rollable], theta0: np.ndarray, 
     theta0 (k,) start; bounds: (lower, upper) per parameter; resets: the
     multiple-shooting stages, shortest first; stride: use every stride-th sample.
     """
+    from scipy.optimize import least_squares  # here: scipy.optimize is slow to import
+
     comps = tuple(make(np.asarray(theta0, float)).components)
     cols = [Q_NAMES.index(c) for c in comps]
     rows = np.isin(ds.jump, jumps)

@@ -30,7 +30,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.integrate import odeint
 
 from symrom.data.dataset import Dataset
 from symrom.rollout import compiled_lsoda
@@ -156,6 +155,8 @@ def integrate_lsoda(rhs: Callable, args: Callable[[int], tuple], x_true: np.ndar
     bool; limit (2d,) bound on |[x, v]|; rtol, atol: LSODA's tolerances. Returns X, V (n, d), NaN from the first bad
     sample on, and that sample's index (-1 if none).
     """
+    from scipy.integrate import odeint  # here: scipy.integrate is slow to import, and rk4 never needs it
+
     n, d = x_true.shape
     X, V = np.full((n, d), np.nan), np.full((n, d), np.nan)
     y = np.r_[x_true[0], v_true[0]]
