@@ -4,6 +4,7 @@ a run killed midway finishes with --resume."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import signal
@@ -13,24 +14,23 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import _tasks
 import numpy as np
 import pytest
+from _simdata import SEED
+from conftest import one_line_error
 from typer.testing import CliRunner
 
-ray = pytest.importorskip("ray")
+from symrom.cli import app
+from symrom.data.io import write_dataset
+from symrom.execution import RayBackend, WorkerLostError
+from symrom.model.persistence import load_model
+from symrom.sim.generation.generate import GenerateConfig, generate, parts_dir, run_record_path
 
-import _tasks  # noqa: E402
-from _simdata import SEED  # noqa: E402
-from conftest import one_line_error  # noqa: E402
-
-from symrom.cli import app  # noqa: E402
-from symrom.data.io import write_dataset  # noqa: E402
-from symrom.execution import RayBackend, WorkerLostError  # noqa: E402
-from symrom.model.persistence import load_model  # noqa: E402
-from symrom.sim.generation.generate import GenerateConfig, generate, parts_dir, run_record_path  # noqa: E402
-
-# The test helpers are not installed: Ray's workers get them by value.
-ray.cloudpickle.register_pickle_by_value(_tasks)
+# Ray is imported by this file's instance (``ray_address``), not when the file is collected: every
+# worker of the suite collects every file, and Ray's import takes most of a second.
+if importlib.util.find_spec("ray") is None:
+    pytest.skip("could not import 'ray'", allow_module_level=True)
 
 runner = CliRunner()
 # Two jumps, the fewest a run killed after one can resume; in MuJoCo, whose pronk jumps are the
@@ -43,6 +43,10 @@ ENGINE = "mujoco"
 def ray_address():
     """One local Ray instance with 2 CPUs for this file's tests, shut down after them (its
     daemons would otherwise idle beside the rest of the session); its address."""
+    import ray
+
+    # The test helpers are not installed: Ray's workers get them by value.
+    ray.cloudpickle.register_pickle_by_value(_tasks)
     ray.init(num_cpus=2, include_dashboard=False, logging_level="WARNING", log_to_driver=False)
     yield ray.get_runtime_context().gcs_address
     ray.shutdown()

@@ -12,8 +12,8 @@ tiny; threads only add overhead). One torch generator, seeded once, draws the
 initialisation and every mini-batch of the three steps in turn. The losses are
 quadratic (plus the L1 term), so their gradients are written in closed form
 (``recon_grads``, ``sindy_grad``; checked against autograd in the tests) and
-handed to torch's Adam: a mini-batch step is then a few small products instead
-of an autograd graph, which was most of the training's time.
+handed to Adam's update (``AdamStep``, torch's own to the bit): a mini-batch step is then a
+few small products instead of an autograd graph, which was most of the training's time.
 """
 
 from __future__ import annotations
@@ -51,6 +51,39 @@ def _torch():
         raise ImportError("the 'adam' solver needs PyTorch: pip install 'symrom[adam]' "
                           "(torch==2.13.0)") from None
     return torch
+
+
+class AdamStep:
+    """``torch.optim.Adam(params=[param], lr=lr)``'s update of one CPU tensor (its defaults: betas
+    0.9 and 0.999, eps 1e-8, no weight decay, no AMSGrad) in the torch operations and Python
+    scalars of its single-tensor path (the one torch takes for CPU tensors), so the same numbers
+    to the bit (``tests/test_planted.py`` holds it to torch's). Written out because constructing
+    torch's optimizer imports ``torch._dynamo``, 2-3 s of every process that trains with Adam.
+    ``step(grad)`` updates ``param`` in place."""
+
+    BETA1, BETA2, EPS = 0.9, 0.999, 1e-8
+
+    def __init__(self, param, lr: float, torch) -> None:
+        self.param, self.lr = param, lr
+        self.exp_avg = torch.zeros_like(param, memory_format=torch.preserve_format)
+        self.exp_avg_sq = torch.zeros_like(param, memory_format=torch.preserve_format)
+        # torch counts the steps in a scalar tensor of its scalar type (float32 unless the
+        # default type is float64), so do we: the count it reads back is that tensor's
+        scalar = torch.float64 if torch.get_default_dtype() == torch.float64 else torch.float32
+        self.step_t = torch.tensor(0.0, dtype=scalar)
+
+    def step(self, grad) -> None:
+        beta1, beta2 = self.BETA1, self.BETA2
+        self.step_t += 1
+        self.exp_avg.lerp_(grad, 1 - beta1)
+        self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+        step = self.step_t.item()
+        bias_correction1 = 1 - beta1**step
+        bias_correction2 = 1 - beta2**step
+        step_size = self.lr / bias_correction1
+        bias_correction2_sqrt = bias_correction2**0.5
+        denom = (self.exp_avg_sq.sqrt() / bias_correction2_sqrt).add_(self.EPS)
+        self.param.addcdiv_(self.exp_avg, denom, value=-step_size)
 
 
 @contextmanager
@@ -123,13 +156,11 @@ def fit_autoencoder_adam(q_contact: np.ndarray, q_all: np.ndarray, latent_dim: i
         emask = torch.as_tensor(encoder_mask, **f64)
 
         def recon_step(q, start):
-            trained = flat[start:]
-            opt = torch.optim.Adam([trained], lr=config.learning_rate)
+            opt = AdamStep(flat[start:], config.learning_rate, torch)
 
             def step(idx):
                 grads = recon_grads(q[idx], W_e, B_e, W_d, B_d, emask)
-                trained.grad = torch.cat([g.reshape(-1) for g in grads])[start:]
-                opt.step()
+                opt.step(torch.cat([g.reshape(-1) for g in grads])[start:])
             return step
 
         _epochs(qc.shape[0], config.batch_size, ae_epochs, gen, torch, recon_step(qc, 0),
@@ -179,12 +210,11 @@ class Adam(Regressor):
                 Wd = torch.as_tensor(ph.W_d, **f64)
                 Xi = torch.zeros((p, l), **f64)
                 mask = torch.as_tensor(np.repeat(allowed[k][:, None], l, axis=1), **f64)
-                opt = torch.optim.Adam([Xi], lr=ac.learning_rate)
+                opt = AdamStep(Xi, ac.learning_rate, torch)
                 l1 = {"w": ac.l1}
 
                 def sindy_step(idx):
-                    Xi.grad = sindy_grad(theta[idx], ddxi[idx], ddq[idx], Wd, Xi, mask, l1["w"])
-                    opt.step()
+                    opt.step(sindy_grad(theta[idx], ddxi[idx], ddq[idx], Wd, Xi, mask, l1["w"]))
 
                 total = ac.epochs + ac.refine_epochs
 
