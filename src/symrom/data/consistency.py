@@ -89,7 +89,6 @@ def window_ratios(t: np.ndarray, x: np.ndarray, v: np.ndarray, window: float,
     left out. Returns per window kept its first and last row (k, 2), its ratio (k,) (the
     least-squares factor of the change of x over the trapezoidal integral of v) and its
     integral's sum of squares (k,)."""
-
     n = t.size
     rows, ratios, power = [], [], []
     if n < 3:
@@ -225,7 +224,6 @@ def retime_stale(t: np.ndarray, q: np.ndarray, dq: np.ndarray, tau: np.ndarray) 
 def vertical_impulse(where: str, robot: str, t: np.ndarray, q: np.ndarray, dq: np.ndarray,
                      tau: np.ndarray, contact: np.ndarray, limits: ConsistencyLimits) -> list[dict]:
     """The vertical momentum balance of one jump (module docstring); none without a contact row."""
-
     from symrom.data.preprocess import ground_reaction_forces
     from symrom.robots import get_robot
 
