@@ -51,8 +51,8 @@ def main() -> None:
             t = time.perf_counter()
             with torch.no_grad():
                 for s in range(args.steps):
-                    own.step(sindy_grad(theta[batches[s % len(batches)]], ddxi[batches[s % len(batches)]],
-                                        ddq[batches[s % len(batches)]], Wd, Xi, mask, 1e-4))
+                    idx = batches[s % len(batches)]
+                    own.step(sindy_grad(theta[idx], ddxi[idx], ddq[idx], Wd, Xi, mask, 1e-4))
             return (time.perf_counter() - t) / args.steps
         opt = torch.optim.Adam([Xi], lr=1e-3)
         t = time.perf_counter()

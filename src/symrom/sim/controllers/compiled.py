@@ -25,15 +25,16 @@ njit = numba.njit(cache=True)
 # it), and they compile in a fraction of the time of numba's generic implementations (which
 # check, dispatch and copy for any layout and type): seconds of a cold start.
 _F8 = types.CPointer(types.float64)
+# (kind, transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc)
 _gemm = types.ExternalFunction("numba_xxgemm", types.intc(
     types.char, types.char, types.char, types.intp, types.intp, types.intp, _F8, _F8, types.intp, _F8, types.intp,
-    _F8, _F8, types.intp))  # kind, transa, transb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc
+    _F8, _F8, types.intp))
+# (kind, trans, m, n, alpha, a, lda, x, beta, y)
 _gemv = types.ExternalFunction("numba_xxgemv", types.intc(
-    types.char, types.char, types.intp, types.intp, _F8, _F8, types.intp, _F8, _F8, _F8))  # kind, trans, m, n,
-# alpha, a, lda, x, beta, y
+    types.char, types.char, types.intp, types.intp, _F8, _F8, types.intp, _F8, _F8, _F8))
+# (kind, jobz, m, n, a, lda, s, u, ldu, vt, ldvt)
 _gesdd = types.ExternalFunction("numba_ez_gesdd", types.intc(
     types.char, types.char, types.intp, types.intp, _F8, types.intp, _F8, _F8, types.intp, _F8, types.intp))
-# kind, jobz, m, n, a, lda, s, u, ldu, vt, ldvt
 _DOUBLE, _ECONOMY, _CONJ, _NOTRANS, _TRANS = ord("d"), ord("S"), ord("C"), ord("n"), ord("t")
 
 

@@ -60,7 +60,6 @@ def prepare(motion: str, engine: str, helper: bool = True, load: bool = True, pr
     load them themselves): groups already there are not loaded here."""
     wanted = (("motion", motion), ("engine", engine)) + ((("engine", "proxy"),) if proxy else ())
     groups = [g for g in wanted if routines(*g)]  # a plug-in's: none
-
     cold = [g for g in groups if not cached(*g)]
     spare = helper and (os.cpu_count() or 1) > 1
     beside = cold[1:] if spare else []  # the first cold group is compiled here, the rest there
