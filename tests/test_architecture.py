@@ -27,6 +27,7 @@ LAYERS: dict[str, int] = {
     "experiments": 6,
     "report": 7,
     "cli": 8,
+    "__main__": 9,  # ``python -m symrom``: the command line
 }
 # Inside a package (or a subpackage, dotted), the same rule between its modules (or subpackages).
 PACKAGE_LAYERS: dict[str, dict[str, int]] = {

@@ -51,6 +51,16 @@ def test_version_answers_without_the_command_tree():
     assert loaded_app == ["typer"]
 
 
+def test_python_m_symrom_is_the_command():
+    """``python -m symrom`` runs the console script's ``main``: the same version line, and a
+    command's errors leave with the command's exit status."""
+    version = subprocess.run([sys.executable, "-m", "symrom", "--version"], capture_output=True, text=True, timeout=120)
+    assert version.returncode == 0 and version.stdout == _loaded("--version")[0], version
+    bad = subprocess.run([sys.executable, "-m", "symrom", "train", "--help", "--no-such-flag"],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and "no-such-flag" in bad.stderr, bad
+
+
 @pytest.mark.parametrize("args", [("--help",), ("train", "--help"), ("robot", "show", "--help")])
 def test_help_pages_load_neither_rich_nor_pydantic(args):
     """Help pages are click's plain text: rich (and the Markdown parser typer's rich help pulls
