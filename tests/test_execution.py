@@ -85,6 +85,38 @@ def test_symrom_never_imports_ray_on_the_local_back_end(tmp_path):
     assert r.returncode == 0, r.stderr
 
 
+SCRIPT = """import numpy as np
+import _tasks
+from symrom.execution import LocalBackend
+
+def run():
+    big = np.arange(1_000_000.0)  # 8 MB of shared arguments, far more than a pipe holds
+    print(sorted(float(d.value[-1]) for d in LocalBackend(2).map(_tasks.square, [(x, (x,)) for x in range(3)], (big,))))
+
+{call}
+"""
+
+
+@pytest.mark.parametrize("guarded", [False, True])
+def test_a_pool_started_from_a_scripts_top_level_is_refused_not_hung(tmp_path, guarded):
+    """A script that starts workers outside ``if __name__ == "__main__":`` gets one error naming
+    its line (a spawned worker runs the script again; with shared arguments larger than a pipe
+    holds, the pool's start waited for that worker forever); under the guard it runs."""
+    script = tmp_path / "job.py"
+    script.write_text(SCRIPT.format(call='if __name__ == "__main__":\n    run()' if guarded else "run()"))
+    src = str(Path(execution.__file__).parents[1])
+    path = [src, str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
+    if guarded:
+        assert r.returncode == 0 and r.stdout.split("\n")[0] == "[999999.0, 1000000.0, 1000003.0]", r.stderr
+    else:
+        assert r.returncode == 1 and r.stdout == "", r.stderr
+        last = r.stderr.strip().splitlines()[-1]
+        assert last.startswith(f"symrom.execution.BackendError: {script}, line 9: worker processes started") \
+            and "__name__" in last, r.stderr
+
+
 def test_pool_workers_keep_their_threads_to_their_share_of_the_cores():
     """Each of n pool workers runs BLAS and symrom's kernels on cores / n threads: threads that
     outnumber the cores wait for each other."""

@@ -218,6 +218,50 @@ def _mp_context(preload: Sequence[str]):
     return mp.get_context("spawn")
 
 
+def _guarded_lines(path: str) -> list[tuple[int, int]] | None:
+    """The line ranges of ``path``'s ``if __name__ == "__main__":`` blocks; None if the file cannot
+    be read or parsed."""
+    import ast
+
+    try:
+        tree = ast.parse(open(path, encoding="utf-8").read())
+    except (OSError, SyntaxError, ValueError):
+        return None
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and isinstance(t := node.test, ast.Compare) and len(t.ops) == 1 \
+                and isinstance(t.ops[0], ast.Eq):
+            sides = {ast.dump(t.left), ast.dump(t.comparators[0])}
+            if sides == {ast.dump(ast.Name("__name__", ast.Load())), ast.dump(ast.Constant("__main__"))}:
+                out.append((node.lineno, node.end_lineno or node.lineno))
+    return out
+
+
+def check_main_guarded() -> None:
+    """``BackendError`` if this process's main script reaches here from its top level outside
+    ``if __name__ == "__main__":``. A spawned or forkserver worker runs the main script again as
+    it starts, so there the same call would start workers of its own: multiprocessing stops
+    that worker, but the pool's start, which writes the shared arguments to it, would wait for it
+    forever. Nothing is checked where there is no main script (an interactive session, ``-c``)."""
+    import sys
+
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if main is None or not path:
+        return
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None:
+        return
+    line, guarded = frame.f_lineno, _guarded_lines(path)
+    if guarded is not None and not any(a <= line <= b for a, b in guarded):
+        raise BackendError(
+            f"{path}, line {line}: worker processes started from the script's top level, outside "
+            "'if __name__ == \"__main__\":'. Each worker runs the script again as it starts; put the "
+            "script's work under that guard, or run with one worker")
+
+
 class LocalBackend(Backend):
     """Processes on this machine: one worker runs the tasks in this process, more in a process
     pool with at most ``workers`` tasks at once (so a pool that breaks when a worker dies
@@ -243,6 +287,7 @@ class LocalBackend(Backend):
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
+        check_main_guarded()
         pending: deque[Task] = deque(tasks)
         lost: dict[Hashable, list[dict]] = {}
         ctx = _mp_context(preload)
