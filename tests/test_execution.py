@@ -117,6 +117,15 @@ def test_a_pool_started_from_a_scripts_top_level_is_refused_not_hung(tmp_path, g
             and "__name__" in last, r.stderr
 
 
+def test_the_reports_drawing_processes_are_refused_from_a_scripts_top_level_too(tmp_path):
+    script = tmp_path / "draw.py"
+    script.write_text("from symrom.report.context import Drawing\n\nDrawing(2).close()\n")
+    src = str(Path(execution.__file__).parents[1])
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([src, os.environ.get("PYTHONPATH", "")]))
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 1 and f"BackendError: {script}, line 3: worker processes" in r.stderr, r.stderr
+
+
 def test_pool_workers_keep_their_threads_to_their_share_of_the_cores():
     """Each of n pool workers runs BLAS and symrom's kernels on cores / n threads: threads that
     outnumber the cores wait for each other."""

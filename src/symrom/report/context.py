@@ -58,6 +58,10 @@ class Drawing:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
+            from symrom.execution import check_main_guarded
+
+            check_main_guarded()  # each drawing process would run the main script again
+
             self._pool = ProcessPoolExecutor(workers - 1, mp.get_context("spawn"), initializer=_pool_start)
 
     def draw(self, fn, *args, **kwargs) -> Path:

@@ -134,6 +134,9 @@ class Beside:
         if needed and cfg.workers > 1 and (cfg.backend == "local" or not local_only):
             import multiprocessing as mp
 
+            from symrom.execution import check_main_guarded
+
+            check_main_guarded()  # the process beside would run the main script again
             say(f"{what}: beside the rest of the run")
             self.process = mp.get_context("spawn").Process(
                 target=_beside_main, args=(fn, (*args, replace(cfg, workers=1)), nice), daemon=True)
