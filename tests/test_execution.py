@@ -97,18 +97,18 @@ def run():
 """
 
 
-@pytest.mark.parametrize("guarded", [False, True])
-def test_a_pool_started_from_a_scripts_top_level_is_refused_not_hung(tmp_path, guarded):
+@pytest.mark.parametrize("guard", [None, 'if __name__ == "__main__":', 'if True and "__main__" == __name__:'])
+def test_a_pool_started_from_a_scripts_top_level_is_refused_not_hung(tmp_path, guard):
     """A script that starts workers outside ``if __name__ == "__main__":`` gets one error naming
     its line (a spawned worker runs the script again; with shared arguments larger than a pipe
     holds, the pool's start waited for that worker forever); under the guard it runs."""
     script = tmp_path / "job.py"
-    script.write_text(SCRIPT.format(call='if __name__ == "__main__":\n    run()' if guarded else "run()"))
+    script.write_text(SCRIPT.format(call=f"{guard}\n    run()" if guard else "run()"))
     src = str(Path(execution.__file__).parents[1])
     path = [src, str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
-    if guarded:
+    if guard:
         assert r.returncode == 0 and r.stdout.split("\n")[0] == "[999999.0, 1000000.0, 1000003.0]", r.stderr
     else:
         assert r.returncode == 1 and r.stdout == "", r.stderr

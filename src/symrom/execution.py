@@ -219,22 +219,18 @@ def _mp_context(preload: Sequence[str]):
 
 
 def _guarded_lines(path: str) -> list[tuple[int, int]] | None:
-    """The line ranges of ``path``'s ``if __name__ == "__main__":`` blocks; None if the file cannot
-    be read or parsed."""
+    """The line ranges of ``path``'s blocks under an ``if`` that reads ``__name__`` (``if __name__
+    == "__main__":`` and its variants); None if the file cannot be read or parsed."""
     import ast
+    from pathlib import Path
 
     try:
-        tree = ast.parse(open(path, encoding="utf-8").read())
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
     except (OSError, SyntaxError, ValueError):
         return None
-    out = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and isinstance(t := node.test, ast.Compare) and len(t.ops) == 1 \
-                and isinstance(t.ops[0], ast.Eq):
-            sides = {ast.dump(t.left), ast.dump(t.comparators[0])}
-            if sides == {ast.dump(ast.Name("__name__", ast.Load())), ast.dump(ast.Constant("__main__"))}:
-                out.append((node.lineno, node.end_lineno or node.lineno))
-    return out
+    return [(node.lineno, node.end_lineno or node.lineno) for node in ast.walk(tree)
+            if isinstance(node, ast.If) and any(isinstance(n, ast.Name) and n.id == "__name__"
+                                                for n in ast.walk(node.test))]
 
 
 def check_main_guarded() -> None:
@@ -242,7 +238,8 @@ def check_main_guarded() -> None:
     ``if __name__ == "__main__":``. A spawned or forkserver worker runs the main script again as
     it starts, so there the same call would start workers of its own: multiprocessing stops
     that worker, but the pool's start, which writes the shared arguments to it, would wait for it
-    forever. Nothing is checked where there is no main script (an interactive session, ``-c``)."""
+    forever. Nothing is checked where there is no main script file (an interactive session,
+    ``-c``) or where the script's code is not its file's (``exec``)."""
     import sys
 
     main = sys.modules.get("__main__")
@@ -252,7 +249,7 @@ def check_main_guarded() -> None:
     frame = sys._getframe(1)
     while frame is not None and not (frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>"):
         frame = frame.f_back
-    if frame is None:
+    if frame is None or os.path.abspath(frame.f_code.co_filename) != os.path.abspath(path):
         return
     line, guarded = frame.f_lineno, _guarded_lines(path)
     if guarded is not None and not any(a <= line <= b for a, b in guarded):
