@@ -235,7 +235,7 @@ def show_cmd(
 
     check_engine(engine)
     if out.exists() and any(out.glob(f"jump_{jump:04d}_t*.png")) and not force:
-        raise FileExistsError(f"{out} already holds frames of jump {jump}; use --force to overwrite them")
+        raise FileExistsError(f"{out} already holds frames of jump {jump}; pass --force to overwrite them")
     check_writable(out, inside=True)
     ds = read_dataset(data)
     with console.status(f"rendering jump {jump}"):

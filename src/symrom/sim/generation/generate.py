@@ -198,7 +198,7 @@ def check_output(out: str | os.PathLike, resume: bool, force: bool) -> Path:
     interrupted run left parts beside it (without ``resume`` or ``force``)."""
     out = Path(out)
     if out.exists() and not force:
-        raise GenerationError(f"{out} exists; use force=True to overwrite it")
+        raise GenerationError(f"{out} exists; pass force=True to overwrite it")
     parts = parts_dir(out)
     if parts.exists() and not resume and not force:
         raise GenerationError(f"{parts} holds an interrupted run; use resume=True to continue "
