@@ -205,19 +205,6 @@ def _local_task(fn: Callable, args: tuple) -> tuple[Any, float, str]:
     return run_task(fn, _SHARED["args"], args)
 
 
-def _mp_context(preload: Sequence[str]):
-    """Fresh worker processes: forkserver with ``preload`` imported once where there is one
-    (and something to preload), else spawn, safe with threaded BLAS and torch. Plain fork
-    could inherit locks held by the caller's threads (e.g. a progress bar)."""
-    import multiprocessing as mp
-
-    if preload and "forkserver" in mp.get_all_start_methods():
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(list(preload))
-        return ctx
-    return mp.get_context("spawn")
-
-
 def _guarded_lines(path: str) -> list[tuple[int, int]] | None:
     """The line ranges of ``path``'s blocks under an ``if`` that reads ``__name__`` (``if __name__
     == "__main__":`` and its variants); None if the file cannot be read or parsed."""
@@ -259,6 +246,22 @@ def check_main_guarded() -> None:
             "script's work under that guard, or run with one worker")
 
 
+def process_context(preload: Sequence[str] = ()):
+    """The multiprocessing context of fresh worker processes: forkserver with ``preload``
+    imported once where there is one (and something to preload), else spawn, safe with threaded
+    BLAS and torch (plain fork could inherit locks held by the caller's threads, e.g. a progress
+    bar). Either runs the main script again in each worker, so a call from its unguarded top
+    level is refused first (``check_main_guarded``)."""
+    import multiprocessing as mp
+
+    check_main_guarded()
+    if preload and "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(list(preload))
+        return ctx
+    return mp.get_context("spawn")
+
+
 class LocalBackend(Backend):
     """Processes on this machine: one worker runs the tasks in this process, more in a process
     pool with at most ``workers`` tasks at once (so a pool that breaks when a worker dies
@@ -284,10 +287,9 @@ class LocalBackend(Backend):
         from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
-        check_main_guarded()
         pending: deque[Task] = deque(tasks)
         lost: dict[Hashable, list[dict]] = {}
-        ctx = _mp_context(preload)
+        ctx = process_context(preload)
         while pending:
             n = min(self.workers, len(pending))
             with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=_init_local,

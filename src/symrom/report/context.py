@@ -55,14 +55,11 @@ class Drawing:
     def __init__(self, workers: int = 1) -> None:
         self.workers, self._pool, self._pending = workers, None, []
         if workers > 1:
-            import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor
 
-            from symrom.execution import check_main_guarded
+            from symrom.execution import process_context
 
-            check_main_guarded()  # each drawing process would run the main script again
-
-            self._pool = ProcessPoolExecutor(workers - 1, mp.get_context("spawn"), initializer=_pool_start)
+            self._pool = ProcessPoolExecutor(workers - 1, process_context(), initializer=_pool_start)
 
     def draw(self, fn, *args, **kwargs) -> Path:
         """``fn(*args, **kwargs)``, a figure of ``symrom.report.figures`` (it writes its ``path``

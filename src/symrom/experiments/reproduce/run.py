@@ -132,13 +132,11 @@ class Beside:
                  local_only: bool = True, needed: bool = True) -> None:
         self.what, self.fn, self.args, self.cfg, self.say, self.process = what, fn, args, cfg, say, None
         if needed and cfg.workers > 1 and (cfg.backend == "local" or not local_only):
-            import multiprocessing as mp
+            from symrom.execution import process_context
 
-            from symrom.execution import check_main_guarded
-
-            check_main_guarded()  # the process beside would run the main script again
+            ctx = process_context()
             say(f"{what}: beside the rest of the run")
-            self.process = mp.get_context("spawn").Process(
+            self.process = ctx.Process(
                 target=_beside_main, args=(fn, (*args, replace(cfg, workers=1)), nice), daemon=True)
             self.process.start()
 
