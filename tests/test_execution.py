@@ -126,6 +126,41 @@ def test_the_reports_drawing_processes_are_refused_from_a_scripts_top_level_too(
     assert r.returncode == 1 and f"BackendError: {script}, line 3: worker processes" in r.stderr, r.stderr
 
 
+PRESTART = """import os, sys, time
+import _tasks
+from symrom.execution import LocalBackend
+
+if __name__ == "__main__":
+    backend = LocalBackend(int(sys.argv[1]))
+    backend.prestart(["_marked"])
+    deadline = time.monotonic() + 60
+    while not os.path.exists(os.environ["MARK"]) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    print(os.path.exists(os.environ["MARK"]))
+    print(sorted(d.value for d in backend.map(_tasks.square, [(x, (x,)) for x in range(3)], (1,), preload=["_marked"])))
+"""
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_prestart_imports_the_preload_before_the_first_map(tmp_path, workers):
+    """``prestart`` starts the workers' fork server at once: it has imported the preload before
+    ``map`` is called (the marker module writes its file as it is imported), and the map then
+    gives its results. One worker runs the tasks in the caller: nothing is started."""
+    (tmp_path / "_marked.py").write_text("import os\nopen(os.environ['MARK'], 'w').close()\n")
+    script = tmp_path / "job.py"
+    script.write_text(PRESTART)
+    mark = tmp_path / "imported"
+    src = str(Path(execution.__file__).parents[1])
+    path = [src, str(Path(__file__).parent), str(tmp_path), os.environ.get("PYTHONPATH", "")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path), MARK=str(mark))
+    if workers == 1:  # nothing started: the wait runs to its end, so a short one
+        script.write_text(PRESTART.replace("60", "1"))
+    r = subprocess.run([sys.executable, str(script), str(workers)], capture_output=True, text=True, timeout=120,
+                       env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(workers > 1), "[1,", "2,", "5]"], r.stdout
+
+
 def test_pool_workers_keep_their_threads_to_their_share_of_the_cores():
     """Each of n pool workers runs BLAS and symrom's kernels on cores / n threads: threads that
     outnumber the cores wait for each other."""

@@ -102,6 +102,10 @@ class Backend(ABC):
     def close(self) -> None:  # noqa: B027 (optional: only back ends that acquire something override it)
         """Release what ``start`` acquired."""
 
+    def prestart(self, preload: Sequence[str] = ()) -> None:  # noqa: B027 (optional, as ``close``)
+        """Begin making the workers of a coming ``map`` with ``preload`` now, so that their start
+        runs beside the caller's own work before it; nothing where there is nothing to begin."""
+
     def __enter__(self) -> Backend:
         return self.start()
 
@@ -271,6 +275,17 @@ class LocalBackend(Backend):
 
     def __init__(self, workers: int = 1, max_retries: int = DEFAULT_MAX_RETRIES) -> None:
         super().__init__(int(workers), max_retries)
+
+    def prestart(self, preload: Sequence[str] = ()) -> None:
+        """Start the workers' fork server now, importing ``preload``: a pool's first worker
+        otherwise waits for those imports after the caller's own work. Nothing for one worker,
+        without ``preload`` or where there is no fork server (the pool then starts as before)."""
+        if self.workers > 1 and preload:
+            ctx = process_context(preload)
+            if ctx.get_start_method() == "forkserver":
+                from multiprocessing import forkserver
+
+                forkserver.ensure_running()
 
     def map(self, fn: Callable, tasks: Iterable[Task], shared: tuple = (), *, label: str = "task",
             preload: Sequence[str] = ()) -> Iterator[Done]:

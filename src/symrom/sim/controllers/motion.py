@@ -31,6 +31,9 @@ from symrom.sim.engines.registry import make_world
 from symrom.sim.engines.world import RobotState, World, WorldConfig
 from symrom.sim.proxy import ProxyWorld
 
+# The QP solvers of a motion's MPC (``make_controller``'s ``mpc_solver``; ``symrom.sim.controllers.mpc``)
+QP_SOLVERS = ("osqp", "daqp")
+
 
 @dataclass(frozen=True)
 class PushCommand:
@@ -81,7 +84,7 @@ class Motion(Protocol):
 
     def make_controller(self, robot: str, params: Any, mpc_solver: str = "osqp") -> Controller:
         """A fresh controller for one jump; mpc_solver: the QP solver of its MPC, if it has one
-        (``symrom.sim.controllers.mpc.QP_SOLVERS``; ``GenerateConfig.mpc_solver``)."""
+        (``QP_SOLVERS``; ``GenerateConfig.mpc_solver``)."""
 
     def source(self, params: Any) -> str:
         """The dataset's ``source`` for jumps with ``params``: ``sim`` or ``proxy``."""

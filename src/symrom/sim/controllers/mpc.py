@@ -45,6 +45,7 @@ import numpy as np
 
 from symrom.names import GRAVITY
 from symrom.sim.controllers.compiled import clip_forces, condensed_qp
+from symrom.sim.controllers.motion import QP_SOLVERS
 
 if TYPE_CHECKING:
     import osqp
@@ -52,7 +53,6 @@ if TYPE_CHECKING:
 
 N_X = 13  # state size
 N_U = 12  # 4 feet x 3 force components
-QP_SOLVERS = ("osqp", "daqp")
 MOVING = np.arange(6, 12)  # the rows of Bc that hold the inputs (omega and v); the rest are 0
 
 

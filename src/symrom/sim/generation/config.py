@@ -77,7 +77,7 @@ class GenerateConfig:
     has at least ``runner.DRAWN_ATTEMPTS``: a draw that fails is replaced); engine: the physics engine
     (``symrom.sim.engines.registry.ENGINES``); splits: (train, val, test) jump counts, None for the
     motion's (``generate.split_counts``); mpc_solver: the QP solver of a motion's MPC
-    (``symrom.sim.controllers.mpc.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
+    (``symrom.sim.controllers.motion.QP_SOLVERS``: ``osqp`` or ``daqp``; motions without an MPC ignore it),
     None for the engine's (``MPC_SOLVER``), which is what the file records; log_faults: the
     jumps are logged with a real robot's log faults (``symrom.sim.proxy.LogFaults``: a slow or
     wobbling loop, velocities and torques off, a height offset, a contact lag), one robot's

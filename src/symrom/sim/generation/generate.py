@@ -34,7 +34,7 @@ from symrom.execution import Backend, LocalBackend
 from symrom.motions import MOTIONS, UnknownMotionError, get_motion
 from symrom.names import SPLITS
 from symrom.robots import ROBOTS, RobotDescriptionError, get_robot, robot_key
-from symrom.sim.controllers.mpc import QP_SOLVERS
+from symrom.sim.controllers.motion import QP_SOLVERS
 from symrom.sim.engines.registry import EngineRobotError, UnknownEngineError, check_engine, engine_module
 from symrom.sim.generation.config import GENERATOR_VERSION, GenerateConfig, NoiseConfig
 from symrom.sim.generation.parts import jsonable, part_path, parts_dir, read_part, write_part
@@ -145,8 +145,10 @@ def _preload(cfg: GenerateConfig) -> list[str]:
 
 def _prepare(cfg: GenerateConfig, backend: Backend) -> None:
     """On local processes, the compiled routines of the jumps made ready before the first: in
-    this process for one worker, on the disk for the workers' fork server to load (a cold cache
-    compiled once, by two processes, rather than by every worker or inside the first jump)."""
+    this process for one worker, on the disk for the workers (a cold cache compiled once, by two
+    processes, rather than by every worker or inside the first jump): their fork server, started
+    beside this (``Backend.prestart``), loads what the disk cache held as it started, each worker
+    the rest on its first jump."""
     if isinstance(backend, LocalBackend):
         import importlib
 
@@ -156,6 +158,9 @@ def _prepare(cfg: GenerateConfig, backend: Backend) -> None:
         if backend.workers == 1:  # the tasks run here: what a worker imports before its first (``_preload``)
             for module in _preload(cfg)[:-1]:
                 importlib.import_module(module)
+        else:  # what the dataset's assembly and writing import, while the workers' server starts
+            import h5py  # noqa: F401
+            import scipy.linalg  # noqa: F401
 
 
 def run_record_path(out: str | os.PathLike) -> Path:
@@ -259,6 +264,8 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     say(done, total, {"resumed": len(have)})
     fingerprint = cfg.fingerprint()
     tasks = [(j, (j,)) for j in todo]
+    if len(tasks) > 1:
+        backend.prestart(_preload(cfg))
     if tasks:
         _prepare(cfg, backend)
     for task in backend.map(run_checked_jump, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
