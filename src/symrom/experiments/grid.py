@@ -57,11 +57,12 @@ GridProgress = Callable[[int, int, Any, Any], None]
 
 def run_grid(cells: Sequence[Hashable], task: Callable, args: tuple, backend: Backend, label: str,
              store: Store | None = None, order: Callable[[Any], Any] | None = None,
-             progress: GridProgress | None = None) -> GridRun:
+             progress: GridProgress | None = None, preload: Sequence[str] = ()) -> GridRun:
     """``task(*args, *cell)`` for every cell (a tuple) on ``backend``; with ``store``, the
     cells stored with a matching key are reused and every cell run is stored as it
     finishes (strict JSON, atomically). ``order``: sort key of the cells to run (e.g. the
-    longest first, so that the workers stay busy to the end)."""
+    longest first, so that the workers stay busy to the end); ``preload``: modules a fresh
+    worker imports before its first cell (``Backend.map``)."""
     tell = progress or (lambda done, total, cell, t: None)
     results: dict[Any, Any] = {}
     todo = []
@@ -75,7 +76,7 @@ def run_grid(cells: Sequence[Hashable], task: Callable, args: tuple, backend: Ba
     if order is not None:
         todo.sort(key=order)
     retries = {}
-    for t in backend.map(task, [(c, c) for c in todo], args, label=label):
+    for t in backend.map(task, [(c, c) for c in todo], args, label=label, preload=preload):
         results[t.key] = t.value
         retries[t.key] = t.retries
         if store is not None:
