@@ -133,7 +133,7 @@ from symrom.execution import LocalBackend
 if __name__ == "__main__":
     backend = LocalBackend(int(sys.argv[1]))
     backend.prestart(["_marked"])
-    deadline = time.monotonic() + 60
+    deadline = time.monotonic() + float(sys.argv[2])
     while not os.path.exists(os.environ["MARK"]) and time.monotonic() < deadline:
         time.sleep(0.05)
     print(os.path.exists(os.environ["MARK"]))
@@ -153,10 +153,9 @@ def test_prestart_imports_the_preload_before_the_first_map(tmp_path, workers):
     src = str(Path(execution.__file__).parents[1])
     path = [src, str(Path(__file__).parent), str(tmp_path), os.environ.get("PYTHONPATH", "")]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(path), MARK=str(mark))
-    if workers == 1:  # nothing started: the wait runs to its end, so a short one
-        script.write_text(PRESTART.replace("60", "1"))
-    r = subprocess.run([sys.executable, str(script), str(workers)], capture_output=True, text=True, timeout=120,
-                       env=env)
+    wait = "60" if workers > 1 else "1"  # one worker starts nothing: the wait runs to its end
+    r = subprocess.run([sys.executable, str(script), str(workers), wait], capture_output=True, text=True,
+                       timeout=120, env=env)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == [str(workers > 1), "[1,", "2,", "5]"], r.stdout
 

@@ -240,8 +240,8 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
 
     cells = [(d, s) for d in config.latent_dims for s in config.seeds]
     # Large dimensions first: they take longest, so the workers stay busy to the end.
-    # The workers fork from a server that has imported this module (the selection's, where one
-    # ran first in this process) rather than each starting Python and importing symrom.
+    # The workers fork from the process's fork server, which has imported this module (or, if an
+    # earlier pool started it, they import it on their first cell), instead of starting Python.
     grid = run_grid(cells, run_cell, (ds, config), backend or LocalBackend(config.workers), "sweep cell", store,
                     order=lambda c: (-c[0], c[1]), progress=told, preload=("symrom.experiments.sweep",))
     result = summarise(grid.results, config, sha)
