@@ -140,13 +140,20 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     """``train --select``: the validation selection, its table and the chosen model. Each
     finished cell of the grid is kept in ``OUT.parts`` until the outputs are written, so
     that ``--resume`` continues an interrupted selection."""
+    from symrom.experiments import SELECT_WORKER_MODULES
+
+    # Local workers: their fork server imports the selection beside this process's own imports
+    # (a cluster is connected to only after the checks below).
+    runner = start_backend(backend, workers, address) if backend == "local" else None
+    if runner is not None:
+        runner.prestart(SELECT_WORKER_MODULES)
     from symrom.experiments.select import SelectionConfig, check_parts, parts_done, select_into
     from symrom.experiments.sweep import parse_latent_dims
 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers,
                           max_terms=max_terms, **({} if invariant is None else {"invariant": invariant}))
     parts = check_parts(out, resume, force, inputs=(data,))  # before connecting to a cluster
-    runner = start_backend(backend, workers, address)
+    runner = runner or start_backend(backend, workers, address)
     try:
         with progress_bar("selection", total=len(cfg.cells()) + cfg.refine_top) as bar:
             sel = select_into(out, data, cfg, resume=resume, force=force, backend=runner,

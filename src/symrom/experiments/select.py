@@ -121,6 +121,7 @@ from symrom.evaluate.metrics import evaluate_model
 from symrom.evaluate.switching import predicted_rollout, switching_errors
 from symrom.evaluate.usability import integrator_check, physics_check
 from symrom.execution import HELPER_TIMEOUT, Backend, LocalBackend, wait_helper
+from symrom.experiments import SELECT_WORKER_MODULES
 from symrom.experiments.grid import Store, run_grid
 from symrom.learn.encoders import check_invariant, unit_floored
 from symrom.learn.training import TrainConfig, data_hash, train
@@ -697,11 +698,6 @@ def check_splits(ds: Dataset) -> None:
         raise ValueError("selection needs 'train' and 'val' jumps (the test split is never read)")
 
 
-# What a local worker imports once, in the pool's fork server: the cells' and the refinements'
-# tasks, so that the refinements' workers, forked from the same server, start with them
-WORKER_MODULES = ("symrom.experiments.select",)
-
-
 def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
            progress: SelectProgress | None = None, backend: Backend | None = None,
            cells_dir: str | Path | None = None) -> Selection:
@@ -719,7 +715,7 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     t0 = time.perf_counter()
     say = progress or (lambda done, total, what: None)
     backend = backend or LocalBackend(cfg.workers)
-    backend.prestart(WORKER_MODULES)  # the workers' imports beside the hash and the steps below
+    backend.prestart(SELECT_WORKER_MODULES)  # the workers' imports beside the hash and the steps below
     sha = data_hash(ds)
     steps = plan_steps(ds, cfg.substeps)
     cells = cfg.cells()
@@ -732,7 +728,7 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
         path=lambda c: cell_path(cells_dir, c), key=lambda c: cell_key(cfg, sha, c, steps),
         record=lambda c, rows, key, execution: {"key": key, "cell": list(c), "rows": rows, "execution": execution},
         value=lambda stored: stored["rows"])
-    grid = run_grid(cells, run_cell, (ds, cfg, steps), backend, "selection cell", store, preload=WORKER_MODULES,
+    grid = run_grid(cells, run_cell, (ds, cfg, steps), backend, "selection cell", store, preload=SELECT_WORKER_MODULES,
                     progress=lambda done, n, c, task: say(done, total, f"{c[0]} l={c[1]}"
                                                           + (" (reused)" if task is None else "")))
     rows: list[dict] = [r for c in cells for r in grid.results[c]]
@@ -756,7 +752,7 @@ def select(ds: Dataset, cfg: SelectionConfig = SelectionConfig(),
     # The refinements take longest: the densest first, so that the workers stay busy to the end.
     terms = {p: rows[i]["active_terms"] for p, i in zip(picks, idx)}
     refined = run_grid(picks, run_refinement, (ds, cfg, steps), backend, "selection refinement", rstore,
-                       preload=WORKER_MODULES,
+                       preload=SELECT_WORKER_MODULES,
                        order=lambda p: -terms[p],
                        progress=lambda done, n, p, task: say(len(cells) + done, total,
                                                              f"refined {p[0]} l={p[1]} {p[2]} {p[3]:g}"
