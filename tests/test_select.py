@@ -141,6 +141,14 @@ def test_cli_train_select(small_block, tmp_path):
     assert r.exit_code == 0, r.output
     assert {p.name for p in (tmp_path / "m").iterdir()} == {"model.json", "selection.json", "equations.txt"}
     assert "chosen of" in r.output
+    # on two local workers (their fork server started before the command imports the selection)
+    # the table is the same
+    r = CliRunner().invoke(app, ["train", str(data), "--select", "--select-dims", "2", "--workers", "2",
+                                 "--out", str(tmp_path / "m2")])
+    assert r.exit_code == 0, r.output
+    one, two = (json.loads((tmp_path / d / "selection.json").read_text()) for d in ("m", "m2"))
+    assert _table(two["rows"]) == _table(one["rows"]) and two["chosen"] == one["chosen"]
+    assert two["execution"]["workers"] == 2
     # explicit settings --select would not use are refused, before any work
     one_line_error(CliRunner().invoke(app, ["train", str(data), "--select", "--threshold", "0.05", "--no-trig",
                                             "--out", str(tmp_path / "ignored")]),
