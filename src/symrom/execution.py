@@ -11,6 +11,8 @@ worker's disk.
 - ``LocalBackend(workers)``: today's behaviour. One worker runs the tasks in
   this process; more run them in a process pool (spawn, or forkserver with
   ``preload`` modules imported once), at most ``workers`` at a time.
+  ``prestart(preload)`` starts that fork server before the first ``map``, so
+  that its imports run beside the caller's work.
 - ``RayBackend(address, workers)``: ``ray.remote`` tasks on the cluster at
   ``address`` (or ``$RAY_ADDRESS``, or a cluster started on this machine with
   ``ray start``; else a new Ray instance here). Ray is an optional extra

@@ -153,7 +153,8 @@ def _train_select(data: Path, out: Path, select_dims: str, workers: int | None, 
     cfg = SelectionConfig(latent_dims=parse_latent_dims(select_dims), workers=1 if workers is None else workers,
                           max_terms=max_terms, **({} if invariant is None else {"invariant": invariant}))
     parts = check_parts(out, resume, force, inputs=(data,))  # before connecting to a cluster
-    runner = runner or start_backend(backend, workers, address)
+    if runner is None:
+        runner = start_backend(backend, workers, address)
     try:
         with progress_bar("selection", total=len(cfg.cells()) + cfg.refine_top) as bar:
             sel = select_into(out, data, cfg, resume=resume, force=force, backend=runner,
