@@ -243,7 +243,7 @@ def run_sweep(ds: Dataset, config: SweepConfig, out: str | Path,
     # The workers fork from the process's fork server, which has imported this module (or, if an
     # earlier pool started it, they import it on their first cell), instead of starting Python.
     grid = run_grid(cells, run_cell, (ds, config), backend or LocalBackend(config.workers), "sweep cell", store,
-                    order=lambda c: (-c[0], c[1]), progress=told, preload=("symrom.experiments.sweep",))
+                    order=lambda c: (-c[0], c[1]), progress=told, preload=(__name__,))
     result = summarise(grid.results, config, sha)
     write_text_atomic(out / "sweep.json", json.dumps(result, indent=1) + "\n")
     return result

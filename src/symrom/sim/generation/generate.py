@@ -264,11 +264,12 @@ def generate(config: GenerateConfig, out: str | os.PathLike, *, workers: int = 1
     say(done, total, {"resumed": len(have)})
     fingerprint = cfg.fingerprint()
     tasks = [(j, (j,)) for j in todo]
+    preload = _preload(cfg)
     if len(tasks) > 1:
-        backend.prestart(_preload(cfg))
+        backend.prestart(preload)
     if tasks:
         _prepare(cfg, backend)
-    for task in backend.map(run_checked_jump, tasks, (cfg,), label="generate jump", preload=_preload(cfg)):
+    for task in backend.map(run_checked_jump, tasks, (cfg,), label="generate jump", preload=preload):
         log, record = task.value
         execution = {"seconds": round(task.seconds, 4), "worker": task.worker, "retries": task.retries}
         write_part(part_path(parts, task.key), log, record, fingerprint, execution)
