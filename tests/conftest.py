@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import atexit
+import json
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from symrom.atomic import write_text_atomic
 from symrom.execution import THREADS_ENV, limit_threads
 from symrom.testing import make_planted_dataset
 
@@ -40,6 +43,48 @@ def _session_folder(env: str, prefix: str) -> None:
 _session_folder("SYMROM_CACHE_DIR", "symrom-tests-cache-")
 # The simulated datasets the tests share (tests/_simdata.py), made once for every worker of a run.
 _session_folder("SYMROM_TESTS_SHARED", "symrom-simtests-shared-")
+
+
+# Seconds each test file took (setup, call and teardown of its tests) on a run of the whole suite:
+# pytest-xdist's ``--dist loadfile`` hands the files out in this order, longest first, so that the
+# last ones are short and both workers finish together (by default it orders them by their number
+# of tests, and a one-test file of eight seconds may come last). Files not listed go first.
+# ``pytest --record-file-durations tests/durations.json`` writes it anew.
+_DURATIONS = Path(__file__).with_name("durations.json")
+
+
+def pytest_addoption(parser):
+    parser.addoption("--record-file-durations", metavar="FILE", default=None,
+                     help="write the seconds each test file took to FILE (JSON), for the order of later runs")
+
+
+class _FileSeconds:
+    """Adds up each test file's seconds from the reports of every worker (in the process that
+    starts the run) and writes them to ``out`` at the end."""
+
+    def __init__(self, out: str):
+        self.out, self.seconds = Path(out), {}
+
+    def pytest_runtest_logreport(self, report):
+        file = report.nodeid.split("::")[0]
+        self.seconds[file] = self.seconds.get(file, 0.0) + report.duration
+
+    def pytest_sessionfinish(self):
+        seconds = {f: round(s, 1) for f, s in sorted(self.seconds.items())}
+        write_text_atomic(self.out, json.dumps(seconds, indent=1) + "\n")
+
+
+def pytest_configure(config):
+    if hasattr(config.option, "loadscopereorder"):
+        config.option.loadscopereorder = False  # the order below, not xdist's count of tests
+    out = config.getoption("--record-file-durations")
+    if out and "PYTEST_XDIST_WORKER" not in os.environ:
+        config.pluginmanager.register(_FileSeconds(out), "symrom-file-seconds")
+
+
+def pytest_collection_modifyitems(config, items):
+    seconds = json.loads(_DURATIONS.read_text()) if _DURATIONS.is_file() else {}
+    items.sort(key=lambda item: -seconds.get(item.nodeid.split("::")[0], float("inf")))
 
 
 @pytest.fixture(scope="session")
