@@ -9,7 +9,7 @@ import pytest
 from test_plan import DAMP_X, G_C, GAIN_X, GAIN_Z, PLANTED, X, Z, planted_model
 
 from symrom.plan.dynamics import GRAVITY, LearnedDynamics
-from symrom.plan.problem import JumpPlanner, Stance
+from symrom.plan.problem import JumpPlanner, Release, Stance
 from symrom.plan.replan import Replanner
 
 Z_LO = 0.33
@@ -91,6 +91,33 @@ def test_replanning_keeps_the_plan_when_nothing_is_disturbed(planted_nlp):
                 replan=lambda s, tau: rp.step(s, tau))
     assert abs(x - target) < 2e-3
     assert np.allclose(rp.stats.landing_x, target, atol=2e-3)  # each re-plan still predicts the target
+
+
+def test_a_release_after_the_push_is_planned_and_replanned(planted_nlp):
+    """A world whose feet leave only after a release (10 ms under a fixed pull, as a pronk's held
+    legs read in its data): a plan that carries the release (``Release``) lands there open loop, its
+    re-plans each predict the target, and its closed loop lands too; the plan without the release
+    lifts off at the height the world's release begins at and lands short."""
+    release = Release(0.01, (10.0, -60.0))
+    nlp = JumpPlanner(LearnedDynamics(PLANTED, np.eye(2)), mass=13.0, release=release)
+    target = 0.3
+
+    def world(force_at, end_at, replan=None):
+        return _run(lambda tau: force_at(tau) if tau < end_at() else np.array(release.force),
+                    lambda: end_at() + release.duration, 1.0, replan=replan)
+
+    plan = _plan(nlp, target)
+    x, _ = world(plan.force_at, lambda: plan.t_stance)
+    assert abs(x - target) < 2e-3
+    rp = Replanner(nlp)
+    rp.begin(plan, target, plan.x0, Z_LO, Z_LO, None, 0.43)
+    x, n = world(lambda tau: rp.schedule.force_at(tau), lambda: rp.schedule.end,
+                 replan=lambda s, tau: rp.step(s, tau) if tau < rp.schedule.end else None)
+    assert n >= 10 and abs(x - target) < 2e-3
+    assert np.allclose(rp.stats.landing_x, target, atol=2e-3)
+    unaware = _plan(planted_nlp, target)
+    x, _ = world(unaware.force_at, lambda: unaware.t_stance)
+    assert x - target < -0.005
 
 
 def test_replan_is_fast(planted_nlp):

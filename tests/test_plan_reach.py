@@ -149,6 +149,15 @@ def test_the_envelope_of_planted_jumps():
     assert pushed["phases"]["contact"]["max"] == pytest.approx([11.0, 300.0, -2.0])
     assert jump_envelope(ds, [0])["push_wrench"]["phases"]["contact"]["max"] == pytest.approx([10.0, 250.0, -3.0])
     assert jump_envelope(ds, []) is None
+    assert env["release"] is None  # no row of the push pulls the base down
+    # the release: the push's last rows pull down (fz < 0), 5 rows on jump 0 and 4 on jump 1
+    for j, (n_rel, fx, fz) in enumerate(((5, 8.0, -50.0), (4, 12.0, -70.0))):
+        rel = (jump == j) & (np.arange(N) % 300 >= 150 - n_rel) & (np.arange(N) % 300 < 150)
+        u[rel, 12], u[rel, 14] = fx, fz
+    released = jump_envelope(ds, [0, 1])["release"]
+    assert released["s"] == pytest.approx(4 * 0.002) and released["phase"] == "contact"  # floor of the median 4.5
+    assert released["force_n"] == pytest.approx([10.0, -60.0])
+    assert jump_envelope(ds, [0])["release"]["s"] == pytest.approx(5 * 0.002)
 
 
 def test_a_learned_pronk_lifts_off_and_lands_at_its_training_jumps_heights():
@@ -178,3 +187,27 @@ def test_a_learned_pronk_lifts_off_and_lands_at_its_training_jumps_heights():
     assert plan.success and plan.nodes[learned.nlp._n_knots][1] == pytest.approx(0.345, abs=1e-6)
     with pytest.raises(ValueError, match="heights must be positive"):
         make_planner("point-mass", "go1", heights=(0.33, float("nan")))
+
+
+def test_a_learned_pronk_plans_its_training_jumps_release():
+    """A learned model's pronk on its own robot follows its planned push with its envelope's
+    release (``training_release``); none without one, on another robot, or for a baseline not
+    given it; a baseline given it takes it (the benchmark's same care). The plan's push then ends
+    below the lift-off height, which the release reaches."""
+    from symrom.plan.jump import make_planner, training_release
+    from symrom.plan.problem import Release
+
+    env = {**ENVELOPE, "liftoff_z_m": 0.345, "touchdown_z_m": 0.347,
+           "release": {"s": 0.01, "force_n": [10.0, -60.0], "phase": "contact"}}
+    model = planted_model(*GO1_LIKE, info={"envelope": env})
+    assert training_release(model) == Release(0.01, (10.0, -60.0))
+    learned = make_planner("learned", "go1", model=model)
+    assert learned.nlp.release == Release(0.01, (10.0, -60.0))
+    assert make_planner("learned", "go1", model=planted_model(*GO1_LIKE)).nlp.release is None
+    assert make_planner("learned", "a1", model=model).nlp.release is None
+    assert make_planner("point-mass", "go1").nlp.release is None
+    assert make_planner("point-mass", "go1", release=training_release(model)).nlp.release == learned.nlp.release
+    plan = learned.plan(learned.motion.q_crouch, np.zeros(18), 0.2)
+    assert plan.success and plan.nodes[learned.nlp._n_knots][1] < 0.345 - 1e-3
+    with pytest.raises(ValueError, match="positive length"):
+        Release(0.0, (10.0, -60.0))

@@ -11,7 +11,14 @@ hold. Per jump, its main flight (the longest run of ``flight`` rows) and:
 - the base height at lift-off (the flight's first row) and at touchdown;
 - push: the time from the push start to lift-off, s;
 - the ground wrench the push's feet exerted (the input's forward and vertical force and pitch
-  moment, ``push_wrench``), per contact phase, over its rows from the push start to lift-off.
+  moment, ``push_wrench``), per contact phase, over its rows from the push start to lift-off;
+- the release (``release``): the last rows before lift-off whose input pulls the base down
+  (vertical force below zero). A pronk's controller ends its push by holding the legs without
+  ground force while the feet leave, and the torques that catch the legs up to the trunk read, in
+  the input derived from them, as a pull on it (about -60 N on the Go1, 8-10 ms): the trunk keeps
+  rising and slows down faster than a free fall before its flight begins. Its length is the median
+  over the jumps and its force (forward, vertical) the median of the releasing jumps' means;
+  none where most jumps have no such rows (the froggy's flight follows its push at once).
 
 A jump without a flight, or whose flight runs to its last row, is left out.
 Units: m, s, N, N m.
@@ -39,13 +46,16 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
     ``jumps`` (how many had a landed flight), ``travel_x_m`` and ``apex_z_m`` [min, max],
     ``liftoff_z_m`` and ``touchdown_z_m`` (medians), ``push_s`` [min, max], ``push_wrench``:
     {"components": ``WRENCH``, "phases": {phase: {"min": (3,), "max": (3,)}}} over the push rows
-    of each phase; None if no jump has a landed flight or the dataset has no ``flight`` phase."""
+    of each phase, and ``release``: {"s": its length, "force_n": (fx, fz), "phase": the contact
+    phase it ends} or None; None if no jump has a landed flight or the dataset has no ``flight``
+    phase."""
     if FLIGHT_PHASE not in ds.phase_names:
         return None
     fid = ds.phase_names.index(FLIGHT_PHASE)
     bounds = ds.jump_bounds()
     travel, apex, z_lo, z_td, push = [], [], [], [], []
     cols = [U_NAMES.index(c) for c in WRENCH]
+    release_rows, release_force, release_phase = [], [], []
     wrench: dict[int, list[np.ndarray]] = {}  # phase -> the push rows' wrench (n, 3)
     for j in np.asarray(jumps, dtype=int):
         a0, a1 = bounds[j]
@@ -64,6 +74,13 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
         push.append((a - k0) * ds.dt)
         for k in np.unique(phase[k0:a]):
             wrench.setdefault(int(k), []).append(ds.u[a0 + k0:a0 + a][phase[k0:a] == k][:, cols])
+        r = 0  # the release: the push's last rows that pull the base down, in the phase lift-off ends
+        while a - r - 1 > k0 and phase[a - r - 1] == phase[a - 1] and ds.u[a0 + a - r - 1, cols[1]] < 0:
+            r += 1
+        release_rows.append(r)
+        if r:
+            release_force.append(ds.u[a0 + a - r:a0 + a, cols[:2]].mean(axis=0))
+            release_phase.append(ds.phase_names[int(phase[a - 1])])
     if not travel:
         return None
     pushed = {ds.phase_names[k]: np.concatenate(w) for k, w in sorted(wrench.items())}
@@ -71,11 +88,19 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
     def span(v):
         return [float(np.min(v)), float(np.max(v))]
 
+    release = None
+    n_release = int(np.floor(np.median(release_rows)))
+    if n_release:
+        names, counts = np.unique(release_phase, return_counts=True)
+        release = {"s": n_release * ds.dt, "force_n": np.median(release_force, axis=0).tolist(),
+                   "phase": str(names[np.argmax(counts)])}
+
     return {"jumps": len(travel), "travel_x_m": span(travel), "apex_z_m": span(apex),
             "liftoff_z_m": float(np.median(z_lo)), "touchdown_z_m": float(np.median(z_td)), "push_s": span(push),
             "push_wrench": {"components": list(WRENCH),
                             "phases": {k: {"min": w.min(axis=0).tolist(), "max": w.max(axis=0).tolist()}
-                                       for k, w in pushed.items()}}}
+                                       for k, w in pushed.items()}},
+            "release": release}
 
 
 __all__ = ["jump_envelope"]

@@ -40,7 +40,7 @@ from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, P
 from symrom.plan.execute import LYING, MOTIONS, TILTED, Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
 from symrom.plan.inputs import ALL_LEGS, force_input_map, holds_pitch, pitch_moment_map, torque_map
-from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError, Stance
+from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError, Release, Stance
 from symrom.plan.replan import Replanner, ReplanStats, Schedule
 from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.stance import start_pose
@@ -58,7 +58,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 4  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights
+LANDING_FORMAT = 5  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights; 5: release
 TRAJECTORY_FORMAT = 2
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
@@ -275,14 +275,16 @@ class RobotPlanner:
 
 def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip: ASlipParams | None = None,
                  config: PlanConfig | None = None, guards: str = "height", motion: str | None = None,
-                 heights: tuple[float, float] | None = None) -> RobotPlanner:
+                 heights: tuple[float, float] | None = None, release: Release | None = None) -> RobotPlanner:
     """Build the NLP of planner ``kind`` for ``robot`` once; ``model`` for ``learned``,
     ``aslip`` for ``aslip``; ``guards`` (``GUARDS``): ``height`` (``HeightGuards``) or, for the
     learned planner, ``learned`` (the model's own switches, ``LearnedGuards``); ``motion``
     (``MOTIONS``): the jump planned (default: the learned model's training motion, else the
     pronk; a learned model plans only its own); ``heights``: the base's (lift-off, touchdown)
     heights m the height guards use (default: the motion's, ``motion_plan``, but for a learned
-    model's pronk on its own robot its training jumps' medians, ``training_heights``)."""
+    model's pronk on its own robot its training jumps' medians, ``training_heights``);
+    ``release``: what follows the push before the feet leave (``Release``; default: none, but for a
+    learned model's pronk on its own robot its training jumps' release, ``training_release``)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
     if guards not in GUARDS:
@@ -313,8 +315,9 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         B = {st.phase: force_input_map(model, robot, q_crouch, legs[st.phase]) for st in mp.stances}
         dyn: PlanDynamics = LearnedDynamics(model, B if motion != "pronk" else B[STANCE_PHASE])
         envelope = model.provenance.data.envelope
-        if heights is None and motion == "pronk" and own_robot:  # another robot's heights differ
-            heights = training_heights(model)
+        if motion == "pronk" and own_robot:  # another robot's heights and legs differ
+            heights = training_heights(model) if heights is None else heights
+            release = training_release(model) if release is None else release
     elif kind == "point-mass":
         dyn = PointMass(mass)
     else:
@@ -340,7 +343,8 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     if envelope is not None and motion != "pronk" and not reads_pitch(model):
         limits = {st.phase: pitch_bounds(limits[st.phase], robot, [q_crouch, q_up], legs[st.phase],
                                          envelope, st.phase) for st in mp.stances}
-    nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None)
+    nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None,
+                      release=release if release is None or motion == "pronk" else None)
     crouch = float(q_crouch[BASE_POS][2]) if motion != "pronk" else mp.params.crouch_height
     # without a target apex the jump rises at least to the motion's nominal apex, or to the highest
     # apex of the training jumps where that is lower: a model knows the motion only where its data went
@@ -361,6 +365,20 @@ def training_heights(model: HybridModel | None) -> tuple[float, float] | None:
     if not env or env.get("liftoff_z_m") is None or env.get("touchdown_z_m") is None:
         return None
     return float(env["liftoff_z_m"]), float(env["touchdown_z_m"])
+
+
+def training_release(model: HybridModel | None) -> Release | None:
+    """A learned model's training jumps' release (``data.envelope``): the pronk's push ends by
+    holding the legs without ground force, and the trunk, catching them up, keeps rising and slows
+    faster than a free fall for 8-10 ms before the feet leave (at the lift-off height). A plan whose
+    push ran to the lift-off height left that out: the robot then left higher and slower than
+    planned, and its landing error grew along the targets (docs/benchmarks.md, "Jumps to a
+    target"). None without one."""
+    env = None if model is None else model.provenance.data.envelope
+    rel = (env or {}).get("release")
+    if not rel or rel.get("phase", STANCE_PHASE) != STANCE_PHASE:
+        return None
+    return Release(float(rel["s"]), (float(rel["force_n"][0]), float(rel["force_n"][1])))
 
 
 def reads_pitch(model: HybridModel) -> bool:
@@ -475,6 +493,7 @@ class JumpResult:
     reach: JumpReach | None = None
     in_reach: bool = True
     heights: tuple[float, float] | None = None  # the guards' (lift-off, touchdown) heights, m
+    release: Release | None = None  # what the plan put between its push and the lift-off
     replan_hz: float = REPLAN_HZ  # the closed loop's re-planning rate, Hz
 
     @property
@@ -508,14 +527,18 @@ class JumpResult:
              "push_duration_s": ex.push_s, "t_touchdown_s": ex.t_touchdown, "settled": ex.finished,
              "rest": ex.rest, "upright": ex.upright,
              "heights": None if self.heights is None else dict(zip(("liftoff_z", "touchdown_z"), self.heights)),
+             "release": None if self.release is None else {"s": self.release.duration,
+                                                           "force_n": list(self.release.force)},
              "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
                            "start of the push (m); error_x: landing_x - target_x; error_z: apex_z - target_z; "
                            "apex_z: largest base height between lift-off and touchdown (m); rest_x: base x at "
                            "the end of the run, from the same start (m); rest: base height (m), roll and "
                            f"pitch (rad) at the end; upright: roll and pitch within {TILTED:g} rad of level and the "
                            f"base at least {LYING:g} of its standing height at the end; heights: the base "
-                           "heights (m) at which the plan's height guards put lift-off (the push's end) and "
-                           "touchdown",
+                           "heights (m) at which the plan's height guards put lift-off (the push's end, or "
+                           "the release's after it) and touchdown; release: the length (s) and summed force "
+                           "(x, z; N, as the model's input reads it) the plan put between its push and the "
+                           "lift-off, or null",
              "plan": plan.to_dict()}
         if ex.replans is not None:
             r = ex.replans
@@ -636,7 +659,8 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
     return JumpResult(planner.kind, planner.robot, engine, planner.guards, float(target_x), target_z, ex,
                       apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
                       planned_target_z=z, reach=reach, in_reach=in_reach,
-                      heights=(planner.liftoff_height, planner.touchdown_height), replan_hz=float(replan_hz))
+                      heights=(planner.liftoff_height, planner.touchdown_height), replan_hz=float(replan_hz),
+                      release=planner.nlp.release)
 
 
 @dataclass(frozen=True)

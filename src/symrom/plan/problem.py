@@ -10,7 +10,10 @@ by classical Runge-Kutta (``substeps`` per shooting interval) over the stances (
 intervals each, in the model's phase of that stance), the rise and the fall
 (``flight_intervals`` each); the phase switches are the guards' constraints
 (``plan.guards``): lift-off at the end of the last stance at height z_lo, touchdown at
-height z_td. Bounds: F_z in [0, fz_max], the friction pyramid |F_x| <= mu F_z, each
+height z_td. With a ``release`` (``Release``: the data's, ``data.envelope``), the last stance
+goes on for the release's length under its fixed force after the planned push ends, and the
+lift-off guard holds at its end: the push ends where the release must begin. Bounds: F_z in
+[0, fz_max], the friction pyramid |F_x| <= mu F_z, each
 stance's duration within its bounds, T_rise, T_fall in [t_min, t_max]. Objective:
 
     w_x (x_td - x_0 - target_x)^2 + w_apex (z_apex - H)^2
@@ -133,6 +136,28 @@ class Plan:
 
 
 @dataclass(frozen=True)
+class Release:
+    """What follows the planned push in the last stance before the feet leave: ``duration`` s
+    under the summed force ``force`` (F_x, F_z) N, in the model's input as the data derive it
+    (``data.envelope``'s ``release``: the held legs' pull on the trunk)."""
+
+    duration: float
+    force: tuple[float, float]
+
+    def __post_init__(self):
+        if not (np.isfinite(self.duration) and self.duration > 0 and np.all(np.isfinite(self.force))):
+            raise ValueError(f"a release needs a positive length and a finite force, got {self}")
+
+
+def _released(dyn, s, release: Release | None, phase: str, substeps: int):
+    """The state s after ``release`` in stance ``phase`` (s itself without one)."""
+    if release is None:
+        return s
+    F = ca.DM(list(release.force))
+    return _rk4(lambda v: dyn.stance(v, F, phase), s, release.duration / substeps, substeps)
+
+
+@dataclass(frozen=True)
 class Reach:
     """What a model can do from one start state under the problem's bounds (m): the landing's
     forward distance x_min..x_max (with the apex as asked) and the apex's height
@@ -189,12 +214,13 @@ class JumpPlanner:
     or (A, lower, upper) with bounds of each side (a rear pair's pitching moment among the
     rows, ``jump.pitch_bounds``), or one such per stance phase (a dict by phase); stances: the
     push's stances in turn (default: one ``contact`` stance of ``config.knots`` intervals,
-    ``config.stance_min`` to ``config.stance_max`` s)."""
+    ``config.stance_min`` to ``config.stance_max`` s); release: what follows the push in the last
+    stance before lift-off (``Release``), or None."""
 
     def __init__(self, dyn: PlanDynamics, mass: float, config: PlanConfig | None = None,
                  guards: Guards | None = None, torque_map: TorqueMap | dict[str, TorqueMap] | None = None,
-                 stances: tuple[Stance, ...] | None = None):
-        self.dyn, self.mass = dyn, float(mass)
+                 stances: tuple[Stance, ...] | None = None, release: Release | None = None):
+        self.dyn, self.mass, self.release = dyn, float(mass), release
         self.config = cfg = config or PlanConfig()
         self.guards = guards or HeightGuards()
         self.stances = stances = tuple(stances or (Stance(STANCE_PHASE, cfg.knots, cfg.stance_min, cfg.stance_max),))
@@ -239,6 +265,7 @@ class JumpPlanner:
                 add([(dyn.velocity(prev)[1], 0.0, ca.inf)])  # the base rises all through the push
                 add(force_rows(Fk, cfg.mu, tmap))  # friction, and the torques the force asks of the legs
                 col += 1
+        prev = _released(dyn, prev, release, stances[-1].phase, M)
         add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):  # rise, then fall
             h = dur / (K * M)
@@ -310,6 +337,9 @@ class JumpPlanner:
                 for _ in range(M):
                     s = self._stance_step[st.phase](s, Fc, d / (st.knots * M))
                 nodes.append(np.asarray(s).ravel())
+        if self.release is not None:
+            for _ in range(M):
+                s = self._stance_step[stances[-1].phase](s, list(self.release.force), self.release.duration / M)
         for _ in range(2 * K):
             for _ in range(M):
                 s = self._flight_step(s, t_up / (K * M))

@@ -31,7 +31,7 @@ import daqp
 import numpy as np
 
 from symrom.names import GRAVITY
-from symrom.plan.problem import JumpPlanner, Plan, _rk4, force_rows
+from symrom.plan.problem import JumpPlanner, Plan, _released, _rk4, force_rows
 
 
 @dataclass
@@ -151,6 +151,7 @@ class Replanner:
                 add([(dyn.velocity(s)[1], 0.0, ca.inf)])
                 add(force_rows(Fk, cfg.mu, tmap))
                 col += 1
+        s = _released(dyn, s, nlp.release, stances[-1].phase, M)
         add(nlp.guards.liftoff(dyn, s, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):
             s = _rk4(dyn.flight, s, dur / (K * M), K * M)
