@@ -343,8 +343,9 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     if envelope is not None and motion != "pronk" and not reads_pitch(model):
         limits = {st.phase: pitch_bounds(limits[st.phase], robot, [q_crouch, q_up], legs[st.phase],
                                          envelope, st.phase) for st in mp.stances}
+    # a froggy's flight follows its push at once: no release
     nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None,
-                      release=release if release is None or motion == "pronk" else None)
+                      release=release if motion == "pronk" else None)
     crouch = float(q_crouch[BASE_POS][2]) if motion != "pronk" else mp.params.crouch_height
     # without a target apex the jump rises at least to the motion's nominal apex, or to the highest
     # apex of the training jumps where that is lower: a model knows the motion only where its data went

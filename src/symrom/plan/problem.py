@@ -67,8 +67,9 @@ class Plan:
     forces (N, 2) N: F_x, F_z on the knots of the stances in turn (each stance's on equal
     intervals of it); t_stance s: the whole push; t_rise, t_fall s; x0 m: base x at the start
     of the push; landing_x m: planned touchdown x relative to x0; apex_z m: planned apex
-    height; liftoff (2,) m/s: planned base velocity at lift-off; nodes (n, 2) m: base x, z at
-    the shooting nodes (start, stances, rise, fall); solve_time_s: wall time of the solve;
+    height; liftoff (2,) m/s: planned base velocity at the push's end (lift-off, or where a
+    ``Release`` begins); nodes (n, 2) m: base x, z at the shooting nodes (start, stances, rise,
+    fall); solve_time_s: wall time of the solve;
     solve_cpu_s: the process's CPU time during it (about the wall time: one core); status:
     IPOPT's return status; success; iterations; stances: the ``Stance`` of each part of the
     push and durations (s) their lengths (one of each for a one-stance push); states (n, s):
