@@ -338,9 +338,7 @@ class JumpPlanner:
                 for _ in range(M):
                     s = self._stance_step[st.phase](s, Fc, d / (st.knots * M))
                 nodes.append(np.asarray(s).ravel())
-        if self.release is not None:
-            for _ in range(M):
-                s = self._stance_step[stances[-1].phase](s, list(self.release.force), self.release.duration / M)
+        s = _released(dyn, s, self.release, stances[-1].phase, M)
         for _ in range(2 * K):
             for _ in range(M):
                 s = self._flight_step(s, t_up / (K * M))
