@@ -211,3 +211,6 @@ def test_a_learned_pronk_plans_its_training_jumps_release():
     assert plan.success and plan.nodes[learned.nlp._n_knots][1] < 0.345 - 1e-3
     with pytest.raises(ValueError, match="positive length"):
         Release(0.0, (10.0, -60.0))
+    bad = planted_model(*GO1_LIKE, info={"envelope": {**env, "release": {**env["release"], "s": 0.0}}})
+    with pytest.raises(ValueError, match=r"envelope\.release .*positive length"):
+        make_planner("learned", "go1", model=bad)

@@ -374,12 +374,15 @@ def training_release(model: HybridModel | None) -> Release | None:
     faster than a free fall for 8-10 ms before the feet leave (at the lift-off height). A plan whose
     push ran to the lift-off height left that out: the robot then left higher and slower than
     planned, and its landing error grew along the targets (docs/benchmarks.md, "Jumps to a
-    target"). None without one."""
+    target"). None without one; a malformed one is refused naming its key."""
     env = None if model is None else model.provenance.data.envelope
     rel = (env or {}).get("release")
     if not rel or rel.get("phase", STANCE_PHASE) != STANCE_PHASE:
         return None
-    return Release(float(rel["s"]), (float(rel["force_n"][0]), float(rel["force_n"][1])))
+    try:
+        return Release(float(rel["s"]), (float(rel["force_n"][0]), float(rel["force_n"][1])))
+    except (KeyError, IndexError, TypeError, ValueError) as e:
+        raise ValueError(f"the model's provenance.data.envelope.release {dict(rel)}: {e}") from None
 
 
 def reads_pitch(model: HybridModel) -> bool:
