@@ -7,7 +7,8 @@ targets (``--targets`` of them, seed ``--seed``) drawn uniformly over the learne
 reach (``RobotPlanner.reach``: its bounds within its training jumps' envelope), each planned
 by every planner (learned, point mass on the description's mass, aSLIP; height guards, all at the
 learned model's training jumps' lift-off and touchdown heights where it records them; the learned
-planner's push followed by their release) and
+planner's push followed by their release; the flight bias fitted on their lift-offs, ``plan.bias``,
+added to the landing of the planners ``--bias`` names, the learned one's by default) and
 executed in ``--engine`` (MuJoCo by default) with each control (``plan``: open loop;
 ``mpc``: re-planned at 100 Hz) in each world (``none``; ``payload``: 20 % of the robot's mass
 fixed to the base; ``friction``: ground friction 0.5; ``motors``: every motor delivers 85 %
@@ -21,7 +22,8 @@ median over the learned one, per world.
 Froggy (``--froggy-model``, a learned froggy model, planned for the robot it was trained on):
 ``--froggy-targets`` targets over its reach, learned ``plan`` and ``mpc``, in each of
 ``--froggy-engines`` and each of ``--froggy-worlds`` (the pronk's worlds; ``none`` alone by
-default); besides the landing, how many jumps end with the trunk pitched
+default), with the planner's default flight bias or, ``--froggy-bias on|off``, with or without it;
+besides the landing, how many jumps end with the trunk pitched
 over (more than ``PITCHED`` rad from level at the end of the run: on its nose or its tail) and
 how many ended fallen (``fell``: not ``Execution.upright``: pitched or rolled over, or lying on
 the ground; an upside-down trunk reads pitch near 0).
@@ -112,7 +114,7 @@ def run_setup(planner, tx: np.ndarray, engine: str, control: str, dist: Disturba
 
 
 def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: int, robot: str | None = None,
-        planners=PLANNERS, controls=CONTROLS, world_names=WORLDS, progress=print) -> dict:
+        planners=PLANNERS, controls=CONTROLS, world_names=WORLDS, progress=print, bias=("learned",)) -> dict:
     model = load_model(model_path)
     robot = robot or model.provenance.data.robot or "go1"  # the jumps of the model's own robot
     aslip = read_aslip_params(aslip_path) if aslip_path else None
@@ -122,7 +124,7 @@ def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: in
     # targets (seed 1) it brought the learned closed loop closer in every world and the point
     # mass's further (docs/benchmarks.md, "Jumps to a target")
     heights, release = training_heights(model), training_release(model)
-    built = {k: make_planner(k, robot, model=model, aslip=aslip, heights=heights)
+    built = {k: make_planner(k, robot, model=model, aslip=aslip, heights=heights, bias=k in bias)
              for k in planners if k != "aslip" or aslip}
     reach = built["learned"].reach()
     tx = targets(reach, n, seed)
@@ -130,6 +132,7 @@ def run(model_path: Path, aslip_path: Path | None, engine: str, n: int, seed: in
            "aslip": str(aslip_path) if aslip_path else None, "reach": reach.to_dict(),
            "heights_m": None if heights is None else list(heights),
            "release": None if release is None else {"s": release.duration, "force_n": list(release.force)},
+           "flight_bias": {k: None if p.nlp.bias is None else p.nlp.bias.to_dict() for k, p in built.items()},
            "results": {}}
     all_worlds = worlds(robot)
     for w in world_names:
@@ -147,13 +150,14 @@ PITCHED = TILTED  # rad: a trunk pitched more than this at the end of the run ha
 
 
 def run_froggy(model_path: Path, engines: list[str], n: int, seed: int, robot: str | None = None,
-               world_names=("none",), progress=print) -> dict:
+               world_names=("none",), progress=print, bias: bool | None = None) -> dict:
     model = load_model(model_path)
     robot = robot or model.provenance.data.robot or "a1"
-    planner = make_planner("learned", robot, model=model)
+    planner = make_planner("learned", robot, model=model, bias=bias)
     reach = planner.reach()
     tx = targets(reach, n, seed)
-    out = {"robot": robot, "model": str(model_path), "targets": tx.tolist(), "reach": reach.to_dict(), "results": {}}
+    out = {"robot": robot, "model": str(model_path), "targets": tx.tolist(), "reach": reach.to_dict(), "results": {},
+           "flight_bias": None if planner.nlp.bias is None else planner.nlp.bias.to_dict()}
     all_worlds = worlds(robot)
     for engine in engines:
         for w in world_names:
@@ -271,10 +275,13 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--worlds", default=",".join(WORLDS))
     ap.add_argument("--planners", default=",".join(PLANNERS))
+    ap.add_argument("--bias", default="learned", help="the planners whose landing adds the flight bias (or none)")
     ap.add_argument("--froggy-model", type=Path)
     ap.add_argument("--froggy-engines", default="pybullet,mujoco")
     ap.add_argument("--froggy-targets", type=int, default=20)
     ap.add_argument("--froggy-worlds", default="none")
+    ap.add_argument("--froggy-bias", choices=("default", "on", "off"), default="default",
+                    help="the froggy planner's flight bias: the planner's default, or on, or off")
     ap.add_argument("--out", type=Path)
     a = ap.parse_args()
     if a.model is None and a.froggy_model is None:
@@ -283,9 +290,10 @@ def main() -> None:
     res = {"results": {}}
     if a.model is not None:
         res = run(a.model, a.aslip, a.engine, a.targets, a.seed, planners=a.planners.split(","),
-                  world_names=a.worlds.split(","))
+                  world_names=a.worlds.split(","), bias=tuple(a.bias.split(",")))
     fr = (run_froggy(a.froggy_model, a.froggy_engines.split(","), a.froggy_targets, a.seed,
-                     world_names=a.froggy_worlds.split(",")) if a.froggy_model else None)
+                     world_names=a.froggy_worlds.split(","),
+                     bias={"default": None, "on": True, "off": False}[a.froggy_bias]) if a.froggy_model else None)
     res["froggy"] = fr
     res["wall_time_s"] = time.perf_counter() - t0
     res["machine"] = platform.platform()

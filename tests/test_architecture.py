@@ -44,7 +44,8 @@ PACKAGE_LAYERS: dict[str, dict[str, int]] = {
     "export": {"tables": 0, "to_c": 1, "to_casadi": 1, "to_python": 1},
     # planning: the models and guards, the problem, its real-time re-planning, its execution, the
     # jump that uses them
-    "plan": {"config": 0, "dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "replan": 2, "execute": 3, "jump": 4},
+    "plan": {"config": 0, "dynamics": 0, "guards": 0, "inputs": 0, "problem": 1, "bias": 2, "replan": 2, "execute": 3,
+             "jump": 4},
     # simulation by job: the engines; the hardware-like variant, on any engine; the controllers and
     # motions; what runs them (generation) and what reads its data (diagnostics)
     "sim": {"engines": 0, "proxy": 1, "controllers": 2, "generation": 3, "diagnostics": 3},

@@ -213,10 +213,10 @@ def test_jump_cli_end_to_end(tmp_path):
                                    "--out", str(out)])
     assert res.exit_code == 0, res.output
     d = json.loads((out / "landing.json").read_text())
-    assert d["format_version"] == 5 and d["planner"] == "learned"
+    assert d["format_version"] == 6 and d["planner"] == "learned"
     # a planted model without training jumps plans at the pronk's take-off height
     assert d["heights"] == {"liftoff_z": pytest.approx(0.33), "touchdown_z": pytest.approx(0.33)}
-    assert d["release"] is None
+    assert d["release"] is None and d["flight_bias"] is None
     assert d["upright"] and d["rest"]["z"] > 0.2 and abs(d["rest"]["pitch"]) < 0.3
     assert d["error_x"] == pytest.approx(d["landing_x"] - 0.3)
     assert abs(d["error_x"]) < 0.06  # Go1-like gains land near the target

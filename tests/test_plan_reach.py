@@ -143,6 +143,11 @@ def test_the_envelope_of_planted_jumps():
     assert env["apex_z_m"] == pytest.approx([0.44, 0.46], abs=1e-3)
     assert env["liftoff_z_m"] == pytest.approx(0.33) and env["touchdown_z_m"] == pytest.approx(0.3)
     assert env["push_s"] == pytest.approx([0.102, 0.102])
+    # each jump's lift-off (the flight's first row, 150) and its travel to the touchdown (row 250)
+    lo = env["liftoffs"]
+    assert np.array(lo["q"]) == pytest.approx(q[[150, 450]]) and np.array(lo["dq"]).shape == (2, 18)
+    assert lo["travel_x_m"] == pytest.approx([q[250, 12] - q[150, 12], q[550, 12] - q[450, 12]])
+    assert lo["travel_x_m"][1] > lo["travel_x_m"][0] > 0.05
     pushed = env["push_wrench"]
     assert pushed["components"] == ["fx", "fz", "my"] and list(pushed["phases"]) == ["contact"]
     assert pushed["phases"]["contact"]["min"] == pytest.approx([10.0, 200.0, -3.0])

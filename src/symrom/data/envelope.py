@@ -18,7 +18,10 @@ hold. Per jump, its main flight (the longest run of ``flight`` rows) and:
   the input derived from them, as a pull on it (about -60 N on the Go1, 8-10 ms): the trunk keeps
   rising and slows down faster than a free fall before its flight begins. Its length is the median
   over the jumps and its force (forward, vertical) the median of the releasing jumps' means;
-  none where most jumps have no such rows (the froggy's flight follows its push at once).
+  none where most jumps have no such rows (the froggy's flight follows its push at once);
+- the lift-offs (``liftoffs``): each jump's configuration and velocity at its flight's first row
+  and the base's forward travel from there to the touchdown, from which a planner measures what
+  its own flight misses of the travel (``plan.bias``).
 
 A jump without a flight, or whose flight runs to its last row, is left out.
 Units: m, s, N, N m.
@@ -46,8 +49,9 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
     ``jumps`` (how many had a landed flight), ``travel_x_m`` and ``apex_z_m`` [min, max],
     ``liftoff_z_m`` and ``touchdown_z_m`` (medians), ``push_s`` [min, max], ``push_wrench``:
     {"components": ``WRENCH``, "phases": {phase: {"min": (3,), "max": (3,)}}} over the push rows
-    of each phase, and ``release``: {"s": its length, "force_n": (fx, fz), "phase": the contact
-    phase it ends} or None; None if no jump has a landed flight or the dataset has no ``flight``
+    of each phase, ``release``: {"s": its length, "force_n": (fx, fz), "phase": the contact
+    phase it ends} or None, and ``liftoffs``: {"q": (n, 18), "dq": (n, 18), "travel_x_m": (n,)} per
+    landed jump in turn; None if no jump has a landed flight or the dataset has no ``flight``
     phase."""
     if FLIGHT_PHASE not in ds.phase_names:
         return None
@@ -56,6 +60,7 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
     travel, apex, z_lo, z_td, push = [], [], [], [], []
     cols = [U_NAMES.index(c) for c in WRENCH]
     release_rows, release_force, release_phase = [], [], []
+    lo_q, lo_dq, flown = [], [], []
     wrench: dict[int, list[np.ndarray]] = {}  # phase -> the push rows' wrench (n, 3)
     for j in np.asarray(jumps, dtype=int):
         a0, a1 = bounds[j]
@@ -72,6 +77,9 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
         z_lo.append(q[a, _Z])
         z_td.append(q[b, _Z])
         push.append((a - k0) * ds.dt)
+        lo_q.append(q[a].tolist())
+        lo_dq.append(ds.dq[a0 + a].tolist())
+        flown.append(float(q[b, _X] - q[a, _X]))
         for k in np.unique(phase[k0:a]):
             wrench.setdefault(int(k), []).append(ds.u[a0 + k0:a0 + a][phase[k0:a] == k][:, cols])
         r = 0  # the release: the push's last rows that pull the base down, in the phase lift-off ends
@@ -100,7 +108,7 @@ def jump_envelope(ds: Dataset, jumps: np.ndarray | list[int]) -> dict | None:
             "push_wrench": {"components": list(WRENCH),
                             "phases": {k: {"min": w.min(axis=0).tolist(), "max": w.max(axis=0).tolist()}
                                        for k, w in pushed.items()}},
-            "release": release}
+            "release": release, "liftoffs": {"q": lo_q, "dq": lo_dq, "travel_x_m": flown}}
 
 
 __all__ = ["jump_envelope"]

@@ -36,11 +36,12 @@ from symrom.atomic import atomic_dir
 from symrom.baselines.aslip import ASlipParams
 from symrom.model.hybrid import HybridModel
 from symrom.names import BASE_POS, BASE_RPY, FLIGHT_PHASE, JOINTS, PARTIAL_PHASE, STANCE_PHASE
+from symrom.plan.bias import fit_flight_bias
 from symrom.plan.dynamics import ASlipDynamics, LearnedDynamics, PlanDynamics, PlanModelError, PointMass
 from symrom.plan.execute import LYING, MOTIONS, TILTED, Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
 from symrom.plan.inputs import ALL_LEGS, force_input_map, holds_pitch, pitch_moment_map, torque_map
-from symrom.plan.problem import JumpPlanner, Plan, PlanConfig, PlanError, Release, Stance
+from symrom.plan.problem import FlightBias, JumpPlanner, Plan, PlanConfig, PlanError, Release, Stance
 from symrom.plan.replan import Replanner, ReplanStats, Schedule
 from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.stance import start_pose
@@ -58,7 +59,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 5  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights; 5: release
+LANDING_FORMAT = 6  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights; 5: release; 6: flight_bias
 TRAJECTORY_FORMAT = 2
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
@@ -275,7 +276,8 @@ class RobotPlanner:
 
 def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip: ASlipParams | None = None,
                  config: PlanConfig | None = None, guards: str = "height", motion: str | None = None,
-                 heights: tuple[float, float] | None = None, release: Release | None = None) -> RobotPlanner:
+                 heights: tuple[float, float] | None = None, release: Release | None = None,
+                 bias: bool | None = None) -> RobotPlanner:
     """Build the NLP of planner ``kind`` for ``robot`` once; ``model`` for ``learned``,
     ``aslip`` for ``aslip``; ``guards`` (``GUARDS``): ``height`` (``HeightGuards``) or, for the
     learned planner, ``learned`` (the model's own switches, ``LearnedGuards``); ``motion``
@@ -284,7 +286,10 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     heights m the height guards use (default: the motion's, ``motion_plan``, but for a learned
     model's pronk on its own robot its training jumps' medians, ``training_heights``);
     ``release``: what follows the push before the feet leave (``Release``; default: none, but for a
-    learned model's pronk on its own robot its training jumps' release, ``training_release``)."""
+    learned model's pronk on its own robot its training jumps' release, ``training_release``);
+    ``bias``: whether the pronk's landing adds what this planner's flight misses of the training
+    jumps' travel (``plan.bias``, fitted on ``model``'s training lift-offs: ``training_bias``;
+    default: for a learned model's pronk on its own robot with height guards)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
     if guards not in GUARDS:
@@ -305,6 +310,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     q_crouch = mp.q_crouch
     legs = {STANCE_PHASE: ALL_LEGS, PARTIAL_PHASE: REAR}
     envelope = None
+    own_robot = False
     if kind == "learned":
         if model is None:
             raise ValueError("the learned planner needs a model (model.json)")
@@ -331,6 +337,14 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
         if not (np.isfinite(z_lo) and np.isfinite(z_td) and z_lo > 0 and z_td > 0):
             raise ValueError(f"the lift-off and touchdown heights must be positive, got {heights}")
         mp = replace(mp, liftoff_height=z_lo, touchdown_height=z_td)
+    if bias is None:
+        bias = kind == "learned" and motion == "pronk" and own_robot and guards == "height"
+    flight_bias = None
+    if bias:
+        if model is None:
+            raise ValueError(f"a flight bias is fitted on a model's training jumps; the {kind} planner was "
+                             "given no model")
+        flight_bias = training_bias(dyn, model, mp.touchdown_height)
     last = mp.stances[-1].phase
     rule = LearnedGuards.of(model, stance=last, flight=FLIGHT_PHASE) if guards == "learned" else HeightGuards()
     # the legs' torques at the start and at the end of the push (crouch, take-off height)
@@ -345,7 +359,7 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
                                          envelope, st.phase) for st in mp.stances}
     # a froggy's flight follows its push at once: no release
     nlp = JumpPlanner(dyn, mass, cfg, rule, limits, stances=mp.stances if motion != "pronk" else None,
-                      release=release if motion == "pronk" else None)
+                      release=release if motion == "pronk" else None, bias=flight_bias)
     crouch = float(q_crouch[BASE_POS][2]) if motion != "pronk" else mp.params.crouch_height
     # without a target apex the jump rises at least to the motion's nominal apex, or to the highest
     # apex of the training jumps where that is lower: a model knows the motion only where its data went
@@ -383,6 +397,18 @@ def training_release(model: HybridModel | None) -> Release | None:
         return Release(float(rel["s"]), (float(rel["force_n"][0]), float(rel["force_n"][1])))
     except (KeyError, IndexError, TypeError, ValueError) as e:
         raise ValueError(f"the model's provenance.data.envelope.release {dict(rel)}: {e}") from None
+
+
+def training_bias(dyn: PlanDynamics, model: HybridModel, z_touchdown: float) -> FlightBias | None:
+    """What the flight of ``dyn`` misses of the travel of ``model``'s training jumps from their
+    lift-offs (its envelope's ``liftoffs``) down to ``z_touchdown`` m: the line ``plan.bias``
+    fits. None for a model file that records no lift-offs or too few landed flights; malformed
+    ones are refused naming their key."""
+    env = model.provenance.data.envelope
+    liftoffs = (env or {}).get("liftoffs")
+    if not liftoffs:
+        return None
+    return fit_flight_bias(dyn, liftoffs, z_touchdown, where="the model's provenance.data.envelope.liftoffs")
 
 
 def reads_pitch(model: HybridModel) -> bool:
@@ -498,6 +524,7 @@ class JumpResult:
     in_reach: bool = True
     heights: tuple[float, float] | None = None  # the guards' (lift-off, touchdown) heights, m
     release: Release | None = None  # what the plan put between its push and the lift-off
+    bias: FlightBias | None = None  # what the plan added to its flight's landing
     replan_hz: float = REPLAN_HZ  # the closed loop's re-planning rate, Hz
 
     @property
@@ -533,6 +560,7 @@ class JumpResult:
              "heights": None if self.heights is None else dict(zip(("liftoff_z", "touchdown_z"), self.heights)),
              "release": None if self.release is None else {"s": self.release.duration,
                                                            "force_n": list(self.release.force)},
+             "flight_bias": None if self.bias is None else self.bias.to_dict(),
              "definition": "landing_x: base x at the first touchdown after the push, from the base x at the "
                            "start of the push (m); error_x: landing_x - target_x; error_z: apex_z - target_z; "
                            "apex_z: largest base height between lift-off and touchdown (m); rest_x: base x at "
@@ -542,7 +570,9 @@ class JumpResult:
                            "heights (m) at which the plan's height guards put lift-off (the push's end, or "
                            "the release's after it) and touchdown; release: the length (s) and summed force "
                            "(x, z; N, as the model's input reads it) the plan put between its push and the "
-                           "lift-off, or null",
+                           "lift-off, or null; flight_bias: the line the plan added to its flight's landing "
+                           "(offset m, per m/s of lift-off velocity x, z in s), fitted on the training jumps' "
+                           "travel (jumps, and their rms error m without and with it), or null",
              "plan": plan.to_dict()}
         if ex.replans is not None:
             r = ex.replans
@@ -664,7 +694,7 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
                       apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
                       planned_target_z=z, reach=reach, in_reach=in_reach,
                       heights=(planner.liftoff_height, planner.touchdown_height), replan_hz=float(replan_hz),
-                      release=planner.nlp.release)
+                      release=planner.nlp.release, bias=planner.nlp.bias)
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,10 @@ intervals each, in the model's phase of that stance), the rise and the fall
 (``plan.guards``): lift-off at the end of the last stance at height z_lo, touchdown at
 height z_td. With a ``release`` (``Release``: the data's, ``data.envelope``), the last stance
 goes on for the release's length under its fixed force after the planned push ends, and the
-lift-off guard holds at its end: the push ends where the release must begin. Bounds: F_z in
+lift-off guard holds at its end: the push ends where the release must begin. With a flight
+bias (``FlightBias``: fitted on the training jumps, ``plan.bias``), the landing x_td is the
+flight's plus the bias at the lift-off velocity: what the flight misses of the base's travel
+while the legs swing under it. Bounds: F_z in
 [0, fz_max], the friction pyramid |F_x| <= mu F_z, each
 stance's duration within its bounds, T_rise, T_fall in [t_min, t_max]. Objective:
 
@@ -150,6 +153,38 @@ class Release:
             raise ValueError(f"a release needs a positive length and a finite force, got {self}")
 
 
+@dataclass(frozen=True)
+class FlightBias:
+    """What a planner's flight misses of the base's forward travel from lift-off to touchdown:
+    the base travels ``offset`` m + ``per_velocity`` (s) · (vx, vz) further than the flight
+    predicts from a lift-off at velocity (vx, vz) m/s as the planner's state reads it; fitted on
+    ``jumps`` training jumps, whose travel it predicts to ``rms_m`` (without it, with it) m
+    (``plan.bias``)."""
+
+    offset: float
+    per_velocity: tuple[float, float]
+    jumps: int = 0
+    rms_m: tuple[float, float] = (float("nan"), float("nan"))
+
+    def __post_init__(self):
+        if not (np.isfinite(self.offset) and np.all(np.isfinite(self.per_velocity))
+                and len(self.per_velocity) == 2):
+            raise ValueError(f"a flight bias needs a finite offset and two finite slopes, got {self}")
+
+    def at(self, v):
+        """The bias (m) at lift-off velocity v (2,) m/s (numbers or CasADi)."""
+        return self.offset + self.per_velocity[0] * v[0] + self.per_velocity[1] * v[1]
+
+    def to_dict(self) -> dict:
+        return {"offset_m": self.offset, "per_velocity_s": list(self.per_velocity), "jumps": self.jumps,
+                "rms_m": list(self.rms_m)}
+
+
+def _biased(dyn, s_liftoff, bias: FlightBias | None):
+    """The flight bias (m) at lift-off state ``s_liftoff`` (0 without one)."""
+    return 0.0 if bias is None else bias.at(dyn.velocity(s_liftoff))
+
+
 def _released(dyn, s, release: Release | None, phase: str, substeps: int):
     """The state s after ``release`` in stance ``phase`` (s itself without one)."""
     if release is None:
@@ -220,8 +255,9 @@ class JumpPlanner:
 
     def __init__(self, dyn: PlanDynamics, mass: float, config: PlanConfig | None = None,
                  guards: Guards | None = None, torque_map: TorqueMap | dict[str, TorqueMap] | None = None,
-                 stances: tuple[Stance, ...] | None = None, release: Release | None = None):
-        self.dyn, self.mass, self.release = dyn, float(mass), release
+                 stances: tuple[Stance, ...] | None = None, release: Release | None = None,
+                 bias: FlightBias | None = None):
+        self.dyn, self.mass, self.release, self.bias = dyn, float(mass), release, bias
         self.config = cfg = config or PlanConfig()
         self.guards = guards or HeightGuards()
         self.stances = stances = tuple(stances or (Stance(STANCE_PHASE, cfg.knots, cfg.stance_min, cfg.stance_max),))
@@ -267,6 +303,7 @@ class JumpPlanner:
                 add(force_rows(Fk, cfg.mu, tmap))  # friction, and the torques the force asks of the legs
                 col += 1
         prev = _released(dyn, prev, release, stances[-1].phase, M)
+        lift = prev
         add(self.guards.liftoff(dyn, prev, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):  # rise, then fall
             h = dur / (K * M)
@@ -279,7 +316,7 @@ class JumpPlanner:
                 add(self.guards.apex(dyn, prev))
                 add([(dyn.position(prev)[1] - min_apex, 0.0, ca.inf)])
         add(self.guards.touchdown(dyn, prev, z_td))
-        x_td = dyn.position(prev)[0] - dyn.position(s0)[0]
+        x_td = dyn.position(prev)[0] - dyn.position(s0)[0] + _biased(dyn, lift, bias)
         z_apex = dyn.position(apex_state)[1]
         Fn = (F - ca.repmat(ca.DM([0.0, w]), 1, N)) / w
         if P_st == 1:

@@ -8,7 +8,8 @@ model, constraints and objective, shrinking its horizon as the push goes on:
   still to come, of the rise and of the fall (s); the summed ground force on ``knots`` equal
   intervals of each stance left (the current one's spread over what is left of it).
 - *Model*: single shooting from the measured state (encoded to the model's state) through the
-  stances left (RK4, ``substeps`` per interval), the rise and the fall, as the NLP does; its
+  stances left (RK4, ``substeps`` per interval), the release, the rise and the fall, as the
+  NLP does (its flight bias added to the landing); its
   guards, the base rising through the push, the apex and the friction and torque bounds as the
   NLP's constraints; the objective the NLP's (landing distance, apex, effort, smoothness).
 - *One step* (real-time iteration): the constraints linearised and the objective's residuals
@@ -31,7 +32,7 @@ import daqp
 import numpy as np
 
 from symrom.names import GRAVITY
-from symrom.plan.problem import JumpPlanner, Plan, _released, _rk4, force_rows
+from symrom.plan.problem import JumpPlanner, Plan, _biased, _released, _rk4, force_rows
 
 
 @dataclass
@@ -152,6 +153,7 @@ class Replanner:
                 add(force_rows(Fk, cfg.mu, tmap))
                 col += 1
         s = _released(dyn, s, nlp.release, stances[-1].phase, M)
+        bias = _biased(dyn, s, nlp.bias)
         add(nlp.guards.liftoff(dyn, s, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):
             s = _rk4(dyn.flight, s, dur / (K * M), K * M)
@@ -160,7 +162,7 @@ class Replanner:
                 add(nlp.guards.apex(dyn, s))
                 add([(dyn.position(s)[1] - min_apex, 0.0, ca.inf)])
         add(nlp.guards.touchdown(dyn, s, z_td))
-        x_td = dyn.position(s)[0]
+        x_td = dyn.position(s)[0] + bias
         z_apex = dyn.position(apex_state)[1]
         Fn = (F - ca.repmat(ca.DM([0.0, w]), 1, N)) / w
         smooth, first_k = [], 0
