@@ -5,9 +5,9 @@ their landing posture, the trunk moves back against them, and the base's forward
 before it recovers; the faster the jump, the further ahead the feet are placed and the larger
 the dip. A flight that carries the base at a constant forward speed (a point mass, or a learned
 model whose latents read the base's x and z) over-predicts the travel of fast jumps. On 40
-MuJoCo Go1 pronks the error of such a flight is a line in the lift-off speed to within 0.1 cm
-(1.7 cm longer at rest, 3.4 cm shorter per m/s), and a closed loop that plans with it lands on
-that line: short of long targets, past short ones.
+MuJoCo Go1 pronks the learned flight's error (0.52 cm rms) is a line in the lift-off velocity to
+within 0.13 cm rms (1.5 cm longer at rest, 2.6 cm shorter per m/s forward), and a closed loop
+that plans with that flight lands on the line: short of long targets, past short ones.
 
 ``fit_flight_bias`` rolls the planner's own flight (``PlanDynamics.flight``) out from each
 training jump's lift-off (``data.envelope``'s ``liftoffs``: the flight's first row) until the

@@ -287,9 +287,10 @@ def make_planner(kind: str, robot: str, model: HybridModel | None = None, aslip:
     model's pronk on its own robot its training jumps' medians, ``training_heights``);
     ``release``: what follows the push before the feet leave (``Release``; default: none, but for a
     learned model's pronk on its own robot its training jumps' release, ``training_release``);
-    ``bias``: whether the pronk's landing adds what this planner's flight misses of the training
-    jumps' travel (``plan.bias``, fitted on ``model``'s training lift-offs: ``training_bias``;
-    default: for a learned model's pronk on its own robot with height guards)."""
+    ``bias``: whether the landing adds what this planner's flight misses of the training jumps'
+    travel (``plan.bias``, fitted on ``model``'s training lift-offs: ``training_bias``; default: for
+    a learned model's pronk on its own robot with height guards; a froggy's only when asked: it
+    lands in another posture than its data's, and with the bias it landed further)."""
     if kind not in PLANNERS:
         raise ValueError(f"unknown planner {kind!r}; choose from {', '.join(PLANNERS)}")
     if guards not in GUARDS:
