@@ -186,6 +186,7 @@ class RobotPlanner:
     nominal_apex: float
     motion: MotionPlan | None = None
     envelope: dict | None = None
+    disturbance_gain: float | None = None  # the closed loop's (``Replanner``; None: its default)
     _replanner: Replanner | None = field(default=None, repr=False)
 
     @property
@@ -196,7 +197,7 @@ class RobotPlanner:
     def replanner(self) -> Replanner:
         """The closed loop's re-planner of this planner's problem (``plan.replan``), built once."""
         if self._replanner is None:
-            self._replanner = Replanner(self.nlp)
+            self._replanner = Replanner(self.nlp, disturbance_gain=self.disturbance_gain)
         return self._replanner
 
     @property

@@ -185,12 +185,15 @@ def _biased(dyn, s_liftoff, bias: FlightBias | None):
     return 0.0 if bias is None else bias.at(dyn.velocity(s_liftoff))
 
 
-def _released(dyn, s, release: Release | None, phase: str, substeps: int):
-    """The state s after ``release`` in stance ``phase`` (s itself without one)."""
+def _released(dyn, s, release: Release | None, phase: str, substeps: int, offset=None):
+    """The state s after ``release`` in stance ``phase`` (s itself without one); ``offset``: an
+    acceleration (the state's velocity part) added to the stance's (``replan``'s estimate)."""
     if release is None:
         return s
     F = ca.DM(list(release.force))
-    return _rk4(lambda v: dyn.stance(v, F, phase), s, release.duration / substeps, substeps)
+    if offset is None:
+        return _rk4(lambda v: dyn.stance(v, F, phase), s, release.duration / substeps, substeps)
+    return _rk4(lambda v: dyn.stance(v, F, phase) + offset, s, release.duration / substeps, substeps)
 
 
 @dataclass(frozen=True)

@@ -18,8 +18,14 @@ model, constraints and objective, shrinking its horizon as the push goes on:
   (dense, tens of variables) solved by DAQP and its step taken. A QP DAQP cannot solve keeps
   the last schedule.
 
-The first schedule is the NLP's plan; every re-plan warm-starts from the one before. Units:
-m, s, N; forces scaled by the robot's weight inside the QP.
+The first schedule is the NLP's plan; every re-plan warm-starts from the one before.
+
+*The disturbance estimate* (``disturbance_gain`` > 0): an acceleration d of the state's velocity
+part that the model lacks (a payload, weak motors). At each re-plan the model, with d, is rolled
+from the last measured state under the schedule it was given, and ``disturbance_gain`` of the
+velocity it missed per second is added to d; the re-plan's stances and release then carry d
+(ds/dt + [0; d]), which is how the last interval of the push and the release, which no re-plan
+corrects, get it too. Units: m, s, N; forces scaled by the robot's weight inside the QP.
 """
 
 from __future__ import annotations
@@ -33,6 +39,14 @@ import numpy as np
 
 from symrom.names import GRAVITY
 from symrom.plan.problem import JumpPlanner, Plan, _biased, _released, _rk4, force_rows
+
+DISTURBANCE_GAIN = 0.0  # the default disturbance_gain of a ``Replanner``
+PREDICT_STEPS = 10  # the estimate's Runge-Kutta steps between two measured states
+
+
+def _offset(n: int, d):
+    """ds/dt's offset (n,) of an acceleration d (n/2,) on the state's velocity part."""
+    return ca.vertcat(ca.DM.zeros(n - d.shape[0]), d)
 
 
 @dataclass
@@ -101,12 +115,26 @@ class Replanner:
     prox: the proximal weight on each step (per s^2 on durations, per (m g)^2 on forces);
     prox_later: the weight on the forces of a re-plan made within a stance after the first (a
     froggy's rear-only part, 2-4 re-plans long: nothing later takes an overreaction back), chosen
-    on simulated froggy jumps; min_left: the least time left in the current stance, s."""
+    on simulated froggy jumps; min_left: the least time left in the current stance, s;
+    disturbance_gain: how much of each interval's unexplained acceleration the disturbance
+    estimate takes up (0: none; default ``DISTURBANCE_GAIN``; module docstring)."""
 
     def __init__(self, nlp: JumpPlanner, prox: float = 0.03, prox_time: float = 0.03, prox_later: float = 0.1,
-                 min_left: float = 0.004):
+                 min_left: float = 0.004, disturbance_gain: float | None = None):
         self.nlp, self.prox, self.prox_time, self.min_left = nlp, float(prox), float(prox_time), float(min_left)
         self.prox_later = float(prox_later)
+        self.disturbance_gain = float(DISTURBANCE_GAIN if disturbance_gain is None else disturbance_gain)
+        if not 0.0 <= self.disturbance_gain <= 1.0:
+            raise ValueError(f"disturbance_gain must lie in [0, 1], got {self.disturbance_gain}")
+        n = nlp.dyn.n_state
+        self._nv = n // 2  # the state's velocity part: its second half, in every PlanDynamics
+        self.disturbance = np.zeros(self._nv)
+        self._last: tuple[np.ndarray, float] | None = None  # the last measured state and its time
+        sv, Fv, dv, hv = ca.SX.sym("s", n), ca.SX.sym("F", 2), ca.SX.sym("d", self._nv), ca.SX.sym("h")
+        # PREDICT_STEPS Runge-Kutta steps of a stance phase in one call, a force (2, PREDICT_STEPS) per step
+        self._predict = {st.phase: ca.Function("predict", [sv, Fv, dv, hv], [_rk4(
+            lambda v, ph=st.phase: nlp.dyn.stance(v, Fv, ph) + _offset(n, dv), sv, hv, 1)]).mapaccum(PREDICT_STEPS)
+            for st in nlp.stances}
         self._fns: dict[int, ca.Function] = {}
         self._bounds: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._began: dict[int, float] = {}  # when each stance began, s since the push began
@@ -118,7 +146,8 @@ class Replanner:
     # ----------------------------------------------------------------- the QP's pieces
     def _function(self, first: int) -> ca.Function:
         """(y, p) -> residuals r, dr/dy, constraints c, dc/dy, lower and upper bounds of c, for
-        the stances from ``first`` on; p = [s (n), target x, apex, w_apex, min_apex, z_lo, z_td]."""
+        the stances from ``first`` on; p = [s (n), target x, apex, w_apex, min_apex, z_lo, z_td,
+        disturbance (n/2)]."""
         if first in self._fns:
             return self._fns[first]
         nlp = self.nlp
@@ -131,7 +160,9 @@ class Replanner:
         s0 = ca.SX.sym("s0", n)
         target_x, apex_ref, w_apex, min_apex, z_lo, z_td = (ca.SX.sym(k) for k in
                                                             ("tx", "apex", "w_apex", "min_apex", "z_lo", "z_td"))
-        p = ca.vertcat(s0, target_x, apex_ref, w_apex, min_apex, z_lo, z_td)
+        d = ca.SX.sym("d", self._nv)  # the disturbance estimate, an acceleration of the state's velocity part
+        p = ca.vertcat(s0, target_x, apex_ref, w_apex, min_apex, z_lo, z_td, d)
+        off = _offset(n, d)
         T = y[:P_st + 2]
         F = ca.reshape(y[P_st + 2:] * w, 2, N)  # forces in units of the weight inside y
         c, lo, hi = [], [], []
@@ -148,11 +179,11 @@ class Replanner:
             tmap = nlp.torque_maps.get(st.phase)
             for _ in range(st.knots):
                 Fk = F[:, col]
-                s = _rk4(lambda v, Fk=Fk, ph=st.phase: dyn.stance(v, Fk, ph), s, h, M)
+                s = _rk4(lambda v, Fk=Fk, ph=st.phase: dyn.stance(v, Fk, ph) + off, s, h, M)
                 add([(dyn.velocity(s)[1], 0.0, ca.inf)])
                 add(force_rows(Fk, cfg.mu, tmap))
                 col += 1
-        s = _released(dyn, s, nlp.release, stances[-1].phase, M)
+        s = _released(dyn, s, nlp.release, stances[-1].phase, M, off)
         bias = _biased(dyn, s, nlp.bias)
         add(nlp.guards.liftoff(dyn, s, z_lo, F[:, N - 1]))
         for phase, dur in ((0, T[P_st]), (1, T[P_st + 1])):
@@ -198,6 +229,8 @@ class Replanner:
         self.schedule = Schedule(0, starts, ends, forces, plan.t_rise, plan.t_fall, plan.landing_x, plan.apex_z)
         self._stats = ReplanStats()
         self._began = {0: 0.0}
+        self.disturbance = np.zeros(self._nv)
+        self._last = (np.asarray(plan.states[0], float), 0.0) if plan.states is not None else None
         return self.schedule
 
     @property
@@ -239,6 +272,8 @@ class Replanner:
         push began (module docstring); returns the new ``Schedule`` (the last one if the QP
         failed), recording the solve's wall time."""
         t0, c0 = time.perf_counter(), time.process_time()
+        s = np.asarray(s, float)
+        self._estimate(s, tau)
         sch = self.schedule
         first = sch.stance_at(tau)
         if first not in self._began:  # a stance began at the end of the one before
@@ -247,7 +282,7 @@ class Replanner:
         y0 = self._warm(tau, first)
         lo_y, hi_y = self._bounds_y(tau, first)
         y0 = np.clip(y0, lo_y, hi_y)
-        p = np.concatenate([np.asarray(s, float), self._p_tail])
+        p = np.concatenate([s, self._p_tail, self.disturbance])
         r, Jr, c, Jc, _, _ = (np.asarray(v) for v in fn(y0, p))
         r, c = r.ravel(), c.ravel()
         lo_c, hi_c = self._bounds[first]
@@ -282,6 +317,26 @@ class Replanner:
         st.landing_x.append(self.schedule.landing_x)
         st.apex_z.append(self.schedule.apex_z)
         return self.schedule
+
+    def _estimate(self, s: np.ndarray, tau: float) -> None:
+        """Update the disturbance estimate from the state s measured at tau: the model, with the
+        estimate so far, rolled from the last measured state under the schedule it was given
+        (``PREDICT_STEPS`` steps), and ``disturbance_gain`` of the velocity it missed per second
+        taken up. An interval across a change of stance is left out (its phases' laws differ)."""
+        last, self._last = self._last, (s.copy(), float(tau))
+        if self.disturbance_gain == 0.0 or last is None or not tau > last[1]:
+            return
+        s_prev, t_prev = last
+        sch = self.schedule
+        stance = sch.stance_at(t_prev)
+        if sch.stance_at(np.nextafter(tau, t_prev)) != stance:
+            return
+        h = (tau - t_prev) / PREDICT_STEPS
+        forces = np.stack([sch.force_at(t_prev + (k + 0.5) * h) for k in range(PREDICT_STEPS)], axis=1)
+        pred = self._predict[self.nlp.stances[stance].phase](s_prev, forces, self.disturbance, h)
+        missed = (s[self._nv:] - np.asarray(pred)[self._nv:, -1]) / (tau - t_prev)
+        if np.all(np.isfinite(missed)):
+            self.disturbance = self.disturbance + self.disturbance_gain * missed
 
     def _schedule(self, y: np.ndarray, tau: float, first: int, fn: ca.Function, p: np.ndarray) -> Schedule:
         stances = self.nlp.stances[first:]
