@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 from test_plan import DAMP_X, G_C, GAIN_X, GAIN_Z, PLANTED, X, Z, planted_model
 
 from symrom.plan.dynamics import GRAVITY, LearnedDynamics
@@ -257,6 +258,19 @@ def test_jump_cli_closed_loop_under_a_payload(tmp_path):
     assert r["rate_hz"] == 100.0 and r["count"] == len(r["solve_time_s"]) == len(r["t_s"]) >= 10
     assert np.allclose(np.diff(r["t_s"]), 0.01, atol=1.5e-3)  # every 10 ms of the push
     assert 0 < r["solve_time_median_s"] < 0.01
+    assert r["disturbance_gain"] == 0.0 and r["disturbance"] == [[0.0, 0.0]] * r["count"]
+    # with the disturbance estimate: the load reads as a downward acceleration the model lacks
+    res = CliRunner().invoke(app, [*args, "--control", "mpc", "--disturbance-gain", "1", "--out", str(tmp_path / "d")])
+    assert res.exit_code == 0, res.output
+    d = json.loads((tmp_path / "d" / "landing.json").read_text())
+    r = d["replans"]
+    assert r["disturbance_gain"] == 1.0 and len(r["disturbance"]) == r["count"] and abs(d["error_x"]) < 0.04
+    assert r["disturbance"][-1][1] < -0.5  # m/s², on the latent that reads the base's height
+    one_line_error(CliRunner().invoke(app, [*args, "--disturbance-gain", "1", "--out", str(tmp_path / "x")]),
+                   "needs control 'mpc', not 'plan'")
+    one_line_error(CliRunner().invoke(app, [*args, "--control", "mpc", "--disturbance-gain", "2",
+                                            "--out", str(tmp_path / "x")]), "must lie in [0, 1], got 2")
+    assert not (tmp_path / "x").exists()
 
 
 def test_a_faster_closed_loop_records_its_own_rate(tmp_path):

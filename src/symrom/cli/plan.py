@@ -39,6 +39,9 @@ def jump_cmd(
         "--friction", help="The ground's friction coefficient (a disturbance; default the engine's).")] = None,
     motor_scale: Annotated[float, typer.Option(
         "--motor-scale", help="Torque each motor delivers per unit of its command (a disturbance).")] = 1.0,
+    disturbance_gain: Annotated[float | None, typer.Option(
+        "--disturbance-gain", help="mpc: estimate what the model lacks of the world, taking up this share (0-1) of "
+                                   "each re-plan's missed acceleration (default 0: none).")] = None,
     closest: Annotated[bool, typer.Option(
         "--closest", help="Plan the closest reachable jump to a target out of reach (else refused).")] = False,
     trajectory: Annotated[bool, typer.Option(
@@ -57,7 +60,7 @@ def jump_cmd(
 
     check_output_file(out, force, inputs=() if model_path is None else (model_path,))
     req = JumpRequest(target_x, target_z, robot, planner, model_path, guards, engine, control, motion, payload,
-                      friction, motor_scale, closest, replan_hz)
+                      friction, motor_scale, closest, replan_hz, disturbance_gain)
     with console.status(f"planning and simulating a jump to x = {target_x} m ({engine})"):
         try:
             result = run_jump(req, out, trajectory=trajectory, force=force)

@@ -59,7 +59,7 @@ MODEL_ROBOT_TOL = {"mass": 0.10, "leg length": 0.10}
 GUARDS = ("height", "learned")
 CONTROLS = ("plan", "mpc")
 REACH_TOL = 5e-3  # m: a plan landing farther than this from its target did not reach it
-LANDING_FORMAT = 6  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights; 5: release; 6: flight_bias
+LANDING_FORMAT = 6  # 2: apex_rule, apex_floor; 3: rest, upright; 4: heights; 5: release; 6: flight_bias, disturbance
 TRAJECTORY_FORMAT = 2
 INFEASIBLE = "Infeasible_Problem_Detected"  # IPOPT's status of constraints no plan meets
 # how the apex was planned (landing.json's apex_rule): a target, held at or above the motion's
@@ -528,6 +528,7 @@ class JumpResult:
     release: Release | None = None  # what the plan put between its push and the lift-off
     bias: FlightBias | None = None  # what the plan added to its flight's landing
     replan_hz: float = REPLAN_HZ  # the closed loop's re-planning rate, Hz
+    disturbance_gain: float = 0.0  # the closed loop's disturbance estimate's gain (``Replanner``)
 
     @property
     def error_x(self) -> float:
@@ -579,7 +580,7 @@ class JumpResult:
         if ex.replans is not None:
             r = ex.replans
             times = np.asarray(r.solve_time_s, float)
-            d["replans"] = {"rate_hz": self.replan_hz, "count": len(times),
+            d["replans"] = {"rate_hz": self.replan_hz, "disturbance_gain": self.disturbance_gain, "count": len(times),
                             "solve_time_median_s": float(np.median(times)) if times.size else None,
                             "solve_time_max_s": float(times.max()) if times.size else None,
                             "not_ok": int(sum(s != "ok" for s in r.status)), **r.to_dict()}
@@ -696,7 +697,8 @@ def jump(planner: RobotPlanner, target_x: float, target_z: float | None = None, 
                       apex_rule=rule[0], apex_floor=rule[1], control=control, planned_target_x=float(x),
                       planned_target_z=z, reach=reach, in_reach=in_reach,
                       heights=(planner.liftoff_height, planner.touchdown_height), replan_hz=float(replan_hz),
-                      release=planner.nlp.release, bias=planner.nlp.bias)
+                      release=planner.nlp.release, bias=planner.nlp.bias,
+                      disturbance_gain=feedback.replanner.disturbance_gain if feedback is not None else 0.0)
 
 
 @dataclass(frozen=True)
@@ -707,8 +709,9 @@ class JumpRequest:
     the control (``CONTROLS``; None: ``plan`` on the model's own robot, ``mpc`` on another robot
     of its build, where the model's forces do not carry over open loop), the motion (None: the
     model's, else the pronk), the world's disturbances (payload kg, ground friction or None, motor
-    scale), whether an out-of-reach target gets the closest reachable jump (else it is refused)
-    and the closed loop's re-planning rate (Hz, ``REPLAN_HZ`` or faster)."""
+    scale), whether an out-of-reach target gets the closest reachable jump (else it is refused),
+    the closed loop's re-planning rate (Hz, ``REPLAN_HZ`` or faster) and its disturbance
+    estimate's gain (``Replanner``; in [0, 1], None: the re-planner's default)."""
 
     target_x: float
     target_z: float | None = None
@@ -724,6 +727,7 @@ class JumpRequest:
     motor_scale: float = 1.0
     closest: bool = False
     replan_hz: float = REPLAN_HZ
+    disturbance_gain: float | None = None
 
 
 def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, force: bool = False) -> JumpResult:
@@ -758,7 +762,13 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
     trained_on = model.provenance.data.robot if model is not None else None
     robot = req.robot or trained_on or "go1"
     control = req.control or ("mpc" if trained_on is not None and robot_key(trained_on) != robot_key(robot) else "plan")
+    if req.disturbance_gain is not None:
+        if not 0.0 <= req.disturbance_gain <= 1.0:
+            raise ValueError(f"the disturbance gain must lie in [0, 1], got {req.disturbance_gain:g}")
+        if control != "mpc":
+            raise ValueError(f"a disturbance gain is the closed loop's: it needs control 'mpc', not {control!r}")
     built = make_planner(req.planner, robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)
+    built.disturbance_gain = req.disturbance_gain
     result = jump(built, req.target_x, req.target_z, engine=req.engine, control=control,
                   disturbances=disturbances, closest=req.closest, replan_hz=req.replan_hz)
     write_landing(out, result, trajectory=trajectory, force=force)

@@ -93,7 +93,8 @@ class ReplanStats:
     """Per re-plan: t s since the push began, solve_time_s (wall time: linearisation, QP and
     update), solve_cpu_s (the process's CPU time during it: one core), status (``ok``;
     ``softened``: the guards met as closely as the bounds allow; or why the last schedule was
-    kept), landing_x m and apex_z m the new schedule predicts."""
+    kept), landing_x m and apex_z m the new schedule predicts, and the disturbance estimate it
+    was made with (the state's velocity part's acceleration; zeros without one)."""
 
     t: list[float] = field(default_factory=list)
     solve_time_s: list[float] = field(default_factory=list)
@@ -101,10 +102,12 @@ class ReplanStats:
     status: list[str] = field(default_factory=list)
     landing_x: list[float] = field(default_factory=list)
     apex_z: list[float] = field(default_factory=list)
+    disturbance: list[list[float]] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return {"t_s": self.t, "solve_time_s": self.solve_time_s, "solve_cpu_s": self.solve_cpu_s,
-                "status": self.status, "landing_x_m": self.landing_x, "apex_z_m": self.apex_z}
+                "status": self.status, "landing_x_m": self.landing_x, "apex_z_m": self.apex_z,
+                "disturbance": self.disturbance}
 
 
 class Replanner:
@@ -316,6 +319,7 @@ class Replanner:
         st.status.append(status)
         st.landing_x.append(self.schedule.landing_x)
         st.apex_z.append(self.schedule.apex_z)
+        st.disturbance.append(self.disturbance.tolist())
         return self.schedule
 
     def _estimate(self, s: np.ndarray, tau: float) -> None:
