@@ -1,6 +1,8 @@
 """The reduced-order models a jump is planned with, as CasADi expressions of one interface.
 
-Every planner sees its model through ``PlanDynamics``: a state s (n,), its
+Every planner sees its model through ``PlanDynamics``: a state s (n,) whose second half is
+the time derivative of its first (positions, then velocities; the closed loop's disturbance
+estimate, ``plan.replan``, adds to the second half's derivative), its
 stance and flight time derivatives ds/dt (the stance one driven by the planned
 ground force F = (F_x, F_z), N, world, summed over the stance feet), and the
 base's forward position and height (x, z, m) and velocities read from s. Three
