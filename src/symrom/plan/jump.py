@@ -42,7 +42,7 @@ from symrom.plan.execute import LYING, MOTIONS, TILTED, Execution, execute
 from symrom.plan.guards import HeightGuards, LearnedGuards
 from symrom.plan.inputs import ALL_LEGS, force_input_map, holds_pitch, pitch_moment_map, torque_map
 from symrom.plan.problem import FlightBias, JumpPlanner, Plan, PlanConfig, PlanError, Release, Stance
-from symrom.plan.replan import Replanner, ReplanStats, Schedule
+from symrom.plan.replan import Replanner, ReplanStats, Schedule, check_disturbance_gain
 from symrom.robots import get_robot, leg_kinematics, robot_key
 from symrom.robots.stance import start_pose
 from symrom.sim.controllers.froggy import REAR, FroggyParams, crouch_pose
@@ -763,8 +763,7 @@ def run_jump(req: JumpRequest, out: str | os.PathLike, trajectory: bool = True, 
     robot = req.robot or trained_on or "go1"
     control = req.control or ("mpc" if trained_on is not None and robot_key(trained_on) != robot_key(robot) else "plan")
     if req.disturbance_gain is not None:
-        if not 0.0 <= req.disturbance_gain <= 1.0:
-            raise ValueError(f"the disturbance gain must lie in [0, 1], got {req.disturbance_gain:g}")
+        check_disturbance_gain(req.disturbance_gain)
         if control != "mpc":
             raise ValueError(f"a disturbance gain is the closed loop's: it needs control 'mpc', not {control!r}")
     built = make_planner(req.planner, robot, model=model, aslip=aslip, guards=req.guards, motion=req.motion)

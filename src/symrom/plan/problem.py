@@ -191,9 +191,11 @@ def _released(dyn, s, release: Release | None, phase: str, substeps: int, offset
     if release is None:
         return s
     F = ca.DM(list(release.force))
-    if offset is None:
-        return _rk4(lambda v: dyn.stance(v, F, phase), s, release.duration / substeps, substeps)
-    return _rk4(lambda v: dyn.stance(v, F, phase) + offset, s, release.duration / substeps, substeps)
+
+    def stance(v):
+        return dyn.stance(v, F, phase) if offset is None else dyn.stance(v, F, phase) + offset
+
+    return _rk4(stance, s, release.duration / substeps, substeps)
 
 
 @dataclass(frozen=True)

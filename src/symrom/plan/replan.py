@@ -44,6 +44,14 @@ DISTURBANCE_GAIN = 0.0  # the default disturbance_gain of a ``Replanner``
 PREDICT_STEPS = 10  # the estimate's Runge-Kutta steps between two measured states
 
 
+def check_disturbance_gain(gain: float) -> float:
+    """``gain`` as a float, refused unless it lies in [0, 1] (a share of the missed acceleration)."""
+    gain = float(gain)
+    if not 0.0 <= gain <= 1.0:
+        raise ValueError(f"disturbance_gain must lie in [0, 1], got {gain:g}")
+    return gain
+
+
 def _offset(n: int, d):
     """ds/dt's offset (n,) of an acceleration d (n/2,) on the state's velocity part."""
     return ca.vertcat(ca.DM.zeros(n - d.shape[0]), d)
@@ -126,9 +134,8 @@ class Replanner:
                  min_left: float = 0.004, disturbance_gain: float | None = None):
         self.nlp, self.prox, self.prox_time, self.min_left = nlp, float(prox), float(prox_time), float(min_left)
         self.prox_later = float(prox_later)
-        self.disturbance_gain = float(DISTURBANCE_GAIN if disturbance_gain is None else disturbance_gain)
-        if not 0.0 <= self.disturbance_gain <= 1.0:
-            raise ValueError(f"disturbance_gain must lie in [0, 1], got {self.disturbance_gain}")
+        self.disturbance_gain = check_disturbance_gain(DISTURBANCE_GAIN if disturbance_gain is None
+                                                       else disturbance_gain)
         n = nlp.dyn.n_state
         self._nv = n // 2  # the state's velocity part: its second half, in every PlanDynamics
         self.disturbance = np.zeros(self._nv)
@@ -359,4 +366,4 @@ class Replanner:
         return Schedule(first, starts, ends, forces, float(y[P_st]), float(y[P_st + 1]), x_td - self._x0, z_apex)
 
 
-__all__ = ["ReplanStats", "Replanner", "Schedule"]
+__all__ = ["DISTURBANCE_GAIN", "ReplanStats", "Replanner", "Schedule", "check_disturbance_gain"]
