@@ -42,7 +42,7 @@ WORK = """
 import numpy as np
 
 from symrom import compiled as C
-from symrom.learn.training import TrainConfig, train
+from symrom.learn.training import AdamConfig, TrainConfig, train
 from symrom.rollout.integrate import RolloutOptions, rollout
 from symrom.sim.generation.warm import warm
 from symrom.testing import make_planted_dataset
@@ -52,6 +52,7 @@ for kind, name in (("engine", "pybullet"), ("engine", "mujoco"), ("engine", "pro
     warm(kind, name)
 ds, _ = make_planted_dataset(n_jumps=3, n_samples=60, seed=1)
 model = train(ds, TrainConfig(latent_dim=1, poly_order=1))
+train(ds, TrainConfig(latent_dim=1, poly_order=1, solver="adam", adam=AdamConfig(epochs=1, refine_epochs=1)))
 for backend in ("table", "generated"):
     rollout(model, ds, None, RolloutOptions("rk4", backend=backend))
 j = 0

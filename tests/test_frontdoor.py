@@ -257,7 +257,7 @@ def test_readme_is_a_front_page_with_the_details_in_docs():
     # The quick start, as .ci/run reads it: the block's second line is the test command.
     block = text.split("## Quick start", 1)[1].split("```")[1].strip().splitlines()
     assert block == ["python3.11 -m pip install -e . && symrom demo",
-                     "python3.11 -m pip install -e '.[adam,test,ray]' && python3.11 -m pytest -q -n 2 --dist loadfile"]
+                     "python3.11 -m pip install -e '.[test,ray]' && python3.11 -m pytest -q -n 2 --dist loadfile"]
     # Results: each names the command that gives it, and that command its wall time.
     from test_benchmark_records import WALL_TIME, readme_result_problems
 

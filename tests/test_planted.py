@@ -30,7 +30,6 @@ def test_exact_solver_reproduces_held_out_rollouts(planted_block, method):
 
 
 def test_adam_solver_reproduces_held_out_rollouts(planted_block):
-    pytest.importorskip("torch")
     ds, _ = planted_block
     # The paper's lr 1e-3 assumes ~1000 mini-batches per epoch; this small set has ~14,
     # so a larger step reaches the same optimum in a test-sized number of epochs. The linear
@@ -44,62 +43,95 @@ def test_adam_solver_reproduces_held_out_rollouts(planted_block):
         assert nmae.max() <= 0.03, (h, nmae.max())
 
 
-def test_adam_closed_form_gradients_equal_autograd():
-    """The Adam steps' losses differentiated by hand give autograd's gradients, masks included."""
-    torch = pytest.importorskip("torch")
-    from symrom.learn.adam import recon_grads, sindy_grad
+def _recon_loss(q, flat, l, emask):
+    n = q.shape[1]
+    W_e, B_e = flat[:l * n].reshape(l, n), flat[l * n:l * n + l]
+    W_d, B_d = flat[l * n + l:l * n + l + n * l].reshape(n, l), flat[-n:]
+    return (((q - ((q @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1)).mean()
+
+
+def _sindy_loss(theta, ddxi, ddq, W_d, Xi, mask, l1):
+    z = theta @ (Xi * mask)
+    return (((ddxi - z) ** 2).sum(1).mean() + ((ddq - z @ W_d.T) ** 2).sum(1).mean()
+            + l1 * np.abs(Xi * mask).sum())
+
+
+def _numeric_gradient(f, x, h=1e-5):
+    g = np.zeros_like(x)
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e.flat[i] = h
+        g.flat[i] = (f(x + e) - f(x - e)) / (2 * h)
+    return g
+
+
+def test_adam_epochs_take_the_losses_gradients():
+    """A step from zero moments leaves the first moment at (1 - beta1) times the gradient: the
+    compiled epochs' gradients are the losses' own (central differences of the losses as the
+    module docstring writes them), masks, the L1 term and step (b)'s frozen encoder included."""
+    from symrom.learn.compiled import ADAM_BETA1, adam_recon_epoch, adam_sindy_epoch
 
     rng = np.random.default_rng(3)
     B, n, l, p = 37, 18, 3, 11
-    t = lambda a: torch.tensor(a, dtype=torch.float64, requires_grad=True)  # noqa: E731
-    q = torch.tensor(rng.normal(size=(B, n)))
-    emask = torch.tensor((rng.random(n) < 0.6).astype(float))
-    params = [t(rng.normal(size=s)) for s in ((l, n), (l,), (n, l), (n,))]
-    grads = recon_grads(q, *params, emask)
-    W_e, B_e, W_d, B_d = params
-    ((q - ((q @ (W_e * emask).T + B_e) @ W_d.T + B_d)) ** 2).sum(1).mean().backward()
-    for g, par in zip(grads, params):
-        np.testing.assert_allclose(g.detach().numpy(), par.grad.numpy(), rtol=1e-10, atol=1e-12)
-    assert np.all(grads[0].detach().numpy()[:, emask.numpy() == 0] == 0)
+    q = rng.normal(size=(B, n))
+    emask = (rng.random(n) < 0.6).astype(float)
+    flat0 = rng.normal(size=2 * l * n + l + n)
+    perm = rng.permutation(B)
+    for start in (0, l * n + l):  # step (a): everything; step (b): the decoder
+        flat = flat0.copy()
+        m, v = np.zeros(flat.size - start), np.zeros(flat.size - start)
+        assert adam_recon_epoch(q, perm, B, flat, start, l, emask, m, v, 0, 1e-3) == 1
+        g = _numeric_gradient(lambda x: _recon_loss(q, x, l, emask), flat0)
+        np.testing.assert_allclose(m / (1 - ADAM_BETA1), g[start:], rtol=1e-6, atol=1e-8)
+        assert np.all(flat[:start] == flat0[:start])  # the frozen encoder
+        assert np.all(m[:l * n].reshape(l, n)[:, emask == 0] == 0) if start == 0 else True
 
-    theta, ddxi = torch.tensor(rng.normal(size=(B, p))), torch.tensor(rng.normal(size=(B, l)))
-    ddq, Wd = torch.tensor(rng.normal(size=(B, n))), torch.tensor(rng.normal(size=(n, l)))
-    mask = torch.tensor((rng.random((p, l)) < 0.7).astype(float))
-    Xi = t(rng.normal(size=(p, l)))
+    theta, ddxi, ddq = rng.normal(size=(B, p)), rng.normal(size=(B, l)), rng.normal(size=(B, n))
+    W_d = rng.normal(size=(n, l))
+    mask = (rng.random((p, l)) < 0.7).astype(float)
+    Xi0 = rng.normal(size=(p, l))
+    rows = np.hstack([theta, ddxi + ddq @ W_d])
     for l1 in (0.0, 0.3):
-        Xi.grad = None
-        z = theta @ (Xi * mask)
-        (((ddxi - z) ** 2).sum(1).mean() + ((ddq - z @ Wd.T) ** 2).sum(1).mean()
-         + l1 * (Xi * mask).abs().sum()).backward()
-        g = sindy_grad(theta, ddxi, ddq, Wd, Xi.detach(), mask, l1)
-        np.testing.assert_allclose(g.numpy(), Xi.grad.numpy(), rtol=1e-10, atol=1e-12)
-        assert np.all(g.numpy()[mask.numpy() == 0] == 0)
+        Xi = Xi0.copy()
+        m, v = np.zeros(p * l), np.zeros(p * l)
+        adam_sindy_epoch(rows, np.eye(l) + W_d.T @ W_d, Xi, mask, perm, B, l1, m, v, 0, 1e-3)
+        g = _numeric_gradient(lambda x: _sindy_loss(theta, ddxi, ddq, W_d, x, mask, l1), Xi0)
+        np.testing.assert_allclose(m.reshape(p, l) / (1 - ADAM_BETA1), g, rtol=1e-6, atol=1e-8)
+        assert np.all(m.reshape(p, l)[mask == 0] == 0) and np.all(Xi[mask == 0] == Xi0[mask == 0])
 
 
-def test_adam_step_is_torchs_adam_to_the_bit():
-    """``AdamStep`` updates a tensor as ``torch.optim.Adam`` does, to the last bit, over a few
-    hundred steps (a whole tensor, and a view into the tail of a flat one as the autoencoder's
-    steps train it), at two learning rates; it fails with a moment's decay or the step count off."""
-    torch = pytest.importorskip("torch")
-    from symrom.learn.adam import AdamStep
+def test_adam_epochs_follow_adams_update_over_many_steps():
+    """An epoch of 60 mini-batches (one partial) follows Adam's update (Kingma and Ba, with
+    torch's placement of eps) written out here in NumPy on the same batches, to round-off; it
+    fails with a moment's decay, a bias correction or the step count off."""
+    from symrom.learn.compiled import ADAM_BETA1, ADAM_BETA2, ADAM_EPS, adam_sindy_epoch
 
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(5)
+    N, n, l, p, batch = 1190, 6, 2, 5, 20
+    theta, ddxi, ddq = rng.normal(size=(N, p)), rng.normal(size=(N, l)), rng.normal(size=(N, n))
+    W_d = rng.normal(size=(n, l))
+    mask = np.ones((p, l))
+    mask[1, 0] = 0.0
     for lr in (1e-3, 0.05):
-        for shape, start in (((7, 3), None), ((40,), 13)):
-            a = torch.tensor(rng.normal(size=shape), dtype=torch.float64)
-            b = a.clone()
-            ours, theirs = (a, b) if start is None else (a[start:], b[start:])
-            mine, ref = AdamStep(ours, lr, torch), torch.optim.Adam([theirs], lr=lr)
-            with torch.no_grad():
-                for k in range(500):
-                    # gradients of every size, a few exact zeros among them
-                    g = torch.tensor(rng.normal(size=ours.shape) * 10.0 ** rng.integers(-6, 3), dtype=torch.float64)
-                    g[g.abs() < 1e-7] = 0.0
-                    mine.step(g.clone())
-                    theirs.grad = g.clone()
-                    ref.step()
-                    assert torch.equal(a, b), (lr, shape, k)
-            assert mine.step_t.item() == 500.0
+        Xi, ref = np.zeros((p, l)), np.zeros((p, l))
+        m, v = np.zeros(p * l), np.zeros(p * l)
+        rm, rv = np.zeros((p, l)), np.zeros((p, l))
+        perm = rng.permutation(N)
+        t = adam_sindy_epoch(np.hstack([theta, ddxi + ddq @ W_d]), np.eye(l) + W_d.T @ W_d, Xi, mask, perm,
+                             batch, 1e-3, m, v, 7, lr)
+        assert t == 7 + 60
+        for k, a in enumerate(range(0, N, batch)):
+            idx = perm[a:a + batch]
+            Xm = ref * mask
+            z = theta[idx] @ Xm
+            d = ((z - ddxi[idx]) + (z @ W_d.T - ddq[idx]) @ W_d) * (2.0 / idx.size)
+            g = (theta[idx].T @ d + 1e-3 * np.sign(Xm)) * mask
+            rm = ADAM_BETA1 * rm + (1 - ADAM_BETA1) * g
+            rv = ADAM_BETA2 * rv + (1 - ADAM_BETA2) * g * g
+            step = 7 + k + 1
+            ref = ref - lr / (1 - ADAM_BETA1 ** step) * rm / (np.sqrt(rv / (1 - ADAM_BETA2 ** step)) + ADAM_EPS)
+        np.testing.assert_allclose(Xi, ref, rtol=1e-9, atol=1e-13)
+        assert np.abs(Xi).max() > lr and Xi[1, 0] == 0.0  # it moved, but not where masked
 
 
 def test_integrators_agree(planted_block):

@@ -17,7 +17,7 @@ import symrom
 
 # Extras a module may need (pyproject's optional dependencies): a module that cannot import
 # because one is missing is skipped, any other failure is one.
-OPTIONAL = ("torch", "ray", "numbalsoda", "casadi", "pysindy")
+OPTIONAL = ("ray", "numbalsoda", "casadi", "pysindy")
 
 WALK = """
 import functools, importlib, json, pkgutil, sys

@@ -255,7 +255,7 @@ def check_main_guarded() -> None:
 def process_context(preload: Sequence[str] = ()):
     """The multiprocessing context of fresh worker processes: forkserver with ``preload``
     imported once where there is one (and something to preload), else spawn, safe with threaded
-    BLAS and torch (plain fork could inherit locks held by the caller's threads, e.g. a progress
+    BLAS and numba (plain fork could inherit locks held by the caller's threads, e.g. a progress
     bar). Either runs the main script again in each worker, so a call from its unguarded top
     level is refused first (``check_main_guarded``)."""
     import multiprocessing as mp

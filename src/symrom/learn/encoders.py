@@ -25,7 +25,7 @@ over the contact rows first (at least 5 % of the largest of its unit, so that a
 joint held still is not blown up from its jitter), so radians and metres weigh
 alike.
 
-``AdamAutoencoder`` is the paper's gradient training of both steps (needs torch).
+``AdamAutoencoder`` is the paper's gradient training of both steps.
 """
 
 from __future__ import annotations
@@ -259,7 +259,7 @@ class PCAEncoder:
 @dataclass
 class AdamAutoencoder:
     """Steps (a) and (b) by Adam (``symrom.learn.adam``). ``generator_`` holds the
-    run's torch generator after ``fit``, for the Adam regressor to continue."""
+    run's generator after ``fit``, for the Adam regressor to continue."""
 
     kind: ClassVar[str] = "adam_autoencoder"
     config: AdamConfig = field(default_factory=AdamConfig)

@@ -398,7 +398,7 @@ class SymbolicROM:
     def _coefficients(self, prep: dict, regressor: Regressor, say: Progress, library: LibrarySpec | None):
         """Step (c): the bound library, the coefficients and the regressor that fitted them."""
         if isinstance(regressor, Adam) and isinstance(self.encoder, AdamAutoencoder):
-            # One torch stream for the whole run, as in the paper's training.
+            # One random stream for the whole run, as in the paper's training.
             regressor = replace(regressor, generator=self.encoder.generator_)
         say("dynamics", 0.5)
         lib, problem = self._problem(prep, self.library if library is None else library)

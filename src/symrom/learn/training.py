@@ -12,7 +12,7 @@ the ``SymbolicROM`` with its plug-ins and ``fit`` does the work. The model file
 records the plug-ins themselves (``HybridModel.estimator``), not this object.
 Solvers: ``exact`` (default) takes each step's closed-form optimum
 (``PCAEncoder`` then ``STLSQ``); ``adam`` is the paper's gradient training
-(``AdamAutoencoder`` then ``Adam``, needs torch).
+(``AdamAutoencoder`` then ``Adam``).
 
 The defaults reproduce the paper. Options beyond it: ``encoder_components``
 and ``encoder_scaling`` (what the encoder reads, and whether components are
