@@ -79,6 +79,17 @@ def _adam_update(p, g, m, v, t, lr):
 
 
 @numba.njit(cache=True)
+def _gather(src, perm, a, B, out):
+    """Rows perm[a:a + B] of src (N, w) into out[:B] (batch, w): a batch's rows first, in loads
+    that do not wait for each other (they lie scattered through memory, and fetching them is
+    most of a step)."""
+    for b in range(B):
+        r = perm[a + b]
+        for c in range(src.shape[1]):
+            out[b, c] = src[r, c]
+
+
+@numba.njit(cache=True)
 def adam_recon_epoch(q, perm, batch, flat, start, l, emask, m, v, t, lr):
     """One epoch of Adam on the reconstruction loss mean_b ||q_b - ((q_b (W_e*emask)^T + B_e)
     W_d^T + B_d)||^2 over the mini-batches ``perm[a:a + batch]`` of the rows of q (N, n).
@@ -98,10 +109,7 @@ def adam_recon_epoch(q, perm, batch, flat, start, l, emask, m, v, t, lr):
     for a in range(0, perm.shape[0], batch):
         B = min(batch, perm.shape[0] - a)
         scale = 2.0 / B
-        for b in range(B):  # the batch's rows first, in loads that do not wait for each other
-            r = perm[a + b]
-            for j in range(n):
-                Q[b, j] = q[r, j]
+        _gather(q, perm, a, B, Q)
         for k in range(l):
             for j in range(n):
                 We[k, j] = flat[k * n + j] * emask[j]
@@ -145,8 +153,7 @@ def adam_sindy_epoch(rows, M, Xi, mask, perm, batch, l1, m, v, t, lr):
 
     Its gradient in z is 2 (z M - y) with M = I + W_d^T W_d (l, l) and y = ddxi + ddq W_d, which
     stay fixed through step (c): rows (N, p + l) holds theta | y side by side, one contiguous
-    block per sample (a batch's rows are scattered through memory, and fetching them is most of
-    a step). Xi, mask (p, l) (mask 0 or 1; Xi's gradient is zero where it is 0) and the moments
+    block per sample. Xi, mask (p, l) (mask 0 or 1; Xi's gradient is zero where it is 0) and the moments
     m, v (p l,) are updated in place from step t. Returns the step count reached."""
     p, l = Xi.shape
     flat = Xi.reshape(p * l)
@@ -158,10 +165,7 @@ def adam_sindy_epoch(rows, M, Xi, mask, perm, batch, l1, m, v, t, lr):
     for a in range(0, perm.shape[0], batch):
         B = min(batch, perm.shape[0] - a)
         scale = 2.0 / B
-        for b in range(B):  # the batch's rows first, in loads that do not wait for each other
-            r = perm[a + b]
-            for c in range(p + l):
-                R[b, c] = rows[r, c]
+        _gather(rows, perm, a, B, R)
         for i in range(p):
             for k in range(l):
                 Xm[i, k] = Xi[i, k] * mask[i, k]
