@@ -193,7 +193,8 @@ def _released(dyn, s, release: Release | None, phase: str, substeps: int, offset
     F = ca.DM(list(release.force))
 
     def stance(v):
-        return dyn.stance(v, F, phase) if offset is None else dyn.stance(v, F, phase) + offset
+        ds = dyn.stance(v, F, phase)
+        return ds if offset is None else ds + offset
 
     return _rk4(stance, s, release.duration / substeps, substeps)
 

@@ -136,15 +136,10 @@ class Replanner:
         self.prox_later = float(prox_later)
         self.disturbance_gain = check_disturbance_gain(DISTURBANCE_GAIN if disturbance_gain is None
                                                        else disturbance_gain)
-        n = nlp.dyn.n_state
-        self._nv = n // 2  # the state's velocity part: its second half, in every PlanDynamics
+        self._nv = nlp.dyn.n_state // 2  # the state's velocity part: its second half, in every PlanDynamics
         self.disturbance = np.zeros(self._nv)
         self._last: tuple[np.ndarray, float] | None = None  # the last measured state and its time
-        sv, Fv, dv, hv = ca.SX.sym("s", n), ca.SX.sym("F", 2), ca.SX.sym("d", self._nv), ca.SX.sym("h")
-        # PREDICT_STEPS Runge-Kutta steps of a stance phase in one call, a force (2, PREDICT_STEPS) per step
-        self._predict = {st.phase: ca.Function("predict", [sv, Fv, dv, hv], [_rk4(
-            lambda v, ph=st.phase: nlp.dyn.stance(v, Fv, ph) + _offset(n, dv), sv, hv, 1)]).mapaccum(PREDICT_STEPS)
-            for st in nlp.stances}
+        self._predictors: dict[str, ca.Function] = {}  # per stance phase, built at its first estimate
         self._fns: dict[int, ca.Function] = {}
         self._bounds: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._began: dict[int, float] = {}  # when each stance began, s since the push began
@@ -344,10 +339,21 @@ class Replanner:
             return
         h = (tau - t_prev) / PREDICT_STEPS
         forces = np.stack([sch.force_at(t_prev + (k + 0.5) * h) for k in range(PREDICT_STEPS)], axis=1)
-        pred = self._predict[self.nlp.stances[stance].phase](s_prev, forces, self.disturbance, h)
+        pred = self._predictor(self.nlp.stances[stance].phase)(s_prev, forces, self.disturbance, h)
         missed = (s[self._nv:] - np.asarray(pred)[self._nv:, -1]) / (tau - t_prev)
         if np.all(np.isfinite(missed)):
             self.disturbance = self.disturbance + self.disturbance_gain * missed
+
+    def _predictor(self, phase: str) -> ca.Function:
+        """(s, F (2, PREDICT_STEPS), d, h) -> the states after each of ``PREDICT_STEPS`` Runge-Kutta
+        steps of stance ``phase`` with the estimate d, one force per step, in one call; built once
+        (only a loop with a disturbance estimate needs it)."""
+        if phase not in self._predictors:
+            n = self.nlp.dyn.n_state
+            sv, Fv, dv, hv = ca.SX.sym("s", n), ca.SX.sym("F", 2), ca.SX.sym("d", self._nv), ca.SX.sym("h")
+            step = _rk4(lambda v: self.nlp.dyn.stance(v, Fv, phase) + _offset(n, dv), sv, hv, 1)
+            self._predictors[phase] = ca.Function("predict", [sv, Fv, dv, hv], [step]).mapaccum(PREDICT_STEPS)
+        return self._predictors[phase]
 
     def _schedule(self, y: np.ndarray, tau: float, first: int, fn: ca.Function, p: np.ndarray) -> Schedule:
         stances = self.nlp.stances[first:]
