@@ -134,6 +134,30 @@ def test_adam_epochs_follow_adams_update_over_many_steps():
         assert np.abs(Xi).max() > lr and Xi[1, 0] == 0.0  # it moved, but not where masked
 
 
+def test_bad_adam_settings_are_refused_naming_the_setting(planted_block, tmp_path):
+    """A setting Adam cannot train with is one line naming it, and an existing model is left as it
+    was (no epochs would leave a model without a term; a negative seed draws nothing)."""
+    from conftest import one_line_error
+    from typer.testing import CliRunner
+
+    from symrom.cli import app
+    from symrom.data.io import write_dataset
+
+    for bad, name in (({"epochs": 0}, "epochs"), ({"batch_size": 0}, "batch_size"), ({"learning_rate": -1e-3},
+                      "learning_rate"), ({"ae_epochs": 2.5}, "ae_epochs"), ({"l1": float("nan")}, "l1")):
+        with pytest.raises(ValueError, match=name):
+            AdamConfig(**bad)
+    ds, _ = planted_block
+    data, out = tmp_path / "d.h5", tmp_path / "m"
+    write_dataset(ds, data)
+    out.mkdir()
+    (out / "model.json").write_text("kept")
+    for args, needle in ((["--epochs", "-3"], "epochs"), (["--seed", "-1"], "seed")):
+        r = CliRunner().invoke(app, ["train", str(data), "--solver", "adam", *args, "--out", str(out), "--force"])
+        one_line_error(r, needle)
+        assert (out / "model.json").read_text() == "kept"
+
+
 def test_integrators_agree(planted_block):
     ds, _ = planted_block
     model = train(ds, TrainConfig())

@@ -42,10 +42,28 @@ class AdamConfig:
     refine_epochs: int = 100
     ae_epochs: int | None = None  # epochs for steps (a) and (b); None = ``epochs``
 
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"adam learning_rate must be a positive number, got {self.learning_rate}")
+        if not (np.isfinite(self.l1) and self.l1 >= 0):
+            raise ValueError(f"adam l1 must be a non-negative number, got {self.l1}")
+        for name, least in (("batch_size", 1), ("epochs", 1), ("threshold_every", 1), ("refine_epochs", 0),
+                            ("ae_epochs", 1)):
+            value = getattr(self, name)
+            if value is not None and (int(value) != value or value < least):
+                raise ValueError(f"adam {name} must be a whole number of at least {least}, got {value}")
+
+
+def check_seed(seed: int) -> int:
+    """``seed`` as an int, refused unless it is a non-negative integer (what seeds a generator)."""
+    if int(seed) != seed or seed < 0:
+        raise ValueError(f"the adam solver's seed must be a non-negative integer, got {seed}")
+    return int(seed)
+
 
 def generator(seed: int) -> np.random.Generator:
-    """The generator of one training run."""
-    return np.random.default_rng(int(seed))
+    """The generator of one training run (``check_seed``)."""
+    return np.random.default_rng(check_seed(seed))
 
 
 class _Moments:

@@ -32,7 +32,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from symrom.data.dataset import Dataset
-from symrom.learn.adam import Adam, AdamConfig, Progress
+from symrom.learn.adam import Adam, AdamConfig, Progress, check_seed
 from symrom.learn.encoders import (
     SCALINGS,
     AdamAutoencoder,
@@ -114,6 +114,8 @@ class TrainConfig:
             raise ValueError(f"threshold={self.threshold:g}: a sparsity threshold must be >= 0")
         if isinstance(self.adam, dict):
             self.adam = AdamConfig(**self.adam)
+        if self.solver == "adam":
+            check_seed(self.seed)
         self.encoder_components = check_components(self.encoder_components, self.latent_dim)
         self.invariant = check_invariant(self.invariant)
         if len(self.invariant) >= self.latent_dim:
