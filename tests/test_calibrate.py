@@ -111,6 +111,20 @@ def test_the_val_check_applies_to_calibration(source, target):
     assert record["calibration"]["phases"]["contact"]["calibrated"]
 
 
+def test_a_first_attempt_passed_in_is_not_fitted_again_and_changes_nothing(source, target, monkeypatch):
+    import symrom.experiments.finetune as ft
+
+    check = FineTuneCheck(config=CALIBRATE)
+    fresh = run_finetune(source, target, check)
+    first = finetune(source, target, config=check.config)
+    calls = []
+    monkeypatch.setattr(ft, "finetune", lambda *a, **k: calls.append(1) or finetune(*a, **k))
+    given = run_finetune(source, target, check, first=first)
+    assert calls == [] and given.attempts == fresh.attempts  # accepted at the first weight, fitted once
+    np.testing.assert_array_equal(given.model.Xi, fresh.model.Xi)
+    np.testing.assert_array_equal(given.model.autoencoder.W_d, fresh.model.autoencoder.W_d)
+
+
 def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):
     names = source.library.feature_names
     drop = np.array([n == "1" or "nu" in n or n.startswith("dxi") for n in names])

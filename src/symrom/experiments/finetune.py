@@ -174,10 +174,13 @@ def check_data(model: HybridModel, ds: Dataset, config: FineTuneConfig = FineTun
 
 
 def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTuneCheck(),
-                 progress=None) -> FineTuneResult:
+                 progress=None, first: HybridModel | None = None) -> FineTuneResult:
     """Fine-tune ``model`` on the train jumps of ``ds``, checked on its val jumps (module
     docstring). Raises ``FineTuneRefused`` (or ``ModelDataError`` / ``DecoderRefitError``)
-    with one clear line when it cannot, or when every attempt makes val worse."""
+    with one clear line when it cannot, or when every attempt makes val worse.
+
+    first: ``finetune(model, ds, config=check.config)`` where the caller has it already (a
+    reproduction's candidates hold it): the first attempt's model, not fitted again."""
     say = progress or (lambda msg: None)
     check_data(model, ds, check.config)
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), check.floor)
@@ -189,7 +192,8 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     weight = check.config.prior_weight
     for _k in range(check.max_raises + 1):
         say(f"fine-tuning (prior weight {weight:g})")
-        tuned = finetune(model, ds, config=replace(check.config, prior_weight=weight))
+        tuned = (first if first is not None and weight == check.config.prior_weight else
+                 finetune(model, ds, config=replace(check.config, prior_weight=weight)))
         after, _ = evaluate_model(tuned, ds, "val", HORIZONS, options)
         score, div = val_score(after, spread)
         ok = div <= div0 and score <= score0 * (1.0 + check.tolerance)

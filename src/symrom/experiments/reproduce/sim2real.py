@@ -267,10 +267,12 @@ def run_target(run: Path, target: Sim2RealTarget, logged: Path, repaired: Path, 
     d.mkdir(parents=True, exist_ok=True)
     ds = read_dataset(repaired)
     cpath = d / "finetune_choice.json"
+    tuned: dict[str, HybridModel] = {}  # source -> its DEFAULT_METHOD candidate, where fitted in this call
     if done(d / "model.json") and done(cpath):
         model, choice = load_model(d / "model.json"), json.loads(cpath.read_text())
     else:
         rows, models, k = choose_proxy(sources, ds, cfg, say, name, target.paper)
+        tuned = {r["source"]: m for r, m in zip(rows, models) if r["finetune"] == DEFAULT_METHOD and m is not None}
         if k is None:  # every candidate diverged on val: keep the first source as trained
             k = 0
         model = models[k]
@@ -309,7 +311,8 @@ def run_target(run: Path, target: Sim2RealTarget, logged: Path, repaired: Path, 
         ft = None
         table["fine_tuned"] = json.loads((fdir / "refused.json").read_text())
     else:
-        ft = _default_finetune(source, ds, fdir, cfg, table, f"{name}: fine-tuning the {src_key} source", say)
+        ft = _default_finetune(source, ds, fdir, cfg, table, f"{name}: fine-tuning the {src_key} source", say,
+                               tuned.get(src_key))
     if ft is not None:
         table["prior_weight"] = ft.provenance.finetune.config["prior_weight"]  # accepted on val
         fm = evaluated(ft, ds, fdir / "eval", cfg, f"{title} (fine-tuned, {DEFAULT_METHOD})")
@@ -325,17 +328,19 @@ def run_target(run: Path, target: Sim2RealTarget, logged: Path, repaired: Path, 
 
 
 def _default_finetune(source: HybridModel, ds: Dataset, fdir: Path, cfg: ReproduceConfig, table: dict,
-                      what: str, say: Say) -> HybridModel | None:
+                      what: str, say: Say, first: HybridModel | None = None) -> HybridModel | None:
     """The default fine-tuning, as ``symrom finetune`` does it: ``DEFAULT_METHOD`` on the train
     jumps, checked on the val jumps (the prior weight raised tenfold while the val score rises
-    more than the tolerance; ``experiments.finetune.run_finetune``). Writes ``fdir`` (the model
-    and ``finetune.json``, or ``refused.json``); None if refused (the reason in ``table``)."""
+    more than the tolerance; ``experiments.finetune.run_finetune``), its first attempt ``first``
+    where ``choose_proxy`` fitted it. Writes ``fdir`` (the model and ``finetune.json``, or
+    ``refused.json``); None if refused (the reason in ``table``)."""
     from symrom.experiments.finetune import FineTuneCheck, FineTuneRefused, run_finetune, write_finetune
     from symrom.model.hybrid import ModelDataError
 
     say(f"{what} by {DEFAULT_METHOD}, checked on val")
     try:
-        result = run_finetune(source, ds, FineTuneCheck(config=replace(cfg.finetune, method=DEFAULT_METHOD)))
+        result = run_finetune(source, ds, FineTuneCheck(config=replace(cfg.finetune, method=DEFAULT_METHOD)),
+                              first=first)
     except (FineTuneRefused, ModelDataError) as e:
         table["fine_tuned"] = {"refused": str(e)}
         fdir.mkdir(parents=True, exist_ok=True)
