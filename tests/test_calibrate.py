@@ -123,6 +123,10 @@ def test_a_first_attempt_passed_in_is_not_fitted_again_and_changes_nothing(sourc
     assert calls == [] and given.attempts == fresh.attempts  # accepted at the first weight, fitted once
     np.testing.assert_array_equal(given.model.Xi, fresh.model.Xi)
     np.testing.assert_array_equal(given.model.autoencoder.W_d, fresh.model.autoencoder.W_d)
+    with pytest.raises(ValueError, match="prior_weight"):  # another fit is refused, naming what differs
+        run_finetune(source, target, FineTuneCheck(config=replace(CALIBRATE, prior_weight=0.5)), first=first)
+    with pytest.raises(ValueError, match="not a fine-tuning"):
+        run_finetune(source, target, check, first=source)
 
 
 def test_nothing_to_calibrate_is_refused_naming_what_would_work(source, target):

@@ -183,6 +183,8 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     reproduction's candidates hold it): the first attempt's model, not fitted again."""
     say = progress or (lambda msg: None)
     check_data(model, ds, check.config)
+    if first is not None:
+        _check_first(first, ds, check.config)
     spread = unit_floored(ds.q[ds.rows_of("val")].std(axis=0), check.floor)
     options = RolloutOptions(method=check.integrator)
     say("the source model on the val jumps")
@@ -212,6 +214,22 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
                           f"score {score0:.4g} before, at best {min(a['score'] for a in attempts):.4g} after "
                           f"(tolerance +{100 * check.tolerance:g} %), diverged val jumps {div0} before; the source "
                           f"model stays the better one{_others(check.config.method)}")
+
+
+def _check_first(first: HybridModel, ds: Dataset, config: FineTuneConfig) -> None:
+    """``ValueError`` naming what differs where ``first`` is not a fine-tuning by ``config`` on
+    ``ds``'s rows (its record's configuration and data hash)."""
+    from symrom.learn.estimator import data_hash
+
+    record = first.provenance.finetune
+    if record is None:
+        raise ValueError("first: the model is not a fine-tuning (its provenance records none)")
+    wanted = asdict(config)
+    differ = sorted(k for k in set(wanted) | set(record.config) if thaw(record.config).get(k) != wanted.get(k))
+    if differ:
+        raise ValueError(f"first: fine-tuned with other settings than the check's ({', '.join(differ)})")
+    if record.data_sha256 != data_hash(ds):
+        raise ValueError("first: fine-tuned on other data (its data_sha256 is not this dataset's)")
 
 
 def write_finetune(folder: str | Path, result: FineTuneResult) -> list[Path]:
