@@ -174,6 +174,17 @@ def test_the_window_helper_compiles_the_kernel_under_the_lock(monkeypatch):
     assert events == [("lock", fake_kernel), ("called", arity), ("unlock", fake_kernel)], events
 
 
+def test_the_window_kernel_builds_its_window_routine_for_one_index_type():
+    # The parallel loop's index is unsigned and the loop body is also typed as a plain loop's,
+    # signed: passed on as it is, the routine of one window was compiled twice (a third of the
+    # kernel's cold build). Its entries in numba's disk cache, once the kernel is built or loaded:
+    from symrom.compiled import kernel, table_kernels
+
+    kernel.warm_windows()
+    index = table_kernels.one_window._cache._cache_file._load_index()
+    assert [str(key[0][0]) for key in index] == ["int64"], list(index)
+
+
 @pytest.mark.parametrize("cpus, cached", [(2, False), (1, False), (2, True)])
 def test_a_cold_froggy_generation_compiles_the_force_distribution_beside_first(monkeypatch, cpus, cached):
     # On an empty cache the helper process compiles the froggy controller's force distribution

@@ -184,7 +184,9 @@ def rk4_windows(xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, act
                 dt, substeps, limit, stride, want_sens, X, V, S_out, alive):
     """Every window from its true start (windows in parallel threads)."""
     for w in numba.prange(xi.shape[0]):
-        one_window(w, xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
+        # the parallel loop's index is unsigned, the same body typed as a plain loop's signed: one
+        # index type, else the window's routine compiles twice (a third of a cold build)
+        one_window(np.int64(w), xi, dxi, nu, phase, Xi, kind, var, power, count, pk, pp, pj, active, n_active,
                    dt, substeps, limit, stride, want_sens, X, V, S_out, alive)
 
 @numba.njit(cache=True, inline="always")
