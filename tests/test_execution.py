@@ -117,6 +117,22 @@ def test_a_pool_started_from_a_scripts_top_level_is_refused_not_hung(tmp_path, g
             and "__name__" in last, r.stderr
 
 
+def test_a_packages_main_starts_workers_from_its_top_level(tmp_path):
+    """``python -m PACKAGE`` runs the package's ``__main__``, which multiprocessing's workers do
+    not run again (as ``python -m symrom`` runs the command line from its top level): its pool
+    starts and answers."""
+    pkg = tmp_path / "job"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "__main__.py").write_text(SCRIPT.format(call="run()"))
+    src = str(Path(execution.__file__).parents[1])
+    path = [src, str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(path))
+    r = subprocess.run([sys.executable, "-m", "job"], capture_output=True, text=True, timeout=120, env=env,
+                       cwd=str(tmp_path))
+    assert r.returncode == 0 and r.stdout.split("\n")[0] == "[999999.0, 1000000.0, 1000003.0]", r.stderr
+
+
 def test_the_reports_drawing_processes_are_refused_from_a_scripts_top_level_too(tmp_path):
     script = tmp_path / "draw.py"
     script.write_text("from symrom.report.context import Drawing\n\nDrawing(2).close()\n")

@@ -232,12 +232,17 @@ def check_main_guarded() -> None:
     it starts, so there the same call would start workers of its own: multiprocessing stops
     that worker, but the pool's start, which writes the shared arguments to it, would wait for it
     forever. Nothing is checked where there is no main script file (an interactive session,
-    ``-c``) or where the script's code is not its file's (``exec``)."""
+    ``-c``), where the script's code is not its file's (``exec``), or where the main module is a
+    package's ``__main__`` (``python -m symrom``), which multiprocessing's workers do not run
+    again."""
     import sys
 
     main = sys.modules.get("__main__")
     path = getattr(main, "__file__", None)
     if main is None or not path:
+        return
+    name = getattr(getattr(main, "__spec__", None), "name", None) or ""
+    if name == "__main__" or name.endswith(".__main__"):
         return
     frame = sys._getframe(1)
     while frame is not None and not (frame.f_globals is main.__dict__ and frame.f_code.co_name == "<module>"):
