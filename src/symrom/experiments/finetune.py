@@ -192,9 +192,9 @@ def run_finetune(model: HybridModel, ds: Dataset, check: FineTuneCheck = FineTun
     score0, div0 = val_score(before, spread)
     attempts = []
     weight = check.config.prior_weight
-    for _k in range(check.max_raises + 1):
+    for k in range(check.max_raises + 1):
         say(f"fine-tuning (prior weight {weight:g})")
-        tuned = (first if first is not None and weight == check.config.prior_weight else
+        tuned = (first if k == 0 and first is not None else
                  finetune(model, ds, config=replace(check.config, prior_weight=weight)))
         after, _ = evaluate_model(tuned, ds, "val", HORIZONS, options)
         score, div = val_score(after, spread)
@@ -224,8 +224,8 @@ def _check_first(first: HybridModel, ds: Dataset, config: FineTuneConfig) -> Non
     record = first.provenance.finetune
     if record is None:
         raise ValueError("first: the model is not a fine-tuning (its provenance records none)")
-    wanted = asdict(config)
-    differ = sorted(k for k in set(wanted) | set(record.config) if thaw(record.config).get(k) != wanted.get(k))
+    wanted, have = asdict(config), thaw(record.config)
+    differ = sorted(k for k in wanted.keys() | have.keys() if have.get(k) != wanted.get(k))
     if differ:
         raise ValueError(f"first: fine-tuned with other settings than the check's ({', '.join(differ)})")
     if record.data_sha256 != data_hash(ds):
