@@ -9,7 +9,8 @@ falls on both alike. The record keeps every run's wall time, the CPU time (user 
 process and its descendants (on Linux the orphans it leaves, such as a pool's fork server, are
 adopted and waited for after it ends: ``_adopt_orphans``), and the load average before and
 after; the summary gives the medians and the ratio of the medians (after / before), and prints
-a Markdown table.
+a Markdown table. The record's ``machine`` holds ``reference_loop_s``, a fixed pure-Python loop
+timed before and after the items (``REFERENCE_LOOP``): how fast the machine ran Python then.
 
 Items (``--only`` picks some; ``--reproduce`` and ``--tests`` add the long ones):
 
@@ -87,6 +88,26 @@ for i in range(runs):
     times["predict_path_cpu"].append(time.process_time() - c)
 print(json.dumps({"samples": int(ds.n_samples), "times": times}))
 """
+
+
+# A fixed pure-Python loop, timed in a new process: how fast this machine runs Python while the
+# benchmark runs. The 2-core machines these records come from differ by several times in speed
+# (the same code's cold first froggy jump took 8.7 s on one and 19 s on another); this figure,
+# taken before and after the items, says which kind of machine a record is from.
+REFERENCE_LOOP = """
+import time
+t = time.perf_counter()
+s = 0
+for i in range(10_000_000):
+    s += i
+print(time.perf_counter() - t)
+"""
+
+
+def reference_seconds(runs: int = 3) -> list[float]:
+    """Seconds of ``REFERENCE_LOOP`` in ``runs`` new processes, one after the other."""
+    return [round(float(subprocess.run([sys.executable, "-c", REFERENCE_LOOP], check=True, capture_output=True,
+                                       text=True).stdout), 3) for _ in range(runs)]
 
 
 def _cpu() -> float:
@@ -285,11 +306,13 @@ def main() -> None:
 
     def save() -> None:  # after every item, so that an interrupted run keeps what it measured
         record = {**provenance(),
-                  "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node()},
+                  "machine": {"python": platform.python_version(), "cpus": os.cpu_count(), "host": platform.node(),
+                              "reference_loop_s": reference},
                   "sides": {s.name: str(s.src) for s in sides}, "runs": args.runs, "items": summarise(items)}
         args.out.parent.mkdir(parents=True, exist_ok=True)
         write_text_atomic(args.out, json.dumps(record, indent=1) + "\n")
 
+    reference = {"before": reference_seconds()}
     items.on_set = save
 
     def plain(*cli):
@@ -421,8 +444,10 @@ def main() -> None:
                 items[name] = item_runs(name, sides, args.runs, work, lambda side, folder, x=extra: (
                     symrom("reproduce", "--out", str(folder / "run"), "--workers", w, *x), folder, fresh(folder)), T)
 
+    reference["after"] = reference_seconds()
     save()
     print(markdown(items))
+    print(f"reference loop: {reference['before']} s before the items, {reference['after']} s after")
     if not args.work:
         shutil.rmtree(work, ignore_errors=True)
 
