@@ -91,9 +91,9 @@ print(json.dumps({"samples": int(ds.n_samples), "times": times}))
 
 
 # A fixed pure-Python loop, timed in a new process: how fast this machine runs Python while the
-# benchmark runs. The 2-core machines these records come from differ by several times in speed
-# (the same code's cold first froggy jump took 8.7 s on one and 19 s on another); this figure,
-# taken before and after the items, says which kind of machine a record is from.
+# benchmark runs. The 2-core machines these records come from differ by several times in speed,
+# and one machine's speed moves within minutes (docs/benchmarks.md, "Machines differ"); this
+# figure, taken before and after the items, says what kind of machine a record is from.
 REFERENCE_LOOP = """
 import time
 t = time.perf_counter()
