@@ -1,5 +1,6 @@
 """The auto backend: the generated code once a build is at hand (this process or the disk cache)."""
 
+import dataclasses
 import os
 import subprocess
 import sys
@@ -26,6 +27,28 @@ def _q(model, ds, backend):
     return rollout(model, ds, ds.jumps_in("test"), RolloutOptions("rk4", backend=backend)).q_pred[0]
 
 
+def _ran(model, ds, backend, monkeypatch) -> tuple[np.ndarray, list[str]]:
+    """``_q``, and which integrators it ran ("table", "generated"): the rollout system's
+    compiled integrator and generated-code factory, each wrapped to say when it is used."""
+    ran: list[str] = []
+    cls, build = type(model), type(model).rollout_system
+
+    def counted(fn, name):
+        def call(*args, **kwargs):
+            ran.append(name)
+            return fn(*args, **kwargs)
+        return None if fn is None else call
+
+    def system(self, *args, **kwargs):
+        sysm = build(self, *args, **kwargs)
+        return dataclasses.replace(sysm, compiled=counted(sysm.compiled, "table"),
+                                   generated=counted(sysm.generated, "generated"))
+
+    with monkeypatch.context() as m:
+        m.setattr(cls, "rollout_system", system)
+        return _q(model, ds, backend), ran
+
+
 def test_auto_takes_the_generated_code_once_built_and_the_disk_cache_serves_a_new_process(
         model_and_data, tmp_path, monkeypatch):
     model, ds = model_and_data
@@ -33,11 +56,16 @@ def test_auto_takes_the_generated_code_once_built_and_the_disk_cache_serves_a_ne
     codegen._CACHE.clear()
     assert not compiled.has_build(model.dynamics())
     table = _q(model, ds, "table")
-    np.testing.assert_array_equal(_q(model, ds, "auto"), table)  # a small rollout: no compilation
+    auto, ran = _ran(model, ds, "auto", monkeypatch)
+    assert ran == ["table"]  # a small rollout: no compilation
+    np.testing.assert_array_equal(auto, table)
+    assert not compiled.has_build(model.dynamics())
     gen = _q(model, ds, "generated")
-    assert not np.array_equal(gen, table)  # the two paths round differently: which one ran is visible
+    np.testing.assert_allclose(gen, table, rtol=1e-9, atol=1e-12)  # the same equations, compiled
     assert compiled.has_build(model.dynamics())
-    np.testing.assert_array_equal(_q(model, ds, "auto"), gen)
+    auto, ran = _ran(model, ds, "auto", monkeypatch)
+    assert ran == ["generated"]  # once built, auto takes the generated code
+    np.testing.assert_array_equal(auto, gen)
     (module,) = (tmp_path / "cache").glob("symrom_model_*.py")
     assert module.with_suffix(".built").is_file()
     # a new process finds the build on disk; a cached module that differs from the model's
