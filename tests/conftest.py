@@ -9,12 +9,17 @@ import shutil
 import tempfile
 from pathlib import Path
 
-import numpy as np
-import pytest
+from symrom.execution import THREADS_ENV, limit_threads, pin_blas_kernel
 
-from symrom.atomic import write_text_atomic
-from symrom.execution import THREADS_ENV, limit_threads
-from symrom.testing import make_planted_dataset
+# Before NumPy loads, as the command line does: the tests' own processes and the command-line
+# runs they start do the same arithmetic.
+pin_blas_kernel()
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from symrom.atomic import write_text_atomic  # noqa: E402
+from symrom.testing import make_planted_dataset  # noqa: E402
 
 # Read by Ray when it is imported, so set before any test imports it (and inherited by the
 # command-line runs the tests start): no usage reports, and every address of the test

@@ -32,13 +32,16 @@ from __future__ import annotations
 import importlib.util
 import logging
 import os
+import platform
 import socket
+import sys
 import time
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Callable, Hashable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 BACKENDS = ("local", "ray")
@@ -144,6 +147,50 @@ _SHARED: dict[str, tuple] = {}
 THREADS_ENV = "SYMROM_THREADS"
 BLAS_ENV = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")  # read by a BLAS library when it loads
 _KERNEL_THREADS: list[int] = []  # the limit ``limit_threads`` set last in this process, if any
+
+
+BLAS_KERNEL_ENV = "OPENBLAS_CORETYPE"  # read by OpenBLAS once, when it loads
+BLAS_KERNEL = "Haswell"  # OpenBLAS's kernels for AVX2 and FMA, which the results' records ran
+
+
+def pin_blas_kernel(environ: dict[str, str] | None = None, cpuinfo: str | Path = "/proc/cpuinfo") -> str | None:
+    """Have OpenBLAS use ``BLAS_KERNEL`` in this process and the processes it starts, where
+    the CPU runs it; returns the kernel pinned (or the one ``environ`` names already), else None.
+
+    OpenBLAS picks its kernels by the CPU it finds (SkylakeX's on a machine with AVX-512,
+    Haswell's on one with AVX2), and they round a product's sums differently. A simulated jump
+    runs through them (the froggy controller's products and pseudo-inverse) and amplifies the
+    round-off: the 150 SIM A1 jumps of ``reproduce`` came out of different lengths with the two
+    kernels, and the selection chose another model from them. With the kernel pinned, every
+    x86-64 machine with AVX2 and FMA runs the same kernel.
+
+    It must run before NumPy loads (``symrom.cli.main`` calls it first); where NumPy is loaded
+    already it changes nothing, so that the workers this process starts keep its arithmetic.
+    A value of ``OPENBLAS_CORETYPE`` in the environment wins. Only on Linux x86-64, whose
+    ``cpuinfo`` lists the CPU's flags (elsewhere OpenBLAS's own choice stands).
+    """
+    env = os.environ if environ is None else environ
+    if env.get(BLAS_KERNEL_ENV):
+        return env[BLAS_KERNEL_ENV]
+    if "numpy" in sys.modules or sys.platform != "linux" or platform.machine() != "x86_64":
+        return None
+    try:
+        text = Path(cpuinfo).read_text()
+    except OSError:
+        return None
+    flags = next((line.split(":", 1)[1].split() for line in text.splitlines() if line.startswith("flags")), [])
+    if not {"avx2", "fma"} <= set(flags):
+        return None
+    env[BLAS_KERNEL_ENV] = BLAS_KERNEL
+    return BLAS_KERNEL
+
+
+def blas_kernels() -> list[str]:
+    """The BLAS libraries loaded in this process, each as "name version (kernel)"."""
+    from threadpoolctl import threadpool_info
+
+    return sorted({f"{i.get('internal_api')} {i.get('version')} ({i.get('architecture')})"
+                   for i in threadpool_info() if i.get("user_api") == "blas"})
 
 
 def kernel_threads() -> int:

@@ -27,6 +27,10 @@ def main() -> None:  # pragma: no cover - entry point
 
         print(f"symrom {__version__}")
         return
+    if "--help" not in args:  # a help page loads no NumPy
+        from symrom.execution import pin_blas_kernel
+
+        pin_blas_kernel()  # before NumPy loads: the same arithmetic on every machine that runs it
     if next((a for a in args if not a.startswith("-")), None) != "show":  # the one command that draws
         import os
 

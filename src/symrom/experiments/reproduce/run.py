@@ -18,7 +18,7 @@ from symrom.baselines import BASELINES
 from symrom.data.io import read_dataset
 from symrom.evaluate.paper import PAPER_TABLE2
 from symrom.evaluate.records import BASELINE, FINE_TUNED, LEARNED, SELECTION, SOLVER, SWEEP, ManifestEntry, Metrics
-from symrom.execution import HELPER_TIMEOUT, limit_threads, wait_helper
+from symrom.execution import HELPER_TIMEOUT, blas_kernels, limit_threads, wait_helper
 from symrom.experiments.reproduce.config import PARTS, ReproduceConfig, Say
 from symrom.experiments.reproduce.sim import references_done, run_learned, run_references, selected
 from symrom.experiments.reproduce.sim2real import SIM2REAL, SIM2REAL_SOURCES, SIM2REAL_TARGETS, run_sim2real
@@ -93,6 +93,7 @@ def _versions() -> dict:
         v["pybullet"] = version("pybullet")
     except PackageNotFoundError:  # optional in a run that reuses datasets
         pass
+    v["blas"] = "; ".join(blas_kernels())  # its kernel's rounding is in the simulated data's bits
     return v
 
 
