@@ -262,7 +262,6 @@ def _guarded_lines(path: str) -> list[tuple[int, int]] | None:
     """The line ranges of ``path``'s blocks under an ``if`` that reads ``__name__`` (``if __name__
     == "__main__":`` and its variants); None if the file cannot be read or parsed."""
     import ast
-    from pathlib import Path
 
     try:
         tree = ast.parse(Path(path).read_text(encoding="utf-8"))
@@ -282,8 +281,6 @@ def check_main_guarded() -> None:
     ``-c``), where the script's code is not its file's (``exec``), or where the main module is a
     package's ``__main__`` (``python -m symrom``), which multiprocessing's workers do not run
     again."""
-    import sys
-
     main = sys.modules.get("__main__")
     path = getattr(main, "__file__", None)
     if main is None or not path:
@@ -554,8 +551,6 @@ def start_helper(code: str):
     runs first on its path, as a ``subprocess.Popen``; None if no process can be started. The
     compiled routines' helpers fill numba's disk cache this way, beside the work that needs them."""
     import subprocess
-    import sys
-    from pathlib import Path
 
     root = str(Path(__file__).resolve().parents[1])
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([root, *filter(None, [os.environ.get("PYTHONPATH")])]))
