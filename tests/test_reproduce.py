@@ -50,6 +50,10 @@ def test_summary_follows_the_contract(run):
         assert set(exp["metrics"]["horizons"]) == {"full", "0.1"}
         assert set(exp["active_terms"]) == set(exp["equations"])
     assert set(on_disk["experiments"]["a1_sim"]["active_terms"]) == {"contact", "partial", "flight"}
+    # the BLAS kernels the run's arithmetic went through (their rounding is in the data's bits)
+    from symrom.execution import blas_kernels
+
+    assert on_disk["run"]["versions"]["blas"] == "; ".join(blas_kernels()) != ""
     for name in ("go1_sim", "a1_sim"):
         for b in ("aslip", "aslip_rollout", "newton"):
             assert (set(on_disk["experiments"][name]["baselines"][b]["horizons"]["full"]["components"])
